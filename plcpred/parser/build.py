@@ -1,0 +1,660 @@
+"""The lark transformer that builds IR nodes as the LALR parser reduces (no parse tree is
+ever materialised), and the glue that runs a grammar over a :class:`Tokenizer`."""
+from __future__ import annotations
+
+import threading
+
+from lark import Lark, Token, Transformer, v_args
+from lark.exceptions import UnexpectedEOF, UnexpectedInput, UnexpectedToken
+from lark.lexer import Lexer
+
+from . import ir
+from .errors import ProgramError
+from .literals import (parse_int, parse_time_literal, parse_typed_literal, unquote_string)
+
+# IEC 61131-3 precedence, larger binds tighter (see grammar.py).
+PRECEDENCE = {
+    "OR": 1, "OR_ELSE": 1, "XOR": 2, "AND": 3, "AMP": 3, "AND_THEN": 3, "EQ": 4, "NE": 4,
+    "LT": 5, "GT": 5, "LE": 5, "GE": 5, "PLUS": 6, "MINUS": 6, "STAR": 7, "SLASH": 7,
+    "MOD": 7, "POW": 8,
+}
+OP_TEXT = {"AMP": "AND", "EQ": "=", "NE": "<>", "LT": "<", "GT": ">", "LE": "<=", "GE": ">=",
+           "PLUS": "+", "MINUS": "-", "STAR": "*", "SLASH": "/", "POW": "**"}
+ACCESS = {"PUBLIC", "PRIVATE", "PROTECTED", "INTERNAL"}
+TIMED_QUALIFIERS = {"L", "D", "SD", "DS", "SL"}
+_COMPOUND = (ir.If, ir.Case, ir.For, ir.While, ir.Repeat)
+
+
+class _CaseHead:
+    __slots__ = ("labels", "pos")
+
+    def __init__(self, labels, pos):
+        self.labels = labels
+        self.pos = pos
+
+
+@v_args(inline=True)
+class IRBuilder(Transformer):
+    """Callbacks named after grammar rules and aliases. ``file`` is set before each parse."""
+
+    def __init__(self):
+        super().__init__()
+        self.file = "<input>"
+
+    # ------------------------------------------------------------------ helpers
+    def _pos(self, tok: Token) -> ir.Pos:
+        return ir.Pos(self.file, tok.line, tok.column)
+
+    def _err(self, message: str, pos) -> ProgramError:
+        if pos is None:
+            return ProgramError(message, self.file, 0, 0)
+        return ProgramError(message, pos.file, pos.line, pos.col)
+
+    # ------------------------------------------------------------------ expressions
+    def expr(self, *items):
+        if len(items) == 1:
+            return items[0]
+        operands = [items[0]]
+        ops: list[Token] = []
+
+        def reduce():
+            op = ops.pop()
+            right = operands.pop()
+            left = operands.pop()
+            operands.append(ir.Binary(OP_TEXT.get(op.type, op.type), left, right, pos=left.pos))
+
+        for i in range(1, len(items), 2):
+            op = items[i]
+            prec = PRECEDENCE[op.type]
+            while ops and PRECEDENCE[ops[-1].type] >= prec:
+                reduce()
+            ops.append(op)
+            operands.append(items[i + 1])
+        while ops:
+            reduce()
+        return operands[0]
+
+    def neg(self, tok, operand):
+        return ir.Unary("-", operand, pos=self._pos(tok))
+
+    def plus(self, tok, operand):
+        return ir.Unary("+", operand, pos=self._pos(tok))
+
+    def not_(self, tok, operand):
+        return ir.Unary("NOT", operand, pos=self._pos(tok))
+
+    def member(self, base, name):
+        return ir.Member(base, str(name), pos=base.pos)
+
+    def bit_access(self, base, bit):
+        return ir.BitAccess(base, int(bit), pos=base.pos)
+
+    def index(self, base, *indices):
+        return ir.Index(base, list(indices), pos=base.pos)
+
+    def deref(self, base):
+        return ir.Deref(base, pos=base.pos)
+
+    def call(self, func, args):
+        return ir.Call(func, args or [], pos=func.pos)
+
+    def name(self, tok):
+        return ir.Name(str(tok), pos=self._pos(tok))
+
+    def address(self, tok):
+        return ir.DirectAddress(str(tok).upper(), pos=self._pos(tok))
+
+    def int_lit(self, tok):
+        return ir.Literal(parse_int(tok), "ANY_INT", pos=self._pos(tok))
+
+    def real_lit(self, tok):
+        return ir.Literal(float(tok.replace("_", "")), "ANY_REAL", pos=self._pos(tok))
+
+    def typed_lit(self, tok):
+        try:
+            value, type_name = parse_typed_literal(str(tok))
+        except ValueError as e:
+            raise self._err(str(e), self._pos(tok)) from None
+        return ir.Literal(value, type_name, pos=self._pos(tok))
+
+    def time_lit(self, tok):
+        try:
+            value, type_name = parse_time_literal(str(tok))
+        except ValueError as e:
+            raise self._err(f"bad time literal {tok!s}: {e}", self._pos(tok)) from None
+        return ir.Literal(value, type_name, pos=self._pos(tok))
+
+    def string_lit(self, tok):
+        try:
+            value = unquote_string(str(tok))
+        except ValueError as e:
+            raise self._err(str(e), self._pos(tok)) from None
+        return ir.Literal(value, "WSTRING" if tok.type == "WSTRING_LIT" else "STRING",
+                          pos=self._pos(tok))
+
+    def bool_lit(self, tok):
+        return ir.Literal(tok.type == "TRUE", "BOOL", pos=self._pos(tok))
+
+    def enum_lit(self, tok):
+        type_name, value = str(tok).split("#", 1)
+        return ir.EnumLiteral(type_name, value, pos=self._pos(tok))
+
+    def args(self, *args):
+        return list(args)
+
+    def pos_arg(self, value):
+        return ir.Arg(None, value, pos=value.pos)
+
+    def named_arg(self, name, value):
+        return ir.Arg(str(name), value, pos=self._pos(name))
+
+    def out_arg(self, name, target):
+        return ir.Arg(str(name), target, output=True, pos=self._pos(name))
+
+    def neg_out_arg(self, _not, name, target):
+        return ir.Arg(str(name), target, output=True, negated=True, pos=self._pos(name))
+
+    # ------------------------------------------------------------------ statements
+    def stmt_list(self, *stmts):
+        out = []
+        prev = None
+        for s in stmts:
+            # ``END_IF;``: the semicolon vendors accept after a compound statement is not an
+            # empty statement of its own.
+            if type(s) is ir.Empty and isinstance(prev, _COMPOUND):
+                prev = s
+                continue
+            out.append(s)
+            prev = s
+        return out
+
+    def assign(self, target, value):
+        return ir.Assign(target, value, pos=target.pos)
+
+    def ref_assign(self, target, value):
+        return ir.Assign(target, value, "REF=", pos=target.pos)
+
+    def attempt_assign(self, target, value):
+        return ir.Assign(target, value, "?=", pos=target.pos)
+
+    def call_stmt(self, expr):
+        if not isinstance(expr, ir.Call):
+            raise self._err("expected ':=' (assignment) or '(' (call) after this expression",
+                            expr.pos)
+        return ir.CallStmt(expr, pos=expr.pos)
+
+    def if_stmt(self, tok, cond, body, *rest):
+        else_body = rest[-1]
+        branches = [(cond, body)] + list(rest[:-1])
+        return ir.If(branches, else_body, pos=self._pos(tok))
+
+    def elsif(self, cond, body):
+        return (cond, body)
+
+    def case_stmt(self, tok, selector, *rest):
+        else_body = rest[-1]
+        branches: list[ir.CaseBranch] = []
+        prev = None
+        for part in rest[:-1]:
+            if isinstance(part, _CaseHead):
+                branches.append(ir.CaseBranch(part.labels, [], pos=part.pos))
+            elif not branches:
+                if type(part) is ir.Empty:
+                    continue
+                raise self._err("expected a CASE label such as '1:' before this statement",
+                                getattr(part, "pos", None) or self._pos(tok))
+            elif type(part) is ir.Empty and isinstance(prev, _COMPOUND):
+                pass
+            else:
+                branches[-1].body.append(part)
+            prev = part
+        return ir.Case(selector, branches, else_body, pos=self._pos(tok))
+
+    def case_head(self, *labels):
+        return _CaseHead(list(labels), labels[0].pos)
+
+    def case_range(self, low, high):
+        return ir.CaseRange(low, high, pos=low.pos)
+
+    def for_stmt(self, tok, var, start, end, step, body):
+        return ir.For(str(var), start, end, step, body, pos=self._pos(tok))
+
+    def while_stmt(self, tok, cond, body):
+        return ir.While(cond, body, pos=self._pos(tok))
+
+    def repeat_stmt(self, tok, body, cond):
+        return ir.Repeat(body, cond, pos=self._pos(tok))
+
+    def exit_stmt(self, tok):
+        return ir.Exit(pos=self._pos(tok))
+
+    def continue_stmt(self, tok):
+        return ir.Continue(pos=self._pos(tok))
+
+    def return_stmt(self, tok):
+        return ir.Return(pos=self._pos(tok))
+
+    def empty_stmt(self):
+        return ir.Empty()
+
+    def jmp_stmt(self, tok, label):
+        return ir.Jmp(str(label), pos=self._pos(tok))
+
+    def label_stmt(self, name):
+        return ir.Label(str(name), pos=self._pos(name))
+
+    # ------------------------------------------------------------------ types
+    def qual_name(self, *names):
+        return ".".join(str(n) for n in names) if len(names) > 1 else str(names[0])
+
+    def name_list(self, *names):
+        return list(names)
+
+    def qual_list(self, *names):
+        return list(names)
+
+    def named_type(self, name):
+        return ir.NamedType(name)
+
+    def string_type(self, tok, length):
+        return ir.StringType(tok.type == "WSTRING", length, pos=self._pos(tok))
+
+    def array_type(self, *parts):
+        return ir.ArrayType(list(parts[:-1]), parts[-1])
+
+    def array_dim(self, low, high):
+        return (low, high)
+
+    def star_dim(self, _star):
+        return (None, None)
+
+    def pointer_type(self, tok, target):
+        return ir.PointerType(target, tok.type == "REFERENCE", pos=self._pos(tok))
+
+    def subrange_type(self, base, low, high):
+        return ir.SubrangeType(str(base), low, high, pos=self._pos(base))
+
+    def enum_type(self, *parts):
+        base = parts[-1]
+        return ir.EnumType(list(parts[:-1]), str(base) if base is not None else None)
+
+    def enum_value(self, name, value):
+        return (str(name), value)
+
+    def struct_type(self, tok, *decl_lists):
+        members = [d for decls in decl_lists for d in decls]
+        return ir.StructType(members, None, tok.type == "UNION", pos=self._pos(tok))
+
+    def array_init(self, *items):
+        return ir.ArrayInit(list(items))
+
+    def single_item(self, value):
+        return (1, value)
+
+    def repeated_item(self, count, value):
+        return (parse_int(count), value)
+
+    def struct_init(self, *fields):
+        return ir.StructInit(list(fields))
+
+    def field_init(self, name, value):
+        return (str(name), value)
+
+    # ------------------------------------------------------------------ declarations
+    def var_blocks(self, *blocks):
+        return list(blocks)
+
+    def var_kind(self, tok):
+        return tok
+
+    def var_qualifier(self, tok):
+        return str(tok).upper()
+
+    def var_block(self, kind, *rest):
+        qualifiers = [r for r in rest if isinstance(r, str)]
+        decls = [d for r in rest if isinstance(r, list) for d in r]
+        return ir.VarBlock(kind.type, decls, qualifiers, pos=self._pos(kind))
+
+    def var_decl(self, names, address, type_, init):
+        addr = str(address).upper() if address is not None else None
+        if addr is not None and len(names) > 1:
+            raise self._err("an AT address can be given to one variable only",
+                            self._pos(names[1]))
+        return [ir.VarDecl(str(n), type_, init, addr, pos=self._pos(n)) for n in names]
+
+    # ------------------------------------------------------------------ POUs
+    def modifiers(self, *mods):
+        return list(mods)
+
+    def modifier(self, tok):
+        return str(tok).upper()
+
+    def _split_modifiers(self, mods):
+        access = next((m for m in mods if m in ACCESS), None)
+        return access, [m for m in mods if m not in ACCESS]
+
+    def body_items(self, *items):
+        return self.stmt_list(*items)
+
+    def _pou(self, kind, tok, name, var_blocks, items, **extra):
+        stmts, steps, transitions, actions, methods, props = [], [], [], [], [], []
+        for item in items:
+            t = type(item)
+            if t is ir.Step:
+                steps.append(item)
+            elif t is ir.Transition:
+                transitions.append(item)
+            elif t is ir.SfcAction:
+                actions.append(item)
+            elif t is ir.Method:
+                methods.append(item)
+            elif t is ir.Property:
+                props.append(item)
+            else:
+                stmts.append(item)
+        pou = ir.Pou(kind, str(name), var_blocks, stmts, methods=methods, properties=props,
+                     pos=self._pos(tok), **extra)
+        if steps or transitions:
+            real = [s for s in stmts if type(s) is not ir.Empty]
+            if real:
+                raise self._err("statements cannot be mixed with SFC steps in one body",
+                                real[0].pos)
+            initial = [s for s in steps if s.initial]
+            if len(initial) != 1:
+                raise self._err(f"an SFC body needs exactly one INITIAL_STEP, found "
+                                f"{len(initial)}", pou.pos)
+            pou.body = ir.Sfc(steps, transitions, actions, pos=pou.pos)
+        else:
+            pou.actions = actions
+        return pou
+
+    def program_pou(self, tok, name, var_blocks, items):
+        return self._pou("PROGRAM", tok, name, var_blocks, items)
+
+    def fb_pou(self, tok, mods, name, extends, implements, var_blocks, items):
+        access, modifiers = self._split_modifiers(mods)
+        return self._pou("FUNCTION_BLOCK", tok, name, var_blocks, items, extends=extends,
+                         implements=implements or [], access=access, modifiers=modifiers)
+
+    def function_pou(self, tok, mods, name, ret, var_blocks, items):
+        access, modifiers = self._split_modifiers(mods)
+        return self._pou("FUNCTION", tok, name, var_blocks, items, return_type=ret,
+                         access=access, modifiers=modifiers)
+
+    def method(self, tok, mods, name, ret, var_blocks, body):
+        access, modifiers = self._split_modifiers(mods)
+        return ir.Method(str(name), ret, var_blocks, body, access, modifiers,
+                         pos=self._pos(tok))
+
+    def property(self, tok, mods, name, type_, *accessors):
+        access, modifiers = self._split_modifiers(mods)
+        return ir.Property(str(name), type_, list(accessors), access, modifiers,
+                           pos=self._pos(tok))
+
+    def accessor(self, name, var_blocks, body, end):
+        kind = str(name).upper()
+        if kind not in ("GET", "SET"):
+            raise self._err(f"expected GET or SET in a PROPERTY, found '{name}'",
+                            self._pos(name))
+        if end != "END_" + kind:
+            raise self._err(f"{kind} is closed by END_{kind}, not {end}", self._pos(name))
+        return ir.PropertyAccessor(kind, var_blocks, body, pos=self._pos(name))
+
+    def accessor_end(self, tok):
+        return str(tok).upper()
+
+    def action(self, tok, name, body):
+        return ir.SfcAction(str(name), body, pos=self._pos(tok))
+
+    def interface(self, tok, name, extends, *items):
+        return ir.Interface(str(name), extends or [],
+                            [i for i in items if isinstance(i, ir.Method)],
+                            [i for i in items if isinstance(i, ir.Property)],
+                            pos=self._pos(tok))
+
+    def type_block(self, tok, *decls):
+        return list(decls)
+
+    def type_decl(self, name, extends, type_, init):
+        if extends is not None:
+            if not isinstance(type_, ir.StructType):
+                raise self._err("only a STRUCT type can EXTEND another", self._pos(name))
+            type_.extends = extends
+        return ir.TypeDecl(str(name), type_, init, pos=self._pos(name))
+
+    def global_block(self, block):
+        return ir.GlobalVars(None, block, pos=block.pos)
+
+    # ------------------------------------------------------------------ SFC
+    def step(self, tok, name, *assocs):
+        return ir.Step(str(name), tok.type == "INITIAL_STEP", list(assocs), pos=self._pos(tok))
+
+    def action_assoc(self, name, args):
+        qualifier, rest = ("N", []) if args is None else args
+        pos = self._pos(name)
+        return make_action_assoc(str(name), qualifier, rest, pos, self._err)
+
+    def action_args(self, qualifier, *rest):
+        return (str(qualifier), list(rest))
+
+    def transition(self, tok, name, priority, sources, targets, cond):
+        return ir.Transition(sources, targets, cond, priority or 0,
+                             str(name) if name is not None else None, pos=self._pos(tok))
+
+    def transition_priority(self, key, value):
+        if str(key).upper() != "PRIORITY":
+            raise self._err(f"expected PRIORITY := n, found '{key}'", self._pos(key))
+        return parse_int(value)
+
+    def step_set(self, *names):
+        return [str(n) for n in names]
+
+    # ------------------------------------------------------------------ configurations
+    def configuration(self, tok, name, var_blocks, *items):
+        resources = [i for i in items if isinstance(i, ir.Resource)]
+        loose = [i for i in items if not isinstance(i, ir.Resource)]
+        if loose:
+            resources.insert(0, ir.Resource("", None,
+                                            tasks=[i for i in loose if isinstance(i, ir.Task)],
+                                            programs=[i for i in loose
+                                                      if isinstance(i, ir.ProgramInstance)],
+                                            pos=self._pos(tok)))
+        return ir.Configuration(str(name), var_blocks, resources, pos=self._pos(tok))
+
+    def resource(self, tok, name, on_kw, on, var_blocks, *items):
+        if str(on_kw).upper() != "ON":
+            raise self._err(f"expected ON after the resource name, found '{on_kw}'",
+                            self._pos(on_kw))
+        return ir.Resource(str(name), on, var_blocks,
+                           [i for i in items if isinstance(i, ir.Task)],
+                           [i for i in items if isinstance(i, ir.ProgramInstance)],
+                           pos=self._pos(tok))
+
+    def task(self, tok, name, params):
+        return ir.Task(str(name), params or {}, pos=self._pos(tok))
+
+    def task_params(self, *params):
+        return dict(params)
+
+    def task_param(self, key, value):
+        return (str(key).upper(), value)
+
+    def program_config(self, tok, retain, name, with_kw, task, type_name, args):
+        if with_kw is not None and str(with_kw).upper() != "WITH":
+            raise self._err(f"expected WITH, found '{with_kw}'", self._pos(with_kw))
+        return ir.ProgramInstance(str(name), type_name, str(task) if task else None,
+                                  args or [], retain, pos=self._pos(tok))
+
+    def program_retain(self, tok):
+        return str(tok).upper()
+
+    # ------------------------------------------------------------------ root
+    def start(self, *items):
+        prog = ir.Program()
+        last_pou = None
+        for item in items:
+            if isinstance(item, ir.Pou):
+                prog.pous.append(item)
+                last_pou = item
+            elif isinstance(item, list):  # TYPE block
+                prog.types.extend(item)
+            elif isinstance(item, ir.Interface):
+                prog.interfaces.append(item)
+            elif isinstance(item, ir.Configuration):
+                prog.configurations.append(item)
+            elif isinstance(item, ir.GlobalVars):
+                prog.globals.append(item)
+            else:  # a METHOD, PROPERTY or ACTION written after its POU (TwinCAT/CODESYS export)
+                if last_pou is None:
+                    raise self._err(f"{type(item).__name__.upper()} '{item.name}' stands before "
+                                    "any POU it could belong to", item.pos)
+                if isinstance(item, ir.Method):
+                    last_pou.methods.append(item)
+                elif isinstance(item, ir.Property):
+                    last_pou.properties.append(item)
+                elif last_pou.is_sfc:
+                    last_pou.body.actions.append(item)
+                else:
+                    last_pou.actions.append(item)
+        return prog
+
+
+def make_action_assoc(name, qualifier, rest, pos, err):
+    q = qualifier.upper()
+    if q not in ir.ACTION_QUALIFIERS:
+        raise err(f"unknown action qualifier '{qualifier}' (expected one of "
+                  f"{', '.join(ir.ACTION_QUALIFIERS)})", pos)
+    time = None
+    if q in TIMED_QUALIFIERS:
+        if not rest:
+            raise err(f"qualifier {q} needs a time, e.g. {name}({q}, T#2s)", pos)
+        time, rest = rest[0], rest[1:]
+    indicator = None
+    if rest:
+        if len(rest) > 1 or not isinstance(rest[0], ir.Name):
+            raise err("expected an indicator variable name after the qualifier", pos)
+        indicator = rest[0].name
+    return ir.ActionAssoc(name, q, time, indicator, pos=pos)
+
+
+# ---------------------------------------------------------------------- running a grammar
+
+class _Feed(Lexer):
+    """Lets lark pull tokens from our own tokenizer (passed as the parse input)."""
+    __future_interface__ = 2
+
+    def __init__(self, lexer_conf):
+        pass
+
+    def lex(self, lexer_state, parser_state):
+        return lexer_state.text
+
+
+class _Recording:
+    """Wraps a token iterator, remembering the last two tokens for error messages."""
+
+    def __init__(self, tokens):
+        self._it = iter(tokens)
+        self.prev = None
+        self.last = None
+
+    def __iter__(self):
+        return self
+
+    def __next__(self):
+        tok = next(self._it)
+        self.prev, self.last = self.last, tok
+        return tok
+
+
+TOKEN_NAMES = {
+    "NAME": "an identifier", "INTEGER": "an integer", "REAL": "a number",
+    "STRING_LIT": "a string", "WSTRING_LIT": "a string", "ADDRESS": "an address",
+    "TYPED_LIT": "a literal", "TIME_LIT": "a time literal", "ENUM_LIT": "an enumerated value",
+    "_ASSIGN": "':='", "_OUTASSIGN": "'=>'", "_DOTDOT": "'..'", "_LPAR": "'('",
+    "_RPAR": "')'", "_LSQB": "'['", "_RSQB": "']'", "_COMMA": "','", "_SEMI": "';'",
+    "_COLON": "':'", "_DOT": "'.'", "_CARET": "'^'", "_ARROW": "'->'",
+    "$END": "end of file",
+}
+_OPERATOR_TOKENS = {"PLUS", "MINUS", "STAR", "SLASH", "POW", "MOD", "LT", "GT", "LE", "GE",
+                    "EQ", "NE", "AND", "AMP", "AND_THEN", "XOR", "OR", "OR_ELSE"}
+_LITERAL_TOKENS = {"TYPED_LIT", "TIME_LIT", "DT_LIT", "TOD_LIT", "DATE_LIT", "ENUM_LIT",
+                   "REAL", "WSTRING_LIT", "TRUE", "FALSE", "ADDRESS"}
+
+
+def describe_token(tok) -> str:
+    if tok is None or tok.type == "$END":
+        return "end of file"
+    if tok.type in ("NAME",):
+        return f"identifier '{tok}'"
+    if tok.type.lstrip("_") == str(tok).upper():
+        return f"keyword {str(tok).upper()}"
+    return f"'{tok}'"
+
+
+def describe_expected(expected: set[str]) -> str:
+    names = []
+    has_op = bool(expected & _OPERATOR_TOKENS) and len(expected & _OPERATOR_TOKENS) > 2
+    for t in sorted(expected, key=lambda t: (t not in ("_SEMI", "_ASSIGN", "_RPAR"), t)):
+        if has_op and t in _OPERATOR_TOKENS:
+            continue
+        if t in _LITERAL_TOKENS and "NAME" in expected:
+            continue  # "an identifier or a value" covers them
+        names.append(TOKEN_NAMES.get(t, t.lstrip("_")))
+    if has_op:
+        names.append("an operator")
+    if "NAME" in expected and expected & _LITERAL_TOKENS:
+        names[names.index("an identifier")] = "an identifier or a value"
+    names = list(dict.fromkeys(names))
+    if len(names) > 8:
+        names = names[:8] + ["..."]
+    return names[0] if len(names) == 1 else "one of " + ", ".join(names)
+
+
+class GrammarRunner:
+    """One LALR parser for a grammar, shared by all parses (built once, lazily)."""
+
+    def __init__(self, grammar: str, builder_cls=IRBuilder):
+        self._grammar = grammar
+        self._builder_cls = builder_cls
+        self._parser = None
+        self._builder = None
+        self._lock = threading.Lock()
+
+    def _get(self):
+        if self._parser is None:
+            self._builder = self._builder_cls()
+            self._parser = Lark(self._grammar, parser="lalr", lexer=_Feed,
+                                transformer=self._builder, maybe_placeholders=True)
+        return self._parser
+
+    def parse(self, tokenizer, filename: str):
+        with self._lock:
+            parser = self._get()
+            self._builder.file = filename
+            feed = _Recording(tokenizer)
+            try:
+                return parser.parse(feed)
+            except UnexpectedToken as e:
+                raise _syntax_error(e.token, e.expected, feed, filename) from None
+            except UnexpectedEOF as e:
+                raise _syntax_error(None, e.expected, feed, filename) from None
+            except UnexpectedInput as e:  # pragma: no cover - other lark errors
+                raise ProgramError(str(e), filename, getattr(e, "line", 0),
+                                   getattr(e, "column", 0)) from None
+
+
+def _syntax_error(tok, expected, feed: _Recording, filename: str) -> ProgramError:
+    expected = set(expected)
+    prev = feed.prev if tok is not None else feed.last
+    if tok is None or tok.type == "$END":
+        line = prev.end_line if prev is not None and prev.end_line else (prev.line if prev else 1)
+        col = (prev.column + len(prev)) if prev is not None else 1
+        return ProgramError(f"unexpected end of file; expected {describe_expected(expected)}",
+                            filename, line, col)
+    # a missing ';' is best reported where it belongs, at the end of the previous line
+    if "_SEMI" in expected and prev is not None and prev.line < tok.line:
+        return ProgramError(f"expected ';' after '{prev}' (found {describe_token(tok)} on the "
+                            f"next line)", filename, prev.line, prev.column + len(prev))
+    return ProgramError(f"unexpected {describe_token(tok)}; expected "
+                        f"{describe_expected(expected)}", filename, tok.line, tok.column)

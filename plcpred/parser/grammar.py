@@ -1,0 +1,184 @@
+"""LALR grammars (lark) for Structured Text and for the ``.seq`` sequence-chart format.
+
+Tokens come from :mod:`plcpred.parser.lexer`; names starting with ``_`` are filtered from
+the parse tree. Two choices keep the grammar LALR(1) and fast:
+
+* Expressions are parsed flat (``operand (binop operand)*``) and the transformer applies
+  IEC 61131-3 precedence (ed.3 table 71; the B.3.1 productions of ed.2 agree): unary
+  ``-``/``+``/``NOT`` bind tighter than ``**``, then ``* / MOD``, ``+ -``, ``< > <= >=``,
+  ``= <>``, ``AND & AND_THEN``, ``XOR``, ``OR OR_ELSE``, all left-associative.
+* CASE bodies are flat lists of labels and statements that the transformer groups, which
+  avoids the one-token-lookahead clash between an enum label ``Idle:`` and a statement.
+"""
+
+TERMINALS = """
+%declare NAME INTEGER REAL TYPED_LIT TIME_LIT DT_LIT TOD_LIT DATE_LIT ENUM_LIT STRING_LIT WSTRING_LIT ADDRESS
+%declare _ASSIGN _OUTASSIGN LE GE NE POW _DOTDOT _ATTEMPT PLUS MINUS STAR SLASH LT GT EQ _LPAR _RPAR _LSQB _RSQB _COMMA _SEMI _COLON _DOT _CARET AMP _ARROW _REFASSIGN
+%declare PROGRAM _END_PROGRAM FUNCTION _END_FUNCTION FUNCTION_BLOCK _END_FUNCTION_BLOCK METHOD _END_METHOD
+%declare PROPERTY _END_PROPERTY INTERFACE _END_INTERFACE _EXTENDS _IMPLEMENTS END_GET END_SET
+%declare VAR VAR_INPUT VAR_OUTPUT VAR_IN_OUT VAR_TEMP VAR_GLOBAL VAR_EXTERNAL VAR_STAT VAR_INST VAR_CONFIG VAR_ACCESS _END_VAR
+%declare CONSTANT RETAIN NON_RETAIN PERSISTENT _AT
+%declare TYPE _END_TYPE STRUCT _END_STRUCT UNION _END_UNION _ARRAY _OF POINTER REFERENCE _TO STRING WSTRING
+%declare IF _THEN _ELSIF _ELSE _END_IF CASE _END_CASE FOR _BY _DO _END_FOR WHILE _END_WHILE REPEAT _UNTIL _END_REPEAT
+%declare EXIT CONTINUE RETURN JMP AND OR XOR NOT MOD AND_THEN OR_ELSE TRUE FALSE
+%declare CONFIGURATION _END_CONFIGURATION RESOURCE _END_RESOURCE TASK
+%declare PUBLIC PRIVATE PROTECTED INTERNAL ABSTRACT FINAL
+%declare INITIAL_STEP STEP _END_STEP TRANSITION _FROM _END_TRANSITION ACTION _END_ACTION
+"""
+
+COMMON = r"""
+// ------------------------------------------------------------------ expressions
+expr: operand (binop operand)*
+?binop: PLUS | MINUS | STAR | SLASH | POW | MOD | LT | GT | LE | GE | EQ | NE
+      | AND | AMP | AND_THEN | XOR | OR | OR_ELSE
+
+?operand: postfix
+        | MINUS operand -> neg
+        | PLUS operand -> plus
+        | NOT operand -> not_
+
+?postfix: atom
+        | postfix _DOT NAME -> member
+        | postfix _DOT INTEGER -> bit_access
+        | postfix _LSQB expr (_COMMA expr)* _RSQB -> index
+        | postfix _CARET -> deref
+        | postfix _LPAR [args] _RPAR -> call
+
+?atom: NAME -> name
+     | ADDRESS -> address
+     | INTEGER -> int_lit
+     | REAL -> real_lit
+     | TYPED_LIT -> typed_lit
+     | TIME_LIT -> time_lit
+     | DT_LIT -> time_lit
+     | TOD_LIT -> time_lit
+     | DATE_LIT -> time_lit
+     | STRING_LIT -> string_lit
+     | WSTRING_LIT -> string_lit
+     | TRUE -> bool_lit
+     | FALSE -> bool_lit
+     | ENUM_LIT -> enum_lit
+     | _LPAR expr _RPAR
+
+args: arg (_COMMA arg)*
+?arg: expr -> pos_arg
+    | NAME _ASSIGN expr -> named_arg
+    | NAME _OUTASSIGN postfix -> out_arg
+    | NOT NAME _OUTASSIGN postfix -> neg_out_arg
+
+// ------------------------------------------------------------------ statements
+stmt_list: stmt*
+?stmt: _simple_stmt | label_stmt
+?stmt_nolabel: _simple_stmt
+_simple_stmt: assign | ref_assign | attempt_assign | call_stmt | if_stmt | case_stmt | for_stmt
+            | while_stmt | repeat_stmt | exit_stmt | continue_stmt | return_stmt | empty_stmt
+            | jmp_stmt
+
+assign: postfix _ASSIGN expr _SEMI
+ref_assign: postfix _REFASSIGN expr _SEMI
+attempt_assign: postfix _ATTEMPT expr _SEMI
+call_stmt: postfix _SEMI
+if_stmt: IF expr _THEN stmt_list elsif* [_ELSE stmt_list] _END_IF
+elsif: _ELSIF expr _THEN stmt_list
+case_stmt: CASE expr _OF case_part* [_ELSE stmt_list] _END_CASE
+?case_part: case_head | stmt_nolabel
+case_head: case_label (_COMMA case_label)* _COLON
+?case_label: expr
+           | expr _DOTDOT expr -> case_range
+for_stmt: FOR NAME _ASSIGN expr _TO expr [_BY expr] _DO stmt_list _END_FOR
+while_stmt: WHILE expr _DO stmt_list _END_WHILE
+repeat_stmt: REPEAT stmt_list _UNTIL expr _END_REPEAT
+exit_stmt: EXIT _SEMI
+continue_stmt: CONTINUE _SEMI
+return_stmt: RETURN _SEMI
+empty_stmt: _SEMI
+jmp_stmt: JMP NAME _SEMI
+label_stmt: NAME _COLON
+
+// ------------------------------------------------------------------ types and declarations
+qual_name: NAME (_DOT NAME)*
+name_list: NAME (_COMMA NAME)*
+
+?type_spec: qual_name -> named_type
+          | STRING [string_len] -> string_type
+          | WSTRING [string_len] -> string_type
+          | _ARRAY _LSQB array_dim (_COMMA array_dim)* _RSQB _OF type_spec -> array_type
+          | POINTER _TO type_spec -> pointer_type
+          | REFERENCE _TO type_spec -> pointer_type
+          | NAME _LPAR expr _DOTDOT expr _RPAR -> subrange_type
+          | _LPAR enum_value (_COMMA enum_value)* _RPAR [NAME] -> enum_type
+          | STRUCT var_decl* _END_STRUCT -> struct_type
+          | UNION var_decl* _END_UNION -> struct_type
+?string_len: _LPAR expr _RPAR | _LSQB expr _RSQB
+array_dim: expr _DOTDOT expr
+         | STAR -> star_dim
+enum_value: NAME [_ASSIGN expr]
+
+?initializer: expr
+            | _LSQB array_item (_COMMA array_item)* _RSQB -> array_init
+            | _LPAR field_init (_COMMA field_init)* _RPAR -> struct_init
+?array_item: initializer -> single_item
+           | INTEGER _LPAR [initializer] _RPAR -> repeated_item
+field_init: NAME _ASSIGN initializer
+
+var_blocks: var_block*
+var_block: var_kind var_qualifier* var_decl* _END_VAR
+!var_kind: VAR | VAR_INPUT | VAR_OUTPUT | VAR_IN_OUT | VAR_TEMP | VAR_GLOBAL | VAR_EXTERNAL
+         | VAR_STAT | VAR_INST | VAR_CONFIG | VAR_ACCESS
+!var_qualifier: CONSTANT | RETAIN | NON_RETAIN | PERSISTENT
+var_decl: name_list [_AT ADDRESS] _COLON type_spec [_ASSIGN initializer] _SEMI
+"""
+
+ST_TOP = r"""
+start: _top_item*
+_top_item: program_pou | fb_pou | function_pou | type_block | interface | configuration
+         | global_block | method | property | action
+
+program_pou: PROGRAM NAME var_blocks body_items _END_PROGRAM
+fb_pou: FUNCTION_BLOCK modifiers NAME [_EXTENDS qual_name] [_IMPLEMENTS qual_list] var_blocks body_items _END_FUNCTION_BLOCK
+function_pou: FUNCTION modifiers NAME [_COLON type_spec] var_blocks body_items _END_FUNCTION
+qual_list: qual_name (_COMMA qual_name)*
+modifiers: modifier*
+!modifier: PUBLIC | PRIVATE | PROTECTED | INTERNAL | ABSTRACT | FINAL
+
+// statements, SFC elements and members in one flat list; the transformer sorts them
+body_items: _body_item*
+_body_item: stmt | step | transition | action | method | property
+
+method: METHOD modifiers NAME [_COLON type_spec] var_blocks stmt_list _END_METHOD
+property: PROPERTY modifiers NAME _COLON type_spec accessor* _END_PROPERTY
+accessor: NAME var_blocks stmt_list accessor_end
+!accessor_end: END_GET | END_SET
+action: ACTION NAME _COLON? stmt_list _END_ACTION
+
+interface: INTERFACE NAME [_EXTENDS qual_list] _iface_item* _END_INTERFACE
+_iface_item: method | property
+
+type_block: TYPE type_decl+ _END_TYPE
+type_decl: NAME [_EXTENDS qual_name] _COLON type_spec [_ASSIGN initializer] _SEMI?
+
+global_block: var_block
+
+// SFC in its IEC textual form
+step: INITIAL_STEP NAME _COLON action_assoc* _END_STEP
+    | STEP NAME _COLON action_assoc* _END_STEP
+action_assoc: NAME _LPAR [action_args] _RPAR _SEMI
+action_args: NAME (_COMMA expr)*
+transition: TRANSITION [NAME] [transition_priority] _FROM step_set _TO step_set _ASSIGN expr _SEMI _END_TRANSITION
+transition_priority: _LPAR NAME _ASSIGN INTEGER _RPAR
+step_set: NAME
+        | _LPAR NAME (_COMMA NAME)+ _RPAR
+
+// configurations
+configuration: CONFIGURATION NAME var_blocks _config_item* _END_CONFIGURATION
+_config_item: resource | task | program_config
+resource: RESOURCE NAME NAME qual_name var_blocks _resource_item* _END_RESOURCE
+_resource_item: task | program_config
+task: TASK NAME _LPAR [task_params] _RPAR _SEMI
+task_params: task_param (_COMMA task_param)*
+task_param: NAME _ASSIGN expr
+program_config: PROGRAM [program_retain] NAME [NAME NAME] _COLON qual_name [_LPAR [args] _RPAR] _SEMI
+!program_retain: RETAIN | NON_RETAIN
+"""
+
+ST_GRAMMAR = TERMINALS + COMMON + ST_TOP

@@ -1,0 +1,539 @@
+"""The intermediate representation every front end produces and every later stage reads.
+
+Structured Text, the ``.seq`` sequence-chart format and PLCopen XML all land here. Nodes are
+plain dataclasses. Each carries a source position (``pos``) that is left out of equality, so
+that a program printed back as ST and parsed again compares equal to the original.
+
+Names keep the spelling of their declaration; IEC identifiers are case-insensitive, so
+lookups use ``name.upper()``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Union
+
+
+@dataclass(frozen=True, slots=True)
+class Pos:
+    file: str
+    line: int
+    col: int
+
+    def __str__(self) -> str:
+        return f"{self.file}:{self.line}:{self.col}"
+
+
+def _pos():
+    return field(default=None, compare=False, repr=False, kw_only=True)
+
+
+# --------------------------------------------------------------------------- expressions
+
+@dataclass(slots=True)
+class Literal:
+    """A constant. ``type_name`` is the IEC type (``BOOL``, ``INT``, ``REAL``, ``TIME``,
+    ``STRING``, ...) or ``ANY_INT``/``ANY_REAL`` for untyped numbers. TIME values are in
+    seconds (float), TOD in seconds since midnight, DATE/DT in seconds since 1970-01-01."""
+    value: object
+    type_name: str
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class EnumLiteral:
+    """``E_Mode#Run`` (an enumerated value qualified with ``#``)."""
+    type_name: str
+    value: str
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Name:
+    name: str
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Member:
+    """``base.member``: a struct field, FB output/input, method, or a qualified enum value."""
+    base: "Expr"
+    member: str
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class BitAccess:
+    """``word.3``: a single bit of an integer variable."""
+    base: "Expr"
+    bit: int
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Index:
+    base: "Expr"
+    indices: list["Expr"]
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Deref:
+    """``ptr^``."""
+    base: "Expr"
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class DirectAddress:
+    """A located variable used directly in code, e.g. ``%IX0.1``."""
+    address: str
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Unary:
+    op: str  # "-", "+", "NOT"
+    operand: "Expr"
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Binary:
+    op: str  # "**", "*", "/", "MOD", "+", "-", "<", ">", "<=", ">=", "=", "<>",
+    #          "AND", "AND_THEN", "XOR", "OR", "OR_ELSE"
+    left: "Expr"
+    right: "Expr"
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Arg:
+    """A call argument: positional (``name`` is None), named input (``name := value``) or
+    output binding (``name => target``, ``output`` True)."""
+    name: str | None
+    value: "Expr | None"
+    output: bool = False
+    negated: bool = False  # ``NOT Q => x`` output binding
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Call:
+    """A function, FB instance or method call. ``func`` is the callee expression."""
+    func: "Expr"
+    args: list[Arg]
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class ArrayInit:
+    """``[1, 2, 3(0)]``: items are (repeat count, value); a value may be nested init."""
+    items: list[tuple[int, "Initializer"]]
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class StructInit:
+    """``(x := 1.0, y := 2.0)``: also used for FB instance initialisation."""
+    fields: list[tuple[str, "Initializer"]]
+    pos: Pos | None = _pos()
+
+
+Expr = Union[Literal, EnumLiteral, Name, Member, BitAccess, Index, Deref, DirectAddress,
+             Unary, Binary, Call]
+Initializer = Union[Expr, ArrayInit, StructInit]
+
+
+# --------------------------------------------------------------------------- types
+
+@dataclass(slots=True)
+class NamedType:
+    """An elementary type (``INT``) or a user / FB type referenced by name."""
+    name: str
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class StringType:
+    wide: bool = False
+    length: "Expr | None" = None
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class ArrayType:
+    dims: list[tuple["Expr", "Expr"]]  # (low, high) inclusive; ``*`` dims use None
+    element: "TypeRef"
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class PointerType:
+    target: "TypeRef"
+    reference: bool = False  # REFERENCE TO instead of POINTER TO
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class SubrangeType:
+    base: str
+    low: "Expr"
+    high: "Expr"
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class EnumType:
+    values: list[tuple[str, "Expr | None"]]
+    base: str | None = None
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class StructType:
+    members: list["VarDecl"]
+    extends: str | None = None
+    union: bool = False
+    pos: Pos | None = _pos()
+
+
+TypeRef = Union[NamedType, StringType, ArrayType, PointerType, SubrangeType, EnumType,
+                StructType]
+
+
+@dataclass(slots=True)
+class TypeDecl:
+    name: str
+    type: TypeRef
+    init: "Initializer | None" = None
+    pragmas: list[str] = field(default_factory=list)
+    pos: Pos | None = _pos()
+
+
+# --------------------------------------------------------------------------- declarations
+
+@dataclass(slots=True)
+class VarDecl:
+    name: str
+    type: TypeRef
+    init: "Initializer | None" = None
+    address: str | None = None  # "%IX0.0", "%Q*"
+    pos: Pos | None = _pos()
+
+
+VAR_KINDS = ("VAR", "VAR_INPUT", "VAR_OUTPUT", "VAR_IN_OUT", "VAR_TEMP", "VAR_GLOBAL",
+             "VAR_EXTERNAL", "VAR_STAT", "VAR_INST", "VAR_CONFIG", "VAR_ACCESS")
+
+
+@dataclass(slots=True)
+class VarBlock:
+    kind: str  # one of VAR_KINDS
+    decls: list[VarDecl]
+    qualifiers: list[str] = field(default_factory=list)  # CONSTANT, RETAIN, PERSISTENT, ...
+    pos: Pos | None = _pos()
+
+
+# --------------------------------------------------------------------------- statements
+
+@dataclass(slots=True)
+class Assign:
+    target: Expr
+    value: Expr
+    op: str = ":="  # ":=", "REF=", "?=", "S=", "R="
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class CallStmt:
+    call: Call
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class If:
+    branches: list[tuple[Expr, list["Stmt"]]]  # IF and ELSIF arms in order
+    else_body: list["Stmt"] | None = None
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class CaseRange:
+    low: Expr
+    high: Expr
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class CaseBranch:
+    labels: list["Expr | CaseRange"]
+    body: list["Stmt"]
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Case:
+    selector: Expr
+    branches: list[CaseBranch]
+    else_body: list["Stmt"] | None = None
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class For:
+    var: str
+    start: Expr
+    end: Expr
+    step: Expr | None
+    body: list["Stmt"]
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class While:
+    cond: Expr
+    body: list["Stmt"]
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Repeat:
+    body: list["Stmt"]
+    cond: Expr
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Exit:
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Continue:
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Return:
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Empty:
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Label:
+    """A jump target ``name:`` standing before the next statement."""
+    name: str
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Jmp:
+    label: str
+    pos: Pos | None = _pos()
+
+
+Stmt = Union[Assign, CallStmt, If, Case, For, While, Repeat, Exit, Continue, Return, Empty,
+             Label, Jmp]
+
+
+# --------------------------------------------------------------------------- SFC
+
+ACTION_QUALIFIERS = ("N", "R", "S", "L", "D", "P", "P0", "P1", "SD", "DS", "SL")
+
+
+@dataclass(slots=True)
+class ActionAssoc:
+    """A step's use of an action: ``action(qualifier, time)``. ``action`` names an SFC action
+    or a BOOL variable (which is then driven directly, as IEC allows)."""
+    action: str
+    qualifier: str = "N"
+    time: Expr | None = None  # for L, D, SD, DS, SL
+    indicator: str | None = None
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Step:
+    name: str
+    initial: bool = False
+    actions: list[ActionAssoc] = field(default_factory=list)
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Transition:
+    """From all ``sources`` (simultaneous convergence if several) to all ``targets``
+    (simultaneous divergence if several). Lower ``priority`` wins among transitions leaving
+    the same step (selection divergence)."""
+    sources: list[str]
+    targets: list[str]
+    condition: Expr
+    priority: int = 0
+    name: str | None = None
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class SfcAction:
+    name: str
+    body: list[Stmt]
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Sfc:
+    steps: list[Step]
+    transitions: list[Transition]
+    actions: list[SfcAction] = field(default_factory=list)
+    pos: Pos | None = _pos()
+
+    @property
+    def initial_step(self) -> Step:
+        return next(s for s in self.steps if s.initial)
+
+
+# --------------------------------------------------------------------------- POUs
+
+@dataclass(slots=True)
+class Method:
+    name: str
+    return_type: TypeRef | None
+    var_blocks: list[VarBlock]
+    body: list[Stmt]
+    access: str | None = None
+    modifiers: list[str] = field(default_factory=list)  # ABSTRACT, FINAL
+    pragmas: list[str] = field(default_factory=list)
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class PropertyAccessor:
+    kind: str  # "GET" | "SET"
+    var_blocks: list[VarBlock]
+    body: list[Stmt]
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Property:
+    name: str
+    type: TypeRef
+    accessors: list[PropertyAccessor] = field(default_factory=list)
+    access: str | None = None
+    modifiers: list[str] = field(default_factory=list)
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Pou:
+    kind: str  # "PROGRAM" | "FUNCTION_BLOCK" | "FUNCTION"
+    name: str
+    var_blocks: list[VarBlock]
+    body: list[Stmt] | Sfc
+    return_type: TypeRef | None = None
+    extends: str | None = None
+    implements: list[str] = field(default_factory=list)
+    access: str | None = None
+    modifiers: list[str] = field(default_factory=list)
+    methods: list[Method] = field(default_factory=list)
+    properties: list[Property] = field(default_factory=list)
+    actions: list[SfcAction] = field(default_factory=list)
+    pragmas: list[str] = field(default_factory=list)
+    pos: Pos | None = _pos()
+
+    @property
+    def is_sfc(self) -> bool:
+        return isinstance(self.body, Sfc)
+
+    def decls(self, *kinds: str):
+        """All declarations, optionally only those of the given block kinds."""
+        for block in self.var_blocks:
+            if not kinds or block.kind in kinds:
+                yield from block.decls
+
+
+@dataclass(slots=True)
+class Interface:
+    name: str
+    extends: list[str] = field(default_factory=list)
+    methods: list[Method] = field(default_factory=list)
+    properties: list[Property] = field(default_factory=list)
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Task:
+    name: str
+    params: dict[str, Expr] = field(default_factory=dict)  # INTERVAL, PRIORITY, SINGLE
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class ProgramInstance:
+    name: str
+    type_name: str
+    task: str | None = None
+    args: list[Arg] = field(default_factory=list)
+    retain: str | None = None
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Resource:
+    name: str
+    on: str | None
+    var_blocks: list[VarBlock] = field(default_factory=list)
+    tasks: list[Task] = field(default_factory=list)
+    programs: list[ProgramInstance] = field(default_factory=list)
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Configuration:
+    name: str
+    var_blocks: list[VarBlock] = field(default_factory=list)
+    resources: list[Resource] = field(default_factory=list)
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class GlobalVars:
+    """A VAR_GLOBAL block standing on its own (TwinCAT GVL, PLCopen globalVars)."""
+    name: str | None
+    block: VarBlock
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
+class Program:
+    """A whole source file (or several merged): the IR's root."""
+    pous: list[Pou] = field(default_factory=list)
+    types: list[TypeDecl] = field(default_factory=list)
+    interfaces: list[Interface] = field(default_factory=list)
+    configurations: list[Configuration] = field(default_factory=list)
+    globals: list[GlobalVars] = field(default_factory=list)
+    pragmas: list[tuple[str, Pos]] = field(default_factory=list, compare=False)
+    source: str | None = field(default=None, compare=False)
+
+    def pou(self, name: str) -> Pou:
+        key = name.upper()
+        for p in self.pous:
+            if p.name.upper() == key:
+                return p
+        raise KeyError(name)
+
+    def type(self, name: str) -> TypeDecl:
+        key = name.upper()
+        for t in self.types:
+            if t.name.upper() == key:
+                return t
+        raise KeyError(name)
+
+    def merge(self, other: "Program") -> "Program":
+        return Program(self.pous + other.pous, self.types + other.types,
+                       self.interfaces + other.interfaces,
+                       self.configurations + other.configurations,
+                       self.globals + other.globals, self.pragmas + other.pragmas)

@@ -1,0 +1,248 @@
+"""A hand-written tokenizer for IEC 61131-3 text, feeding lark's LALR parser.
+
+Why not lark's own lexer: IEC comments ``(* ... *)`` nest, which no regular expression can
+match, and a few words (STEP, TRANSITION, ACTION, FROM, TASK) are keywords only in files
+that use the constructs they open, because engineers routinely name variables ``Step``.
+Keywords are case-insensitive; a keyword token's type is its upper-case spelling.
+"""
+from __future__ import annotations
+
+import re
+
+from lark import Token
+
+from .errors import ProgramError
+
+KEYWORDS = frozenset("""
+PROGRAM END_PROGRAM FUNCTION END_FUNCTION FUNCTION_BLOCK END_FUNCTION_BLOCK METHOD END_METHOD
+PROPERTY END_PROPERTY INTERFACE END_INTERFACE EXTENDS IMPLEMENTS END_GET END_SET
+VAR VAR_INPUT VAR_OUTPUT VAR_IN_OUT VAR_TEMP VAR_GLOBAL VAR_EXTERNAL VAR_STAT VAR_INST
+VAR_CONFIG VAR_ACCESS END_VAR CONSTANT RETAIN NON_RETAIN PERSISTENT AT
+TYPE END_TYPE STRUCT END_STRUCT UNION END_UNION ARRAY OF POINTER REFERENCE TO STRING WSTRING
+IF THEN ELSIF ELSE END_IF CASE END_CASE FOR BY DO END_FOR WHILE END_WHILE REPEAT UNTIL
+END_REPEAT EXIT CONTINUE RETURN JMP
+AND OR XOR NOT MOD AND_THEN OR_ELSE TRUE FALSE
+CONFIGURATION END_CONFIGURATION RESOURCE END_RESOURCE
+PUBLIC PRIVATE PROTECTED INTERNAL ABSTRACT FINAL
+INITIAL_STEP END_STEP END_TRANSITION END_ACTION
+""".split())
+
+# Keyword tokens the grammar keeps (they open a construct and give the node its position, or
+# they are operators and values); every other keyword reaches the parser as ``_KEYWORD`` and
+# is filtered out of the parse tree.
+KEPT_KEYWORDS = frozenset("""
+PROGRAM FUNCTION FUNCTION_BLOCK METHOD PROPERTY INTERFACE TYPE CONFIGURATION RESOURCE TASK
+VAR VAR_INPUT VAR_OUTPUT VAR_IN_OUT VAR_TEMP VAR_GLOBAL VAR_EXTERNAL VAR_STAT VAR_INST
+VAR_CONFIG VAR_ACCESS CONSTANT RETAIN NON_RETAIN PERSISTENT STRING WSTRING POINTER REFERENCE
+IF CASE FOR WHILE REPEAT EXIT CONTINUE RETURN JMP AND OR XOR NOT MOD AND_THEN OR_ELSE TRUE FALSE
+PUBLIC PRIVATE PROTECTED INTERNAL ABSTRACT FINAL INITIAL_STEP STEP TRANSITION ACTION
+END_GET END_SET STRUCT UNION
+""".split())
+
+# Keywords switched on only when the file contains the word that closes their construct.
+CONTEXT_KEYWORDS = {
+    "STEP": "END_STEP",
+    "TRANSITION": "END_TRANSITION",
+    "FROM": "END_TRANSITION",
+    "ACTION": "END_ACTION",
+    "TASK": "END_CONFIGURATION",
+}
+
+ELEMENTARY_TYPES = frozenset("""
+BOOL SINT INT DINT LINT USINT UINT UDINT ULINT BYTE WORD DWORD LWORD REAL LREAL
+TIME LTIME DATE LDATE TIME_OF_DAY TOD LTIME_OF_DAY LTOD DATE_AND_TIME DT LDATE_AND_TIME LDT
+STRING WSTRING CHAR WCHAR
+""".split())
+
+TIME_PREFIXES = {"T": "TIME", "TIME": "TIME", "LT": "LTIME", "LTIME": "LTIME"}
+TOD_PREFIXES = {"TOD": "TOD", "TIME_OF_DAY": "TOD", "LTOD": "LTOD", "LTIME_OF_DAY": "LTOD"}
+DATE_PREFIXES = {"D": "DATE", "DATE": "DATE", "LD": "LDATE", "LDATE": "LDATE"}
+DT_PREFIXES = {"DT": "DT", "DATE_AND_TIME": "DT", "LDT": "LDT", "LDATE_AND_TIME": "LDT"}
+
+# Operators keep their token (the expression builder needs them); punctuation is filtered.
+OPERATORS = {
+    ":=": "_ASSIGN", "=>": "_OUTASSIGN", "<=": "LE", ">=": "GE", "<>": "NE", "**": "POW",
+    "..": "_DOTDOT", "?=": "_ATTEMPT", "+": "PLUS", "-": "MINUS", "*": "STAR", "/": "SLASH",
+    "<": "LT", ">": "GT", "=": "EQ", "(": "_LPAR", ")": "_RPAR", "[": "_LSQB", "]": "_RSQB",
+    ",": "_COMMA", ";": "_SEMI", ":": "_COLON", ".": "_DOT", "^": "_CARET", "&": "AMP",
+    "->": "_ARROW",
+}
+
+_MASTER = re.compile(r"""
+ (?P<ws>[ \t\r\f\v]+)
+|(?P<nl>\n)
+|(?P<lc>//[^\n]*)
+|(?P<bc>/\*)
+|(?P<pc>\(\*)
+|(?P<pragma>\{)
+|(?P<ident>[A-Za-z_][A-Za-z0-9_]*)
+|(?P<num>\d[\d_]*(?:\#[0-9A-Fa-f_]+|(?P<frac>\.\d[\d_]*)?(?P<exp>[eE][+-]?\d+)?))
+|(?P<addr>%[IQM](?:[XBWDL]?(?:\d+(?:\.\d+)*|\*)|\*))
+|(?P<str>'(?:[^'$]|\$[\s\S]|'')*')
+|(?P<wstr>"(?:[^"$]|\$[\s\S]|"")*")
+|(?P<op>:=|=>|<=|>=|<>|\*\*|\.\.|\?=|->|[-+*/<>=()\[\],;:.^&])
+""", re.X)
+
+_TIME_VALUE = re.compile(
+    r"[-+]?(?:\d[\d_]*(?:\.\d+)?(?:d|h|ms|m|s|us|ns)_?)+(?![A-Za-z0-9_])", re.I)
+_TOD_VALUE = re.compile(r"\d+:\d+(?::\d+(?:\.\d+)?)?")
+_DATE_VALUE = re.compile(r"\d{4}-\d{1,2}-\d{1,2}")
+_DT_VALUE = re.compile(r"\d{4}-\d{1,2}-\d{1,2}-\d+:\d+(?::\d+(?:\.\d+)?)?")
+_TYPED_VALUE = re.compile(
+    r"[-+]?(?:\d[\d_]*\#[0-9A-Fa-f_]+|\d[\d_]*(?:\.\d[\d_]*)?(?:[eE][+-]?\d+)?)"
+    r"|TRUE\b|FALSE\b|'(?:[^'$]|\$[\s\S]|'')*'|\"(?:[^\"$]|\$[\s\S]|\"\")*\"", re.I)
+_IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+
+
+class Tokenizer:
+    """Turns source text into lark Tokens. ``pragmas`` collects ``{...}`` blocks with their
+    positions. ``keywords`` is the reserved-word set (ST by default)."""
+
+    def __init__(self, text: str, filename: str = "<input>", keywords=KEYWORDS,
+                 context_keywords=CONTEXT_KEYWORDS, kept=KEPT_KEYWORDS):
+        self.text = text
+        self.filename = filename
+        upper = text.upper()
+        enabled = {kw for kw, closer in context_keywords.items() if closer in upper}
+        # keyword (upper case) -> token type
+        self.keywords = {kw: (kw if kw in kept else "_" + kw) for kw in keywords | enabled}
+        self.pragmas: list[tuple[str, int, int]] = []
+
+    def error(self, message: str, line: int, col: int) -> ProgramError:
+        return ProgramError(message, self.filename, line, col)
+
+    def __iter__(self):
+        text = self.text
+        n = len(text)
+        pos = 0
+        line = 1
+        line_start = 0
+        keywords = self.keywords
+        match = _MASTER.match
+        ops = OPERATORS
+        while pos < n:
+            m = match(text, pos)
+            if m is None:
+                col = pos - line_start + 1
+                raise self.error(f"unexpected character {text[pos]!r}", line, col)
+            kind = m.lastgroup
+            end = m.end()
+            col = pos - line_start + 1
+            if kind == "ws":
+                pos = end
+                continue
+            if kind == "nl":
+                line += 1
+                line_start = end
+                pos = end
+                continue
+            if kind == "lc":
+                pos = end
+                continue
+            if kind == "ident":
+                word = m.group()
+                if end < n and text[end] == "#":
+                    tok, end = self._hash_literal(word, end, line, col, pos)
+                    yield tok
+                    pos = end
+                    continue
+                upper = word.upper()
+                toktype = keywords.get(upper)
+                if toktype is not None:
+                    yield Token(toktype, word, pos, line, col)
+                elif upper == "REF" and text.startswith("=", end) and not text.startswith("=>", end):
+                    yield Token("_REFASSIGN", "REF=", pos, line, col)
+                    end += 1
+                else:
+                    yield Token("NAME", word, pos, line, col)
+                pos = end
+                continue
+            if kind == "op":
+                yield Token(ops[m.group()], m.group(), pos, line, col)
+                pos = end
+                continue
+            if kind == "num":
+                if m.group("frac") or m.group("exp"):
+                    yield Token("REAL", m.group(), pos, line, col)
+                else:
+                    yield Token("INTEGER", m.group(), pos, line, col)
+                pos = end
+                continue
+            if kind in ("str", "wstr"):
+                value = m.group()
+                yield Token("STRING_LIT" if kind == "str" else "WSTRING_LIT", value, pos, line, col)
+                nls = value.count("\n")
+                if nls:
+                    line += nls
+                    line_start = pos + value.rfind("\n") + 1
+                pos = end
+                continue
+            if kind == "addr":
+                yield Token("ADDRESS", m.group(), pos, line, col)
+                pos = end
+                continue
+            # comments and pragmas that may span lines
+            if kind == "pc":
+                end = self._nested_comment_end(pos, line, col)
+            elif kind == "bc":
+                end = text.find("*/", pos + 2)
+                if end < 0:
+                    raise self.error("comment '/*' is never closed", line, col)
+                end += 2
+            else:  # pragma
+                end = text.find("}", pos + 1)
+                if end < 0:
+                    raise self.error("pragma '{' is never closed", line, col)
+                end += 1
+                self.pragmas.append((text[pos:end], line, col))
+            chunk = text[pos:end]
+            nls = chunk.count("\n")
+            if nls:
+                line += nls
+                line_start = pos + chunk.rfind("\n") + 1
+            pos = end
+
+    def _nested_comment_end(self, pos: int, line: int, col: int) -> int:
+        text = self.text
+        depth = 0
+        i = pos
+        while True:
+            a = text.find("(*", i)
+            b = text.find("*)", i)
+            if b < 0:
+                raise self.error("comment '(*' is never closed", line, col)
+            if 0 <= a < b:
+                depth += 1
+                i = a + 2
+            else:
+                depth -= 1
+                i = b + 2
+                if depth == 0:
+                    return i
+
+    def _hash_literal(self, word: str, hash_pos: int, line: int, col: int, start: int):
+        """``PREFIX#value``: a typed literal, a time/date literal, or ``Enum#Value``."""
+        text = self.text
+        upper = word.upper()
+        vstart = hash_pos + 1
+        for table, regex, tokname in ((TIME_PREFIXES, _TIME_VALUE, "TIME_LIT"),
+                                      (DT_PREFIXES, _DT_VALUE, "DT_LIT"),
+                                      (TOD_PREFIXES, _TOD_VALUE, "TOD_LIT"),
+                                      (DATE_PREFIXES, _DATE_VALUE, "DATE_LIT")):
+            if upper in table:
+                m = regex.match(text, vstart)
+                if m is None:
+                    raise self.error(f"malformed {table[upper]} literal after '{word}#'",
+                                     line, col + len(word) + 1)
+                return Token(tokname, f"{table[upper]}#{m.group()}", start, line, col), m.end()
+        if upper in ELEMENTARY_TYPES:
+            m = _TYPED_VALUE.match(text, vstart)
+            if m is None:
+                raise self.error(f"malformed {upper} literal after '{word}#'",
+                                 line, col + len(word) + 1)
+            return Token("TYPED_LIT", f"{upper}#{m.group()}", start, line, col), m.end()
+        m = _IDENT.match(text, vstart)
+        if m is None:
+            raise self.error(f"expected an enumeration value after '{word}#'",
+                             line, col + len(word) + 1)
+        return Token("ENUM_LIT", f"{word}#{m.group()}", start, line, col), m.end()

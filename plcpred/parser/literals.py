@@ -1,0 +1,200 @@
+"""Decoding IEC 61131-3 literal text into values (and back, for the ST printer).
+
+TIME, LTIME, TOD, DATE and DT values are integer nanoseconds (durations; since midnight for
+TOD; since 1970-01-01 UTC for DATE and DT), so that time arithmetic in the sequencer is
+exact.
+"""
+from __future__ import annotations
+
+import calendar
+import re
+from fractions import Fraction
+
+NS_PER_UNIT = {"d": 86_400 * 10**9, "h": 3_600 * 10**9, "m": 60 * 10**9, "s": 10**9,
+               "ms": 10**6, "us": 10**3, "ns": 1}
+_TIME_PART = re.compile(r"(\d[\d_]*(?:\.\d+)?)(d|h|ms|m|s|us|ns)_?", re.I)
+
+INT_TYPES = {"SINT": 8, "INT": 16, "DINT": 32, "LINT": 64, "USINT": 8, "UINT": 16,
+             "UDINT": 32, "ULINT": 64, "BYTE": 8, "WORD": 16, "DWORD": 32, "LWORD": 64}
+REAL_TYPES = {"REAL", "LREAL"}
+
+
+def parse_int(text: str) -> int:
+    """``1_000``, ``16#FF``, ``2#1010_0101``, ``8#17``, with an optional sign."""
+    text = text.replace("_", "")
+    sign = 1
+    if text[:1] in "+-":
+        sign = -1 if text[0] == "-" else 1
+        text = text[1:]
+    if "#" in text:
+        base, digits = text.split("#", 1)
+        return sign * int(digits, int(base))
+    return sign * int(text)
+
+
+def parse_duration_ns(text: str) -> int:
+    """``1h2m3s4ms``, ``-1.5s``, ``250ms`` (the part after ``T#``) -> nanoseconds."""
+    sign = 1
+    if text[:1] in "+-":
+        sign = -1 if text[0] == "-" else 1
+        text = text[1:]
+    total = Fraction(0)
+    pos = 0
+    for m in _TIME_PART.finditer(text):
+        if m.start() != pos:
+            raise ValueError(f"malformed duration {text!r}")
+        total += Fraction(m.group(1).replace("_", "")) * NS_PER_UNIT[m.group(2).lower()]
+        pos = m.end()
+    if pos != len(text) or pos == 0:
+        raise ValueError(f"malformed duration {text!r}")
+    return sign * round(total)
+
+
+def parse_tod_ns(text: str) -> int:
+    parts = text.split(":")
+    h, m = int(parts[0]), int(parts[1])
+    s = Fraction(parts[2]) if len(parts) > 2 else Fraction(0)
+    return round(((h * 60 + m) * 60 + s) * 10**9)
+
+
+def parse_date_ns(text: str) -> int:
+    y, mo, d = (int(p) for p in text.split("-")[:3])
+    return calendar.timegm((y, mo, d, 0, 0, 0)) * 10**9
+
+
+def parse_time_literal(text: str) -> tuple[int, str]:
+    """``TIME#1s`` / ``TOD#12:00:00`` / ``DATE#2024-01-02`` / ``DT#2024-01-02-03:04:05``
+    (prefix already normalised by the lexer) -> (nanoseconds, type name)."""
+    kind, value = text.split("#", 1)
+    if kind in ("TIME", "LTIME"):
+        return parse_duration_ns(value), kind
+    if kind in ("TOD", "LTOD"):
+        return parse_tod_ns(value), kind
+    if kind in ("DATE", "LDATE"):
+        return parse_date_ns(value), kind
+    date, tod = value.rsplit("-", 1)
+    return parse_date_ns(date) + parse_tod_ns(tod), kind
+
+
+_ESCAPES = {"$": "$", "'": "'", '"': '"', "L": "\n", "N": "\n", "P": "\f", "R": "\r",
+            "T": "\t"}
+
+
+def unquote_string(text: str) -> str:
+    """Decode a quoted IEC string: ``$`` escapes, ``$hh`` (``$hhhh`` in WSTRING), and a
+    doubled quote character standing for one."""
+    quote = text[0]
+    body = text[1:-1]
+    hexlen = 2 if quote == "'" else 4
+    out = []
+    i = 0
+    n = len(body)
+    while i < n:
+        c = body[i]
+        if c == "$" and i + 1 < n:
+            e = body[i + 1]
+            if e.upper() in _ESCAPES:
+                out.append(_ESCAPES[e.upper()])
+                i += 2
+                continue
+            code = body[i + 1:i + 1 + hexlen]
+            if len(code) == hexlen and all(ch in "0123456789abcdefABCDEF" for ch in code):
+                out.append(chr(int(code, 16)))
+                i += 1 + hexlen
+                continue
+            raise ValueError(f"unknown escape '${e}' in string")
+        if c == quote and i + 1 < n and body[i + 1] == quote:
+            out.append(quote)
+            i += 2
+            continue
+        out.append(c)
+        i += 1
+    return "".join(out)
+
+
+def quote_string(value: str, wide: bool = False) -> str:
+    quote = '"' if wide else "'"
+    out = []
+    for c in value:
+        if c == "$":
+            out.append("$$")
+        elif c == quote:
+            out.append("$" + quote)
+        elif c == "\n":
+            out.append("$N")
+        elif c == "\t":
+            out.append("$T")
+        elif c == "\r":
+            out.append("$R")
+        elif c == "\f":
+            out.append("$P")
+        elif ord(c) < 32 or (not wide and ord(c) > 255):
+            out.append(f"${ord(c):0{4 if wide else 2}X}")
+        else:
+            out.append(c)
+    return quote + "".join(out) + quote
+
+
+def format_duration(ns: int) -> str:
+    """Nanoseconds -> ``1h2m3s4ms`` (exact, largest units first)."""
+    if ns == 0:
+        return "0s"
+    sign = "-" if ns < 0 else ""
+    ns = abs(ns)
+    parts = []
+    for unit in ("d", "h", "m", "s", "ms", "us", "ns"):
+        size = NS_PER_UNIT[unit]
+        if ns >= size:
+            q, ns = divmod(ns, size)
+            parts.append(f"{q}{unit}")
+    return sign + "".join(parts)
+
+
+def format_time_literal(ns: int, kind: str) -> str:
+    if kind in ("TIME", "LTIME"):
+        return f"{'T' if kind == 'TIME' else 'LTIME'}#{format_duration(ns)}"
+    if kind in ("TOD", "LTOD"):
+        return f"{kind}#{_format_tod(ns)}"
+    days, rest = divmod(ns, 86_400 * 10**9)
+    y, mo, d = _civil_from_days(days)
+    if kind in ("DATE", "LDATE"):
+        return f"{'D' if kind == 'DATE' else 'LDATE'}#{y:04d}-{mo:02d}-{d:02d}"
+    return f"{kind}#{y:04d}-{mo:02d}-{d:02d}-{_format_tod(rest)}"
+
+
+def _format_tod(ns: int) -> str:
+    s, frac = divmod(ns, 10**9)
+    h, rem = divmod(s, 3600)
+    m, s = divmod(rem, 60)
+    text = f"{h:02d}:{m:02d}:{s:02d}"
+    if frac:
+        text += "." + f"{frac:09d}".rstrip("0")
+    return text
+
+
+def _civil_from_days(days: int) -> tuple[int, int, int]:
+    import datetime
+    d = datetime.date(1970, 1, 1) + datetime.timedelta(days=days)
+    return d.year, d.month, d.day
+
+
+def parse_typed_literal(text: str):
+    """``INT#-5``, ``REAL#1.5``, ``BOOL#TRUE``, ``WORD#16#FF``, ``STRING#'x'`` ->
+    (value, type name)."""
+    type_name, value = text.split("#", 1)
+    if type_name == "BOOL":
+        v = value.upper()
+        if v in ("TRUE", "1"):
+            return True, type_name
+        if v in ("FALSE", "0"):
+            return False, type_name
+        raise ValueError(f"{value!r} is not a BOOL")
+    if type_name in INT_TYPES:
+        return parse_int(value), type_name
+    if type_name in REAL_TYPES:
+        return (float(parse_int(value)) if "#" in value else float(value.replace("_", ""))), type_name
+    if type_name in ("STRING", "WSTRING", "CHAR", "WCHAR"):
+        if value[:1] not in ("'", '"'):
+            raise ValueError(f"{type_name} literal needs a quoted string")
+        return unquote_string(value), type_name
+    raise ValueError(f"no typed literals of type {type_name}")

@@ -1,0 +1,20 @@
+"""Structured Text front end: ``parse_st(text, filename)`` -> :class:`ir.Program`."""
+from __future__ import annotations
+
+from . import ir
+from .build import GrammarRunner
+from .grammar import ST_GRAMMAR
+from .lexer import Tokenizer
+
+_RUNNER = GrammarRunner(ST_GRAMMAR)
+
+
+def parse_st(text: str, filename: str = "<input>") -> ir.Program:
+    """Parse IEC 61131-3 Structured Text (one or more POUs, TYPE blocks, interfaces,
+    configurations, global variable lists). Raises :class:`ProgramError` with the file,
+    line and column of the first problem."""
+    tokenizer = Tokenizer(text, filename)
+    program = _RUNNER.parse(tokenizer, filename)
+    program.pragmas = [(p, ir.Pos(filename, line, col)) for p, line, col in tokenizer.pragmas]
+    program.source = filename
+    return program
