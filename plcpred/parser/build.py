@@ -25,6 +25,15 @@ TIMED_QUALIFIERS = {"L", "D", "SD", "DS", "SL"}
 _COMPOUND = (ir.If, ir.Case, ir.For, ir.While, ir.Repeat)
 
 
+class _QualName(str):
+    """A possibly dotted name (``Lib.FB_X``) that remembers where it was written."""
+
+    def __new__(cls, text, pos):
+        obj = super().__new__(cls, text)
+        obj.pos = pos
+        return obj
+
+
 class _CaseHead:
     __slots__ = ("labels", "pos")
 
@@ -245,7 +254,7 @@ class IRBuilder(Transformer):
 
     # ------------------------------------------------------------------ types
     def qual_name(self, *names):
-        return ".".join(str(n) for n in names) if len(names) > 1 else str(names[0])
+        return _QualName(".".join(str(n) for n in names), self._pos(names[0]))
 
     def name_list(self, *names):
         return list(names)
@@ -254,7 +263,7 @@ class IRBuilder(Transformer):
         return list(names)
 
     def named_type(self, name):
-        return ir.NamedType(name)
+        return ir.NamedType(str(name), pos=name.pos)
 
     def string_type(self, tok, length):
         return ir.StringType(tok.type == "WSTRING", length, pos=self._pos(tok))
@@ -373,8 +382,10 @@ class IRBuilder(Transformer):
 
     def fb_pou(self, tok, mods, name, extends, implements, var_blocks, items):
         access, modifiers = self._split_modifiers(mods)
-        return self._pou("FUNCTION_BLOCK", tok, name, var_blocks, items, extends=extends,
-                         implements=implements or [], access=access, modifiers=modifiers)
+        return self._pou("FUNCTION_BLOCK", tok, name, var_blocks, items,
+                         extends=str(extends) if extends else None,
+                         implements=[str(i) for i in implements or []], access=access,
+                         modifiers=modifiers)
 
     def function_pou(self, tok, mods, name, ret, var_blocks, items):
         access, modifiers = self._split_modifiers(mods)
@@ -407,7 +418,7 @@ class IRBuilder(Transformer):
         return ir.SfcAction(str(name), body, pos=self._pos(tok))
 
     def interface(self, tok, name, extends, *items):
-        return ir.Interface(str(name), extends or [],
+        return ir.Interface(str(name), [str(e) for e in extends or []],
                             [i for i in items if isinstance(i, ir.Method)],
                             [i for i in items if isinstance(i, ir.Property)],
                             pos=self._pos(tok))
@@ -419,7 +430,7 @@ class IRBuilder(Transformer):
         if extends is not None:
             if not isinstance(type_, ir.StructType):
                 raise self._err("only a STRUCT type can EXTEND another", self._pos(name))
-            type_.extends = extends
+            type_.extends = str(extends)
         return ir.TypeDecl(str(name), type_, init, pos=self._pos(name))
 
     def global_block(self, block):
@@ -465,7 +476,7 @@ class IRBuilder(Transformer):
         if str(on_kw).upper() != "ON":
             raise self._err(f"expected ON after the resource name, found '{on_kw}'",
                             self._pos(on_kw))
-        return ir.Resource(str(name), on, var_blocks,
+        return ir.Resource(str(name), str(on), var_blocks,
                            [i for i in items if isinstance(i, ir.Task)],
                            [i for i in items if isinstance(i, ir.ProgramInstance)],
                            pos=self._pos(tok))
@@ -482,7 +493,7 @@ class IRBuilder(Transformer):
     def program_config(self, tok, retain, name, with_kw, task, type_name, args):
         if with_kw is not None and str(with_kw).upper() != "WITH":
             raise self._err(f"expected WITH, found '{with_kw}'", self._pos(with_kw))
-        return ir.ProgramInstance(str(name), type_name, str(task) if task else None,
+        return ir.ProgramInstance(str(name), str(type_name), str(task) if task else None,
                                   args or [], retain, pos=self._pos(tok))
 
     def program_retain(self, tok):
@@ -592,19 +603,26 @@ def describe_token(tok) -> str:
     return f"'{tok}'"
 
 
+_EXPRESSION_START = {"NAME", "INTEGER", "_LPAR", "MINUS", "PLUS", "NOT", "STRING_LIT"}
+_OP_NAMES = {"PLUS": "'+'", "MINUS": "'-'", "STAR": "'*'", "SLASH": "'/'", "POW": "'**'",
+             "LT": "'<'", "GT": "'>'", "LE": "'<='", "GE": "'>='", "EQ": "'='", "NE": "'<>'",
+             "AMP": "'&'"}
+
+
 def describe_expected(expected: set[str]) -> str:
+    """A short human list of what the parser could have accepted."""
+    expected = set(expected)
     names = []
-    has_op = bool(expected & _OPERATOR_TOKENS) and len(expected & _OPERATOR_TOKENS) > 2
+    if {"NAME", "INTEGER", "_LPAR"} <= expected:
+        expected -= _EXPRESSION_START | _LITERAL_TOKENS | {"REAL"}
+        names.append("an expression")
+    ops = expected & _OPERATOR_TOKENS
+    if len(ops) > 2:
+        expected -= ops
     for t in sorted(expected, key=lambda t: (t not in ("_SEMI", "_ASSIGN", "_RPAR"), t)):
-        if has_op and t in _OPERATOR_TOKENS:
-            continue
-        if t in _LITERAL_TOKENS and "NAME" in expected:
-            continue  # "an identifier or a value" covers them
-        names.append(TOKEN_NAMES.get(t, t.lstrip("_")))
-    if has_op:
+        names.append(TOKEN_NAMES.get(t) or _OP_NAMES.get(t) or t.lstrip("_"))
+    if len(ops) > 2:
         names.append("an operator")
-    if "NAME" in expected and expected & _LITERAL_TOKENS:
-        names[names.index("an identifier")] = "an identifier or a value"
     names = list(dict.fromkeys(names))
     if len(names) > 8:
         names = names[:8] + ["..."]
@@ -646,12 +664,15 @@ class GrammarRunner:
 
 def _syntax_error(tok, expected, feed: _Recording, filename: str) -> ProgramError:
     expected = set(expected)
-    prev = feed.prev if tok is not None else feed.last
     if tok is None or tok.type == "$END":
-        line = prev.end_line if prev is not None and prev.end_line else (prev.line if prev else 1)
+        prev = feed.last
+        line = prev.line if prev is not None else 1
         col = (prev.column + len(prev)) if prev is not None else 1
-        return ProgramError(f"unexpected end of file; expected {describe_expected(expected)}",
-                            filename, line, col)
+        # at the end of the file the useful hint is the construct left open
+        closers = {t for t in expected if t.startswith("_END_")}
+        return ProgramError(f"unexpected end of file; expected "
+                            f"{describe_expected(closers or expected)}", filename, line, col)
+    prev = feed.prev
     # a missing ';' is best reported where it belongs, at the end of the previous line
     if "_SEMI" in expected and prev is not None and prev.line < tok.line:
         return ProgramError(f"expected ';' after '{prev}' (found {describe_token(tok)} on the "

@@ -1,0 +1,556 @@
+"""Semantic checks on the IR: the errors a PLC compiler would stop on, and warnings for
+code that is probably wrong.
+
+Errors: undeclared names, unknown types and FB types, unknown FB members and call
+parameters, assignments to inputs (a POU's own VAR_INPUT, ``%I`` located variables, an FB
+instance's outputs) or constants, duplicate declarations.
+Warnings: local variables never used, outputs never written.
+
+``check_program(program, context=[...])`` resolves names against the program itself plus
+any other programs given as context (a GVL file checked together with the POUs using it).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from . import ir
+from .errors import ProgramError, ProgramWarning, at
+from .stdlib import ELEMENTARY_TYPES, STANDARD_FBS, is_standard_function
+
+_LOCAL_KINDS = ("VAR", "VAR_TEMP", "VAR_STAT", "VAR_INST")
+
+
+@dataclass
+class _Var:
+    decl: ir.VarDecl
+    kind: str
+    constant: bool
+    owner: str  # POU name or "<global>"
+
+
+@dataclass
+class _Usage:
+    read: set = field(default_factory=set)
+    written: set = field(default_factory=set)
+
+
+class _Globals:
+    """Everything visible from every POU."""
+
+    def __init__(self, programs: list[ir.Program]):
+        self.vars: dict[str, _Var] = {}
+        self.pous: dict[str, ir.Pou] = {}
+        self.types: dict[str, ir.TypeDecl] = {}
+        self.interfaces: dict[str, ir.Interface] = {}
+        self.enum_values: dict[str, str] = {}  # value -> enum type
+        for prog in programs:
+            for g in prog.globals:
+                self._add_block(g.block)
+            for c in prog.configurations:
+                for b in c.var_blocks:
+                    self._add_block(b)
+                for r in c.resources:
+                    for b in r.var_blocks:
+                        self._add_block(b)
+            for p in prog.pous:
+                self.pous.setdefault(p.name.upper(), p)
+            for t in prog.types:
+                self.types.setdefault(t.name.upper(), t)
+                if isinstance(t.type, ir.EnumType):
+                    for value, _ in t.type.values:
+                        self.enum_values.setdefault(value.upper(), t.name)
+            for itf in prog.interfaces:
+                self.interfaces.setdefault(itf.name.upper(), itf)
+
+    def _add_block(self, block: ir.VarBlock):
+        for d in block.decls:
+            self.vars.setdefault(d.name.upper(),
+                                 _Var(d, block.kind, "CONSTANT" in block.qualifiers, "<global>"))
+
+    def fb_members(self, type_name: str):
+        """(inputs, outputs, others) of an FB type, or None if it is not an FB."""
+        up = type_name.upper()
+        if up in STANDARD_FBS:
+            ins, outs = STANDARD_FBS[up]
+            return set(ins), set(outs), set()
+        pou = self.pous.get(up)
+        if pou is None or pou.kind != "FUNCTION_BLOCK":
+            return None
+        ins, outs, other = set(), set(), set()
+        seen = set()
+        while pou is not None and pou.name.upper() not in seen:
+            seen.add(pou.name.upper())
+            for b in pou.var_blocks:
+                names = {d.name.upper() for d in b.decls}
+                if b.kind in ("VAR_INPUT", "VAR_IN_OUT"):
+                    ins |= names
+                elif b.kind == "VAR_OUTPUT":
+                    outs |= names
+            other |= {m.name.upper() for m in pou.methods}
+            other |= {p.name.upper() for p in pou.properties}
+            other |= {a.name.upper() for a in pou.actions}
+            pou = self.pous.get(pou.extends.upper()) if pou.extends else None
+        return ins, outs, other
+
+    def struct_members(self, type_name: str):
+        t = self.types.get(type_name.upper())
+        seen = set()
+        members = set()
+        while t is not None and isinstance(t.type, ir.StructType) and t.name.upper() not in seen:
+            seen.add(t.name.upper())
+            members |= {d.name.upper() for d in t.type.members}
+            t = self.types.get(t.type.extends.upper()) if t.type.extends else None
+        return members if seen else None
+
+
+class Checker:
+    def __init__(self, program: ir.Program, context: list[ir.Program] = ()):
+        self.program = program
+        self.g = _Globals([program, *[c for c in context if c is not program]])
+        self.errors: list[ProgramError] = []
+        self.warnings: list[ProgramWarning] = []
+        self.program_usage = _Usage()  # reads and writes over all POUs of the program
+
+    # ------------------------------------------------------------------ reporting
+    def error(self, pos, message):
+        self.errors.append(at(pos, message))
+
+    def warn(self, pos, message):
+        self.warnings.append(at(pos, message, ProgramWarning))
+
+    # ------------------------------------------------------------------ entry
+    def run(self):
+        self._check_duplicates()
+        for t in self.program.types:
+            self._check_type(t.type, {})
+        for g in self.program.globals:
+            for d in g.block.decls:
+                self._check_type(d.type, {})
+        for p in self.program.pous:
+            self._check_pou(p)
+        for c in self.program.configurations:
+            for r in c.resources:
+                for pi in r.programs:
+                    pou = self.g.pous.get(pi.type_name.upper())
+                    if pou is None or pou.kind != "PROGRAM":
+                        self.error(pi.pos, f"unknown PROGRAM type '{pi.type_name}'")
+                    task_names = {t.name.upper() for t in r.tasks}
+                    if pi.task and pi.task.upper() not in task_names:
+                        self.error(pi.pos, f"unknown task '{pi.task}'")
+        self._check_global_outputs()
+        return self
+
+    # ------------------------------------------------------------------ duplicates
+    def _dups(self, items, what):
+        seen = {}
+        for name, pos in items:
+            key = name.upper()
+            if key in seen:
+                first = seen[key]
+                where = f" (first declared at line {first.line})" if first is not None else ""
+                self.error(pos, f"duplicate {what} '{name}'{where}")
+            else:
+                seen[key] = pos
+
+    def _check_duplicates(self):
+        p = self.program
+        self._dups([(x.name, x.pos) for x in p.pous] + [(t.name, t.pos) for t in p.types]
+                   + [(i.name, i.pos) for i in p.interfaces], "declaration of")
+        self._dups([(d.name, d.pos) for g in p.globals for d in g.block.decls],
+                   "global variable")
+        for t in p.types:
+            if isinstance(t.type, ir.EnumType):
+                self._dups([(n, t.pos) for n, _ in t.type.values], f"value in enum {t.name}:")
+            if isinstance(t.type, ir.StructType):
+                self._dups([(d.name, d.pos) for d in t.type.members], "struct member")
+
+    # ------------------------------------------------------------------ types
+    def _check_type(self, t, scope):
+        if isinstance(t, ir.NamedType):
+            up = t.name.upper()
+            if not (up in ELEMENTARY_TYPES or up in self.g.types or up in STANDARD_FBS
+                    or up in self.g.interfaces
+                    or (up in self.g.pous and self.g.pous[up].kind == "FUNCTION_BLOCK")):
+                self.error(t.pos, f"unknown type '{t.name}' (not an elementary type, a TYPE, "
+                                  "or a function block)")
+        elif isinstance(t, ir.ArrayType):
+            for lo, hi in t.dims:
+                if lo is not None:
+                    self._expr(lo, scope, None)
+                    self._expr(hi, scope, None)
+            self._check_type(t.element, scope)
+        elif isinstance(t, ir.PointerType):
+            self._check_type(t.target, scope)
+        elif isinstance(t, ir.StructType):
+            for d in t.members:
+                self._check_type(d.type, scope)
+        elif isinstance(t, ir.StringType) and t.length is not None:
+            self._expr(t.length, scope, None)
+
+    # ------------------------------------------------------------------ POUs
+    def _pou_vars(self, pou: ir.Pou) -> dict[str, _Var]:
+        chain = []
+        seen = set()
+        p = pou
+        while p is not None and p.name.upper() not in seen:
+            seen.add(p.name.upper())
+            chain.append(p)
+            p = self.g.pous.get(p.extends.upper()) if p.extends else None
+        scope: dict[str, _Var] = {}
+        for p in reversed(chain):
+            for b in p.var_blocks:
+                for d in b.decls:
+                    scope[d.name.upper()] = _Var(d, b.kind, "CONSTANT" in b.qualifiers, p.name)
+        return scope
+
+    def _check_pou(self, pou: ir.Pou):
+        self._dups([(d.name, d.pos) for d in pou.decls()], "declaration of")
+        if pou.extends and pou.extends.upper() not in self.g.pous:
+            self.error(pou.pos, f"unknown FB type '{pou.extends}' in EXTENDS")
+        for name in pou.implements:
+            if name.upper() not in self.g.interfaces:
+                self.error(pou.pos, f"unknown interface '{name}' in IMPLEMENTS")
+        scope = self._pou_vars(pou)
+        for d in pou.decls():
+            self._check_type(d.type, scope)
+            if d.init is not None:
+                self._init(d.init, scope)
+        extra = {m.name.upper() for m in pou.methods} | {p.name.upper() for p in pou.properties}
+        extra |= {a.name.upper() for a in pou.actions}
+        if pou.kind == "FUNCTION":
+            extra.add(pou.name.upper())
+        if pou.kind == "FUNCTION_BLOCK":
+            extra |= {"THIS", "SUPER"}
+        usage = _Usage()
+        ctx = _Ctx(pou, scope, extra, usage)
+        if isinstance(pou.body, ir.Sfc):
+            self._check_sfc(pou.body, ctx)
+        else:
+            self._stmts(pou.body, ctx)
+            self._check_labels(pou.body)
+        for a in pou.actions:
+            self._stmts(a.body, ctx)
+        for m in pou.methods:
+            self._check_method(m, pou, scope, extra, usage)
+        for prop in pou.properties:
+            for acc in prop.accessors:
+                self._check_method(ir.Method(prop.name, prop.type, acc.var_blocks, acc.body),
+                                   pou, scope, extra, usage, own_name=prop.name)
+        # warnings
+        own = {d.name.upper(): (d, b.kind) for b in pou.var_blocks for d in b.decls}
+        for key, (d, kind) in own.items():
+            is_output = kind == "VAR_OUTPUT" or (d.address or "").startswith("%Q")
+            if is_output and key not in usage.written:
+                self.warn(d.pos, f"output '{d.name}' is never written")
+            elif kind in _LOCAL_KINDS and key not in usage.read and key not in usage.written:
+                self.warn(d.pos, f"variable '{d.name}' is declared but never used")
+        self.program_usage.read |= usage.read
+        self.program_usage.written |= usage.written
+
+    def _check_method(self, m: ir.Method, pou, fb_scope, fb_extra, usage, own_name=None):
+        self._dups([(d.name, d.pos) for b in m.var_blocks for d in b.decls], "declaration of")
+        scope = dict(fb_scope)
+        for b in m.var_blocks:
+            for d in b.decls:
+                self._check_type(d.type, scope)
+                scope[d.name.upper()] = _Var(d, b.kind, "CONSTANT" in b.qualifiers, m.name)
+        if m.return_type is not None:
+            self._check_type(m.return_type, scope)
+        extra = set(fb_extra) | {(own_name or m.name).upper()}
+        local_usage = _Usage()
+        self._stmts(m.body, _Ctx(pou, scope, extra, local_usage, method=m))
+        usage.read |= local_usage.read
+        usage.written |= local_usage.written
+
+    def _check_global_outputs(self):
+        """A located %Q global is an output of the whole program: warn if no POU here writes
+        it (a GVL checked on its own has no POUs and gets no such warnings)."""
+        if not self.program.pous:
+            return
+        written = self.program_usage.written
+        for g in self.program.globals:
+            for d in g.block.decls:
+                if (d.address or "").startswith("%Q") and d.name.upper() not in written:
+                    self.warn(d.pos, f"output '{d.name}' is never written")
+
+    def _check_sfc(self, sfc: ir.Sfc, ctx: "_Ctx"):
+        self._dups([(s.name, s.pos) for s in sfc.steps], "step")
+        self._dups([(a.name, a.pos) for a in sfc.actions], "action")
+        steps = {s.name.upper() for s in sfc.steps}
+        actions = {a.name.upper() for a in sfc.actions}
+        ctx.extra |= steps | actions
+        for s in sfc.steps:
+            for a in s.actions:
+                key = a.action.upper()
+                if key in actions:
+                    continue
+                var = ctx.scope.get(key) or self.g.vars.get(key)
+                if var is None:
+                    self.error(a.pos, f"step {s.name}: unknown action or variable '{a.action}'")
+                else:
+                    self._write_target(ir.Name(a.action, pos=a.pos), ctx)
+                if a.time is not None:
+                    self._expr(a.time, ctx.scope, ctx)
+        for t in sfc.transitions:
+            for n in t.sources + t.targets:
+                if n.upper() not in steps:
+                    self.error(t.pos, f"transition refers to unknown step '{n}'")
+            self._expr(t.condition, ctx.scope, ctx)
+        for a in sfc.actions:
+            self._stmts(a.body, ctx)
+
+    def _check_labels(self, stmts):
+        labels = set()
+        jumps = []
+
+        def walk(body):
+            for s in body:
+                if isinstance(s, ir.Label):
+                    labels.add(s.name.upper())
+                elif isinstance(s, ir.Jmp):
+                    jumps.append(s)
+                for sub in _sub_bodies(s):
+                    walk(sub)
+
+        walk(stmts)
+        for j in jumps:
+            if j.label.upper() not in labels:
+                self.error(j.pos, f"JMP to undefined label '{j.label}'")
+
+    # ------------------------------------------------------------------ statements
+    def _stmts(self, stmts, ctx):
+        for s in stmts:
+            t = type(s)
+            if t is ir.Assign:
+                self._expr(s.value, ctx.scope, ctx)
+                self._write_target(s.target, ctx)
+            elif t is ir.CallStmt:
+                self._expr(s.call, ctx.scope, ctx)
+            elif t is ir.If:
+                for cond, body in s.branches:
+                    self._expr(cond, ctx.scope, ctx)
+                    self._stmts(body, ctx)
+                if s.else_body:
+                    self._stmts(s.else_body, ctx)
+            elif t is ir.Case:
+                self._expr(s.selector, ctx.scope, ctx)
+                for br in s.branches:
+                    for lab in br.labels:
+                        if isinstance(lab, ir.CaseRange):
+                            self._expr(lab.low, ctx.scope, ctx)
+                            self._expr(lab.high, ctx.scope, ctx)
+                        else:
+                            self._expr(lab, ctx.scope, ctx)
+                    self._stmts(br.body, ctx)
+                if s.else_body:
+                    self._stmts(s.else_body, ctx)
+            elif t is ir.For:
+                self._write_target(ir.Name(s.var, pos=s.pos), ctx)
+                for e in (s.start, s.end, s.step):
+                    if e is not None:
+                        self._expr(e, ctx.scope, ctx)
+                self._stmts(s.body, ctx)
+            elif t is ir.While:
+                self._expr(s.cond, ctx.scope, ctx)
+                self._stmts(s.body, ctx)
+            elif t is ir.Repeat:
+                self._stmts(s.body, ctx)
+                self._expr(s.cond, ctx.scope, ctx)
+
+    def _write_target(self, target, ctx):
+        """Check an assignment target and record the write."""
+        self._expr(target, ctx.scope, ctx, writing=True)
+        base = target
+        while isinstance(base, (ir.Member, ir.Index, ir.BitAccess, ir.Deref)):
+            base = base.base
+        if isinstance(base, ir.DirectAddress):
+            if base.address.startswith("%I"):
+                self.error(base.pos, f"cannot assign to input {base.address}")
+            return
+        if not isinstance(base, ir.Name):
+            return
+        key = base.name.upper()
+        ctx.usage.written.add(key)
+        var = ctx.scope.get(key) or self.g.vars.get(key)
+        if var is None:
+            return
+        if target is base:
+            if var.constant:
+                self.error(target.pos, f"cannot assign to constant '{base.name}'")
+            elif var.kind == "VAR_INPUT" and (ctx.method is None
+                                              or var.owner == ctx.method.name):
+                self.error(target.pos, f"cannot assign to input '{base.name}'")
+            elif (var.decl.address or "").startswith("%I"):
+                self.error(target.pos, f"cannot assign to input '{base.name}' "
+                                       f"(located at {var.decl.address})")
+        elif isinstance(target, ir.Member) and target.base is base:
+            type_name = _type_name(var.decl.type)
+            members = self.g.fb_members(type_name) if type_name else None
+            if members and target.member.upper() in members[1]:
+                self.error(target.pos, f"cannot assign to output '{target.member}' of "
+                                       f"{type_name} instance '{base.name}'")
+
+    # ------------------------------------------------------------------ expressions
+    def _init(self, init, scope):
+        if isinstance(init, ir.ArrayInit):
+            for _, v in init.items:
+                if v is not None:
+                    self._init(v, scope)
+        elif isinstance(init, ir.StructInit):
+            for _, v in init.fields:
+                self._init(v, scope)
+        else:
+            self._expr(init, scope, None)
+
+    def _resolve(self, name: str, scope, ctx) -> bool:
+        key = name.upper()
+        if key in scope or key in self.g.vars or key in self.g.pous or key in self.g.types:
+            return True
+        if ctx is not None and key in ctx.extra:
+            return True
+        if key in self.g.enum_values or key in self.g.interfaces:
+            return True
+        if key in STANDARD_FBS or key in ELEMENTARY_TYPES or is_standard_function(key):
+            return True
+        return False
+
+    def _expr(self, e, scope, ctx, writing=False):
+        t = type(e)
+        if t is ir.Name:
+            if not self._resolve(e.name, scope, ctx):
+                self.error(e.pos, f"undeclared name '{e.name}'")
+            elif ctx is not None and not writing:
+                ctx.usage.read.add(e.name.upper())
+        elif t is ir.Member:
+            self._expr(e.base, scope, ctx, writing)
+            self._check_member(e, scope, ctx)
+        elif t in (ir.BitAccess, ir.Deref):
+            self._expr(e.base, scope, ctx, writing)
+        elif t is ir.Index:
+            self._expr(e.base, scope, ctx, writing)
+            for i in e.indices:
+                self._expr(i, scope, ctx)
+        elif t is ir.Unary:
+            self._expr(e.operand, scope, ctx)
+        elif t is ir.Binary:
+            self._expr(e.left, scope, ctx)
+            self._expr(e.right, scope, ctx)
+        elif t is ir.Call:
+            self._check_call(e, scope, ctx)
+        elif t is ir.EnumLiteral:
+            td = self.g.types.get(e.type_name.upper())
+            if td is None or not isinstance(td.type, ir.EnumType):
+                self.error(e.pos, f"unknown enumeration type '{e.type_name}'")
+            elif e.value.upper() not in {v.upper() for v, _ in td.type.values}:
+                self.error(e.pos, f"enumeration {e.type_name} has no value '{e.value}'")
+
+    def _check_member(self, e: ir.Member, scope, ctx):
+        if not isinstance(e.base, ir.Name):
+            return
+        key = e.base.name.upper()
+        var = scope.get(key) or self.g.vars.get(key)
+        if var is None:
+            td = self.g.types.get(key)
+            if td is not None and isinstance(td.type, ir.EnumType):
+                if e.member.upper() not in {v.upper() for v, _ in td.type.values}:
+                    self.error(e.pos, f"enumeration {td.name} has no value '{e.member}'")
+            return
+        type_name = _type_name(var.decl.type)
+        if type_name is None:
+            return
+        members = self.g.fb_members(type_name)
+        if members is not None:
+            if e.member.upper() not in set().union(*members):
+                self.error(e.pos, f"'{e.base.name}' ({type_name}) has no input, output, method "
+                                  f"or property '{e.member}'")
+            return
+        fields = self.g.struct_members(type_name)
+        if fields is not None and e.member.upper() not in fields:
+            self.error(e.pos, f"'{e.base.name}' ({type_name}) has no member '{e.member}'")
+
+    def _is_known_non_fb(self, t) -> bool:
+        """True when a call on a variable of type ``t`` is certainly wrong (an unknown type
+        is reported once where it is declared, not again at every call)."""
+        if isinstance(t, ir.NamedType):
+            up = t.name.upper()
+            return up in ELEMENTARY_TYPES or up in self.g.types
+        return not isinstance(t, ir.PointerType)
+
+    def _check_call(self, call: ir.Call, scope, ctx):
+        func = call.func
+        params = None
+        if isinstance(func, ir.Name):
+            key = func.name.upper()
+            var = scope.get(key) or self.g.vars.get(key)
+            if var is not None:
+                type_name = _type_name(var.decl.type)
+                members = self.g.fb_members(type_name) if type_name else None
+                if members is None and self._is_known_non_fb(var.decl.type):
+                    self.error(func.pos, f"'{func.name}' is not a function block instance and "
+                                         "cannot be called")
+                elif members is not None:
+                    params = (members[0], members[1], type_name)
+                if ctx is not None:
+                    ctx.usage.read.add(key)
+            elif key in self.g.pous:
+                pou = self.g.pous[key]
+                if pou.kind != "FUNCTION":
+                    self.error(func.pos, f"'{func.name}' is a {pou.kind.replace('_', ' ')}: call "
+                                         "an instance of it, not the type")
+                ins = {d.name.upper() for d in pou.decls("VAR_INPUT", "VAR_IN_OUT")}
+                outs = {d.name.upper() for d in pou.decls("VAR_OUTPUT")}
+                params = (ins, outs, pou.name)
+            elif not (is_standard_function(key) or (ctx is not None and key in ctx.extra)):
+                self.error(func.pos, f"unknown function or function block instance "
+                                     f"'{func.name}'")
+        else:
+            self._expr(func, scope, ctx)
+        for a in call.args:
+            if params is not None and a.name is not None:
+                ins, outs, type_name = params
+                wanted = outs if a.output else ins
+                if a.name.upper() not in wanted:
+                    kind = "output" if a.output else "input"
+                    self.error(a.pos, f"{type_name} has no {kind} '{a.name}'")
+            if a.output:
+                if ctx is not None:
+                    self._write_target(a.value, ctx)
+                continue
+            self._expr(a.value, scope, ctx)
+            # a variable handed to a user POU may be written through VAR_IN_OUT
+            if ctx is not None and isinstance(a.value, ir.Name) and not (
+                    isinstance(func, ir.Name) and is_standard_function(func.name)):
+                ctx.usage.written.add(a.value.name.upper())
+
+
+@dataclass
+class _Ctx:
+    pou: ir.Pou
+    scope: dict
+    extra: set
+    usage: _Usage
+    method: ir.Method | None = None
+
+
+def _type_name(t):
+    return t.name if isinstance(t, ir.NamedType) else None
+
+
+def _sub_bodies(s):
+    if isinstance(s, ir.If):
+        yield from (b for _, b in s.branches)
+        if s.else_body:
+            yield s.else_body
+    elif isinstance(s, ir.Case):
+        yield from (b.body for b in s.branches)
+        if s.else_body:
+            yield s.else_body
+    elif isinstance(s, (ir.For, ir.While, ir.Repeat)):
+        yield s.body
+
+
+def check_program(program: ir.Program, context: list[ir.Program] = ()):
+    """Run the semantic checks. Returns (errors, warnings), each sorted by position."""
+    c = Checker(program, context).run()
+    key = lambda e: (e.file, e.line, e.col)  # noqa: E731
+    return sorted(c.errors, key=key), sorted(c.warnings, key=key)

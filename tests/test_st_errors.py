@@ -1,0 +1,30 @@
+"""Syntax errors name file, line and column, and say what was found and expected."""
+import pytest
+
+from plcpred.parser import ProgramError, parse_st
+
+
+@pytest.mark.parametrize("src, line, col, fragments", [
+    # missing semicolon: reported at the end of the line that lacks it
+    ("PROGRAM P\nVAR x : INT; END_VAR\nx := 1\nx := 2;\nEND_PROGRAM", 3, 7, ["expected ';'"]),
+    ("PROGRAM P\nVAR x : INT; END_VAR\nIF x > THEN x := 1; END_IF\nEND_PROGRAM", 3, 8,
+     ["keyword THEN", "expected an expression"]),
+    ("PROGRAM P\nVAR x : INT; END_VAR\nx := (1 + 2;\nEND_PROGRAM", 3, 12, ["';'", "')'"]),
+    ("PROGRAM P\nx := 1;\nEND_FUNCTION", 3, 1, ["END_FUNCTION", "END_PROGRAM"]),
+    ("PROGRAM P\nVAR x : INT; END_VAR\nx := 1;\n", 3, 8, ["end of file", "END_PROGRAM"]),
+    ("PROGRAM P\nVAR x INT; END_VAR\nEND_PROGRAM", 2, 7, ["identifier 'INT'", "':'"]),
+    ("PROGRAM P\nCASE x OF\n  y := 1;\nEND_CASE\nEND_PROGRAM", 3, 3, ["CASE label"]),
+    ("PROGRAM P\nx;\nEND_PROGRAM", 2, 1, ["':='"]),
+    ("PROGRAM P\nIF a THEN\n  x := 1;\nEND_WHILE\nEND_PROGRAM", 4, 1, ["END_WHILE", "END_IF"]),
+    ("PROGRAM P\nINITIAL_STEP A: x(Q); END_STEP\nEND_PROGRAM", 2, 17, ["qualifier 'Q'"]),
+    ("PROGRAM P\nSTEP A: END_STEP\nEND_PROGRAM", 1, 1, ["INITIAL_STEP"]),
+    ("FUNCTION_BLOCK F\nPROPERTY P : INT\nFETCH P := 1; END_GET\nEND_PROPERTY\nEND_FUNCTION_BLOCK",
+     3, 1, ["GET or SET"]),
+])
+def test_syntax_error_positions(src, line, col, fragments):
+    with pytest.raises(ProgramError) as ei:
+        parse_st(src, "prog.st")
+    err = ei.value
+    assert (err.file, err.line, err.col) == ("prog.st", line, col), str(err)
+    for f in fragments:
+        assert f in err.message, err.message
