@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import threading
 
-from lark import Lark, Token, Transformer, v_args
-from lark.exceptions import UnexpectedEOF, UnexpectedInput, UnexpectedToken
+from lark import Lark
 from lark.lexer import Lexer
 
 from . import ir
 from .errors import ProgramError
+from .lexer import Token
 from .literals import (parse_int, parse_time_literal, parse_typed_literal, unquote_string)
 
 # IEC 61131-3 precedence, larger binds tighter (see grammar.py).
@@ -42,12 +42,11 @@ class _CaseHead:
         self.pos = pos
 
 
-@v_args(inline=True)
-class IRBuilder(Transformer):
-    """Callbacks named after grammar rules and aliases. ``file`` is set before each parse."""
+class IRBuilder:
+    """Callbacks named after grammar rules and aliases, called with the rule's kept children
+    as arguments. ``file`` is set before each parse."""
 
     def __init__(self):
-        super().__init__()
         self.file = "<input>"
 
     # ------------------------------------------------------------------ helpers
@@ -96,7 +95,7 @@ class IRBuilder(Transformer):
         return ir.Member(base, str(name), pos=base.pos)
 
     def bit_access(self, base, bit):
-        return ir.BitAccess(base, int(bit), pos=base.pos)
+        return ir.BitAccess(base, int(bit.value), pos=base.pos)
 
     def index(self, base, *indices):
         return ir.Index(base, list(indices), pos=base.pos)
@@ -114,10 +113,10 @@ class IRBuilder(Transformer):
         return ir.DirectAddress(str(tok).upper(), pos=self._pos(tok))
 
     def int_lit(self, tok):
-        return ir.Literal(parse_int(tok), "ANY_INT", pos=self._pos(tok))
+        return ir.Literal(parse_int(tok.value), "ANY_INT", pos=self._pos(tok))
 
     def real_lit(self, tok):
-        return ir.Literal(float(tok.replace("_", "")), "ANY_REAL", pos=self._pos(tok))
+        return ir.Literal(float(tok.value.replace("_", "")), "ANY_REAL", pos=self._pos(tok))
 
     def typed_lit(self, tok):
         try:
@@ -301,7 +300,7 @@ class IRBuilder(Transformer):
         return (1, value)
 
     def repeated_item(self, count, value):
-        return (parse_int(count), value)
+        return (parse_int(count.value), value)
 
     def struct_init(self, *fields):
         return ir.StructInit(list(fields))
@@ -455,7 +454,7 @@ class IRBuilder(Transformer):
     def transition_priority(self, key, value):
         if str(key).upper() != "PRIORITY":
             raise self._err(f"expected PRIORITY := n, found '{key}'", self._pos(key))
-        return parse_int(value)
+        return parse_int(value.value)
 
     def step_set(self, *names):
         return [str(n) for n in names]
@@ -562,20 +561,12 @@ class _Feed(Lexer):
 
 
 class _Recording:
-    """Wraps a token iterator, remembering the last two tokens for error messages."""
+    """The last two tokens read, for error messages."""
+    __slots__ = ("prev", "last")
 
-    def __init__(self, tokens):
-        self._it = iter(tokens)
+    def __init__(self):
         self.prev = None
         self.last = None
-
-    def __iter__(self):
-        return self
-
-    def __next__(self):
-        tok = next(self._it)
-        self.prev, self.last = self.last, tok
-        return tok
 
 
 TOKEN_NAMES = {
@@ -630,36 +621,161 @@ def describe_expected(expected: set[str]) -> str:
 
 
 class GrammarRunner:
-    """One LALR parser for a grammar, shared by all parses (built once, lazily)."""
+    """One LALR parser for a grammar, shared by all parses (built once, lazily).
+
+    lark builds the tables and the per-rule callbacks (token filtering, ``?`` inlining,
+    placeholders, then our :class:`IRBuilder` methods); the shift/reduce loop is our own.
+    lark's general loop serves interactive parsing and debugging too, and costs about twice
+    as much per token as this one. Unit reductions of ``?`` rules, which only pass their
+    single child up, skip the callback altogether.
+    """
 
     def __init__(self, grammar: str, builder_cls=IRBuilder):
         self._grammar = grammar
         self._builder_cls = builder_cls
-        self._parser = None
+        self._tables = None
         self._builder = None
         self._lock = threading.Lock()
 
     def _get(self):
-        if self._parser is None:
+        if self._tables is None:
             self._builder = self._builder_cls()
-            self._parser = Lark(self._grammar, parser="lalr", lexer=_Feed,
-                                transformer=self._builder, maybe_placeholders=True)
-        return self._parser
+            lark = Lark(self._grammar, parser="lalr", lexer=_Feed, maybe_placeholders=True)
+            table = lark.parser.parser.parser.parse_table  # frontend -> LALR_Parser -> _Parser
+            compiled = {}
+            states = {}
+            for state, row in table.states.items():
+                out = {}
+                for sym, (action, arg) in row.items():
+                    sym = str(sym)  # lark's keys are Tokens, whose __eq__ is slow
+                    if action.name == "Shift":
+                        out[sym] = (True, arg)
+                        continue
+                    rule = arg
+                    if rule not in compiled:
+                        compiled[rule] = _compile_rule(rule, self._builder)
+                    out[sym] = (False, (len(rule.expansion), str(rule.origin.name),
+                                        compiled[rule]))
+                states[state] = out
+            start = lark.options.start[0]
+            self._tables = (states, table.start_states[start], table.end_states[start])
+        return self._tables
 
     def parse(self, tokenizer, filename: str):
         with self._lock:
-            parser = self._get()
+            states, start_state, end_state = self._get()
             self._builder.file = filename
-            feed = _Recording(tokenizer)
-            try:
-                return parser.parse(feed)
-            except UnexpectedToken as e:
-                raise _syntax_error(e.token, e.expected, feed, filename) from None
-            except UnexpectedEOF as e:
-                raise _syntax_error(None, e.expected, feed, filename) from None
-            except UnexpectedInput as e:  # pragma: no cover - other lark errors
-                raise ProgramError(str(e), filename, getattr(e, "line", 0),
-                                   getattr(e, "column", 0)) from None
+            feed = _Recording()
+            state_stack = [start_state]
+            value_stack = []
+            push_state = state_stack.append
+            push_value = value_stack.append
+            for tok in tokenizer:
+                feed.prev = feed.last
+                feed.last = tok
+                ttype = tok.type
+                while True:
+                    act = states[state_stack[-1]].get(ttype)
+                    if act is None:
+                        raise _syntax_error(tok, _expected(states[state_stack[-1]]), feed,
+                                            filename)
+                    if act[0]:
+                        push_state(act[1])
+                        push_value(tok)
+                        break
+                    size, origin, callback = act[1]
+                    if callback is None:
+                        del state_stack[-1]
+                        push_state(states[state_stack[-1]][origin][1])
+                        continue
+                    if size:
+                        args = value_stack[-size:]
+                        del state_stack[-size:]
+                        del value_stack[-size:]
+                    else:
+                        args = []
+                    push_state(states[state_stack[-1]][origin][1])
+                    push_value(callback(args))
+            # end of input: reduce until the start rule is complete
+            while True:
+                act = states[state_stack[-1]].get("$END")
+                if act is None:
+                    raise _syntax_error(None, _expected(states[state_stack[-1]]), feed, filename)
+                size, origin, callback = act[1]
+                if size:
+                    args = value_stack[-size:]
+                    del state_stack[-size:]
+                    del value_stack[-size:]
+                else:
+                    args = []
+                value = args[0] if callback is None else callback(args)
+                push_state(states[state_stack[-1]][origin][1])
+                push_value(value)
+                if state_stack[-1] == end_state:
+                    return value
+
+
+class _Splice(list):
+    """Children of an inlined ``_rule``, to be spliced into the parent's children."""
+    __slots__ = ()
+
+
+def _compile_rule(rule, builder):
+    """The reduce callback for one grammar rule, with lark's tree-building semantics:
+    filtered tokens dropped (unless ``!rule``), ``_rule`` children spliced in, ``None`` for
+    absent ``[optional]`` items, ``?rule`` with one child passing it up, then the builder
+    method named after the alias or rule called with the children as arguments.
+    Returns None for a pure pass-through (the driver then skips the call)."""
+    expansion = rule.expansion
+    opts = rule.options
+    if opts.empty_indices:
+        bits = "".join(str(int(b)) for b in opts.empty_indices)
+        empty_counts = [len(run) for run in bits.split("0")]
+    else:
+        empty_counts = [0] * (len(expansion) + 1)
+    plan = []  # (child index, splice?, Nones to insert before it)
+    nones = 0
+    for i, sym in enumerate(expansion):
+        nones += empty_counts[i]
+        if opts.keep_all_tokens or not (sym.is_term and sym.filter_out):
+            plan.append((i, (not sym.is_term) and sym.name.startswith("_"), nones))
+            nones = 0
+    trailing = nones + empty_counts[len(expansion)]
+    name = rule.alias or rule.origin.name
+    func = getattr(builder, name, None)
+    expand1 = bool(opts.expand1) and not rule.alias  # an alias disables ? (as in lark)
+    if (expand1 and len(plan) == 1 and not plan[0][1] and plan[0][2] == 0 and not trailing
+            and len(expansion) == 1 and rule.alias is None):
+        return None
+    simple = not trailing and all(not splice and not n for _, splice, n in plan)
+    keep = [i for i, _, _ in plan]
+    everything = keep == list(range(len(expansion)))
+
+    def callback(children):
+        if simple:
+            filtered = children if everything else [children[i] for i in keep]
+        else:
+            filtered = []
+            for i, splice, n in plan:
+                if n:
+                    filtered.extend([None] * n)
+                if splice:
+                    filtered.extend(children[i])
+                else:
+                    filtered.append(children[i])
+            if trailing:
+                filtered.extend([None] * trailing)
+        if expand1 and len(filtered) == 1:
+            return filtered[0]
+        if func is None:
+            return _Splice(filtered)
+        return func(*filtered)
+
+    return callback
+
+
+def _expected(row) -> set[str]:
+    return {s for s in row if s.isupper()}
 
 
 def _syntax_error(tok, expected, feed: _Recording, filename: str) -> ProgramError:

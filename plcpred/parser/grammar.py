@@ -28,7 +28,7 @@ TERMINALS = """
 
 COMMON = r"""
 // ------------------------------------------------------------------ expressions
-expr: operand (binop operand)*
+?expr: operand (binop operand)*
 ?binop: PLUS | MINUS | STAR | SLASH | POW | MOD | LT | GT | LE | GE | EQ | NE
       | AND | AMP | AND_THEN | XOR | OR | OR_ELSE
 
@@ -68,11 +68,12 @@ args: arg (_COMMA arg)*
 
 // ------------------------------------------------------------------ statements
 stmt_list: stmt*
-?stmt: _simple_stmt | label_stmt
-?stmt_nolabel: _simple_stmt
-_simple_stmt: assign | ref_assign | attempt_assign | call_stmt | if_stmt | case_stmt | for_stmt
-            | while_stmt | repeat_stmt | exit_stmt | continue_stmt | return_stmt | empty_stmt
-            | jmp_stmt
+?stmt: assign | ref_assign | attempt_assign | call_stmt | if_stmt | case_stmt | for_stmt
+     | while_stmt | repeat_stmt | exit_stmt | continue_stmt | return_stmt | empty_stmt
+     | jmp_stmt | label_stmt
+?stmt_nolabel: assign | ref_assign | attempt_assign | call_stmt | if_stmt | case_stmt
+             | for_stmt | while_stmt | repeat_stmt | exit_stmt | continue_stmt | return_stmt
+             | empty_stmt | jmp_stmt
 
 assign: postfix _ASSIGN expr _SEMI
 ref_assign: postfix _REFASSIGN expr _SEMI

@@ -10,11 +10,12 @@ lookups use ``name.upper()``.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Union
+from typing import NamedTuple, Union
 
 
-@dataclass(frozen=True, slots=True)
-class Pos:
+class Pos(NamedTuple):
+    """Where a node was written (1-based line and column). A tuple: one is built for
+    every name and literal, so it must be cheap."""
     file: str
     line: int
     col: int
