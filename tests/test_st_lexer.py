@@ -53,6 +53,7 @@ def test_pragmas_are_collected_with_position():
     ("x := 1;\n(* never closed", 2, 1, "never closed"),
     ("x := 'abc", 1, 6, "unexpected character \"'\""),
     ("x := 1 $ 2;", 1, 8, "unexpected character '$'"),
+    ("a\n  \n  @", 3, 3, "unexpected character '@'"),
     ("x := T#5parsecs;", 1, 8, "malformed TIME"),
 ])
 def test_lexical_errors_carry_line_and_column(text, line, col, fragment):
