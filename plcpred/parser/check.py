@@ -43,9 +43,13 @@ class _Globals:
         self.types: dict[str, ir.TypeDecl] = {}
         self.interfaces: dict[str, ir.Interface] = {}
         self.enum_values: dict[str, str] = {}  # value -> enum type
+        self.gvls: dict[str, set[str]] = {}  # GVL name -> its variables (for GVL.var)
         for prog in programs:
             for g in prog.globals:
                 self._add_block(g.block)
+                if g.name:
+                    self.gvls.setdefault(g.name.upper(), set()).update(
+                        d.name.upper() for d in g.block.decls)
             for c in prog.configurations:
                 for b in c.var_blocks:
                     self._add_block(b)
@@ -408,7 +412,7 @@ class Checker:
             return True
         if ctx is not None and key in ctx.extra:
             return True
-        if key in self.g.enum_values or key in self.g.interfaces:
+        if key in self.g.enum_values or key in self.g.interfaces or key in self.g.gvls:
             return True
         if key in STANDARD_FBS or key in ELEMENTARY_TYPES or is_standard_function(key):
             return True
@@ -449,6 +453,10 @@ class Checker:
             return
         key = e.base.name.upper()
         var = scope.get(key) or self.g.vars.get(key)
+        if var is None and key in self.g.gvls:
+            if e.member.upper() not in self.g.gvls[key]:
+                self.error(e.pos, f"global variable list {e.base.name} has no '{e.member}'")
+            return
         if var is None:
             td = self.g.types.get(key)
             if td is not None and isinstance(td.type, ir.EnumType):

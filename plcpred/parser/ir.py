@@ -502,9 +502,10 @@ class Configuration:
 
 @dataclass(slots=True)
 class GlobalVars:
-    """A VAR_GLOBAL block standing on its own (TwinCAT GVL, PLCopen globalVars)."""
-    name: str | None
-    block: VarBlock
+    """A VAR_GLOBAL block standing on its own (TwinCAT GVL, PLCopen globalVars). ``name``
+    (the GVL's name, usable as ``GVL.var``) has no ST syntax, so it is left out of equality."""
+    name: str | None = field(compare=False)
+    block: VarBlock = None
     pos: Pos | None = _pos()
 
 

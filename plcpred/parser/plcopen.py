@@ -1,0 +1,469 @@
+"""PLCopen XML (TC6, v2.01 and the v2.00 dialect CODESYS/TwinCAT/Beremiz export) import.
+
+Converts data types, global variables, configurations with resources and tasks, and POUs
+whose bodies are ST or SFC (steps, transitions with inline or referenced ST conditions,
+action blocks, selection/simultaneous divergence and convergence, jumps) into the IR.
+Bodies in FBD, LD or IL are named in a clear error. ST text is parsed with its true
+position in the XML file, so errors point at the file's line and column.
+"""
+from __future__ import annotations
+
+from xml.parsers import expat
+
+from . import ir
+from .errors import ProgramError
+from .st import parse_st
+
+ELEMENTARY = {"BOOL", "BYTE", "WORD", "DWORD", "LWORD", "SINT", "INT", "DINT", "LINT",
+              "USINT", "UINT", "UDINT", "ULINT", "REAL", "LREAL", "TIME", "LTIME", "DATE",
+              "DT", "TOD", "LDATE", "LDT", "LTOD", "CHAR", "WCHAR"}
+_VAR_KINDS = {"localVars": "VAR", "inputVars": "VAR_INPUT", "outputVars": "VAR_OUTPUT",
+              "inOutVars": "VAR_IN_OUT", "externalVars": "VAR_EXTERNAL",
+              "globalVars": "VAR_GLOBAL", "tempVars": "VAR_TEMP", "accessVars": "VAR_ACCESS"}
+_POU_KINDS = {"program": "PROGRAM", "functionBlock": "FUNCTION_BLOCK", "function": "FUNCTION"}
+
+
+class _El:
+    __slots__ = ("tag", "attrib", "children", "text_parts", "line", "col", "text_line",
+                 "text_col")
+
+    def __init__(self, tag, attrib, line, col):
+        self.tag = tag
+        self.attrib = attrib
+        self.children: list[_El] = []
+        self.text_parts: list[str] = []
+        self.line, self.col = line, col
+        self.text_line = self.text_col = None
+
+    def find(self, tag):
+        return next((c for c in self.children if c.tag == tag), None)
+
+    def findall(self, tag):
+        return [c for c in self.children if c.tag == tag]
+
+    def iter(self, tag=None):
+        if tag is None or self.tag == tag:
+            yield self
+        for c in self.children:
+            yield from c.iter(tag)
+
+    def all_text(self) -> tuple[str, int, int]:
+        """Text of this element and its descendants, with where it starts."""
+        parts, start = [], None
+        for el in self.iter():
+            if el.text_parts:
+                parts.append("".join(el.text_parts))
+                if start is None:
+                    start = (el.text_line, el.text_col)
+        line, col = start or (self.line, self.col)
+        return "".join(parts), line, col
+
+
+def _parse_xml(text: str, filename: str) -> _El:
+    parser = expat.ParserCreate()
+    root_holder: list[_El] = []
+    stack: list[_El] = []
+
+    def local(name):
+        return name.rsplit(":", 1)[-1]
+
+    def start(name, attrs):
+        el = _El(local(name), {local(k): v for k, v in attrs.items()},
+                 parser.CurrentLineNumber, parser.CurrentColumnNumber + 1)
+        if stack:
+            stack[-1].children.append(el)
+        else:
+            root_holder.append(el)
+        stack.append(el)
+
+    def end(name):
+        stack.pop()
+
+    def chars(data):
+        el = stack[-1]
+        if el.text_line is None and data.strip():
+            # expat reports the position where this run of characters begins
+            lead = len(data) - len(data.lstrip())
+            head = data[:lead]
+            line = parser.CurrentLineNumber + head.count("\n")
+            col = (lead - head.rfind("\n")) if "\n" in head else parser.CurrentColumnNumber + 1 + lead
+            el.text_line, el.text_col = line, col
+            el.text_parts.append(data[lead:])
+            return
+        if el.text_line is not None or data.strip():
+            el.text_parts.append(data)
+
+    parser.StartElementHandler = start
+    parser.EndElementHandler = end
+    parser.CharacterDataHandler = chars
+    parser.buffer_text = False  # with buffering, positions are those of the run's end
+    try:
+        parser.Parse(text.encode("utf-8") if isinstance(text, str) else text, True)
+    except expat.ExpatError as e:
+        raise ProgramError(f"not well-formed XML: {expat.ErrorString(e.code)}", filename,
+                           e.lineno, e.offset + 1) from None
+    if not root_holder or root_holder[0].tag != "project":
+        raise ProgramError("not a PLCopen XML file (the root element must be <project>)",
+                           filename, 1, 1)
+    return root_holder[0]
+
+
+class _Importer:
+    def __init__(self, filename: str):
+        self.file = filename
+
+    def error(self, el: _El, message: str) -> ProgramError:
+        return ProgramError(message, self.file, el.line, el.col)
+
+    # ------------------------------------------------------------------ ST fragments
+    def _padded(self, text: str, line: int, col: int, header: str) -> str:
+        """ST text placed at its true line/column, after a header on line 1."""
+        if line < 2:
+            return header + " " + text
+        return header + "\n" * (line - 1) + " " * (col - 1) + text
+
+    def st_body(self, el: _El) -> list:
+        text, line, col = el.all_text()
+        wrapped = self._padded(text, line, col, "PROGRAM __plcopen_body") + "\nEND_PROGRAM"
+        return parse_st(wrapped, self.file).pous[0].body
+
+    def st_expr(self, el: _El):
+        text, line, col = el.all_text()
+        return self.expr_text(text, line, col)
+
+    def expr_text(self, text: str, line: int = 0, col: int = 1):
+        wrapped = self._padded(text, line, col, "PROGRAM __plcopen_expr __x :=")
+        return parse_st(wrapped + "\n;END_PROGRAM", self.file).pous[0].body[0].value
+
+    def value_text(self, el: _El, value: str):
+        try:
+            return self.expr_text(value, 0)
+        except ProgramError as e:
+            raise self.error(el, f"bad value {value!r}: {e.message}") from None
+
+    # ------------------------------------------------------------------ types
+    def type_of(self, el: _El | None, where: _El) -> ir.TypeRef:
+        if el is None or not el.children:
+            raise self.error(where, "missing <type>")
+        t = el.children[0]
+        tag = t.tag
+        if tag.upper() in ELEMENTARY and tag not in ("string", "wstring"):
+            return ir.NamedType(tag.upper())
+        if tag in ("string", "wstring"):
+            length = t.attrib.get("length")
+            return ir.StringType(tag == "wstring",
+                                 ir.Literal(int(length), "ANY_INT") if length else None)
+        if tag == "derived":
+            return ir.NamedType(t.attrib["name"])
+        if tag == "array":
+            dims = []
+            for d in t.findall("dimension"):
+                dims.append((self.value_text(d, d.attrib["lower"]),
+                             self.value_text(d, d.attrib["upper"])))
+            return ir.ArrayType(dims, self.type_of(t.find("baseType"), t))
+        if tag == "pointer":
+            return ir.PointerType(self.type_of(t.find("baseType"), t))
+        if tag in ("subrangeSigned", "subrangeUnsigned"):
+            rng = t.find("range")
+            base = self.type_of(t.find("baseType"), t)
+            return ir.SubrangeType(base.name, self.value_text(rng, rng.attrib["lower"]),
+                                   self.value_text(rng, rng.attrib["upper"]))
+        if tag == "enum":
+            values = []
+            for v in t.find("values").findall("value") if t.find("values") else []:
+                val = v.attrib.get("value")
+                values.append((v.attrib["name"], self.value_text(v, val) if val else None))
+            base = t.find("baseType")
+            return ir.EnumType(values, self.type_of(base, t).name if base is not None else None)
+        if tag == "struct":
+            return ir.StructType(self.variables(t, None))
+        raise self.error(t, f"cannot convert data type <{tag}>")
+
+    def init_of(self, el: _El | None):
+        if el is None or not el.children:
+            return None
+        v = el.children[0]
+        if v.tag == "simpleValue":
+            return self.value_text(v, v.attrib.get("value", ""))
+        if v.tag == "arrayValue":
+            items = []
+            for item in v.findall("value"):
+                count = int(item.attrib.get("repetitionValue", "1"))
+                items.append((count, self.init_of(item)))
+            return ir.ArrayInit(items)
+        if v.tag == "structValue":
+            return ir.StructInit([(item.attrib["member"], self.init_of(item))
+                                  for item in v.findall("value")])
+        raise self.error(v, f"cannot convert initial value <{v.tag}>")
+
+    def variables(self, el: _El, kind: str | None) -> list[ir.VarDecl]:
+        out = []
+        for v in el.findall("variable"):
+            out.append(ir.VarDecl(v.attrib["name"], self.type_of(v.find("type"), v),
+                                  self.init_of(v.find("initialValue")),
+                                  v.attrib.get("address"),
+                                  pos=ir.Pos(self.file, v.line, v.col)))
+        return out
+
+    def var_blocks(self, iface: _El | None) -> list[ir.VarBlock]:
+        blocks = []
+        if iface is None:
+            return blocks
+        for child in iface.children:
+            kind = _VAR_KINDS.get(child.tag)
+            if kind is None:
+                continue
+            qualifiers = [q.upper() for q in ("constant", "retain", "persistent")
+                          if child.attrib.get(q) in ("true", "1")]
+            if child.attrib.get("nonretain") in ("true", "1"):
+                qualifiers.append("NON_RETAIN")
+            blocks.append(ir.VarBlock(kind, self.variables(child, kind), qualifiers,
+                                      pos=ir.Pos(self.file, child.line, child.col)))
+        return blocks
+
+    # ------------------------------------------------------------------ POUs
+    def body_of(self, pou_el: _El, body: _El | None, pou_name: str):
+        if body is None:
+            return []
+        for lang in body.children:
+            if lang.tag == "ST":
+                return self.st_body(lang)
+            if lang.tag == "SFC":
+                return self.sfc(lang, pou_el)
+            if lang.tag in ("FBD", "LD", "IL"):
+                raise self.error(lang, f"POU '{pou_name}': {lang.tag} bodies cannot be "
+                                       "converted (only ST and SFC are supported)")
+        return []
+
+    def pou(self, el: _El) -> ir.Pou:
+        name = el.attrib["name"]
+        kind = _POU_KINDS.get(el.attrib.get("pouType", ""))
+        if kind is None:
+            raise self.error(el, f"POU '{name}': unknown pouType "
+                                 f"{el.attrib.get('pouType')!r}")
+        iface = el.find("interface")
+        ret = None
+        if iface is not None and iface.find("returnType") is not None:
+            ret = self.type_of(iface.find("returnType"), iface)
+        actions = []
+        acts = el.find("actions")
+        for a in acts.findall("action") if acts is not None else []:
+            actions.append(ir.SfcAction(a.attrib["name"],
+                                        self.body_of(el, a.find("body"), name) or [],
+                                        pos=ir.Pos(self.file, a.line, a.col)))
+        body = self.body_of(el, el.find("body"), name)
+        pou = ir.Pou(kind, name, self.var_blocks(iface), body, return_type=ret,
+                     pos=ir.Pos(self.file, el.line, el.col))
+        if isinstance(body, ir.Sfc):
+            body.actions.extend(actions)
+        else:
+            pou.actions = actions
+        return pou
+
+    # ------------------------------------------------------------------ SFC
+    def sfc(self, sfc_el: _El, pou_el: _El) -> ir.Sfc:
+        nodes: dict[str, _El] = {}
+        for child in sfc_el.children:
+            if "localId" in child.attrib:
+                nodes[child.attrib["localId"]] = child
+        preds: dict[str, list[str]] = {k: [] for k in nodes}
+        succs: dict[str, list[str]] = {k: [] for k in nodes}
+        for lid, el in nodes.items():
+            for cpi in el.findall("connectionPointIn"):
+                for conn in cpi.findall("connection"):
+                    ref = conn.attrib.get("refLocalId")
+                    if ref not in nodes:
+                        raise self.error(conn, f"connection to unknown localId {ref!r}")
+                    preds[lid].append(ref)
+                    succs[ref].append(lid)
+        steps = []
+        step_of_id = {}
+        for lid, el in nodes.items():
+            if el.tag == "step":
+                step = ir.Step(el.attrib["name"], el.attrib.get("initialStep") == "true",
+                               pos=ir.Pos(self.file, el.line, el.col))
+                steps.append(step)
+                step_of_id[lid] = step
+        if sum(s.initial for s in steps) != 1:
+            raise self.error(sfc_el, f"SFC of POU '{pou_el.attrib.get('name')}' needs exactly "
+                                     "one initial step")
+        step_names = {s.name for s in steps}
+        transitions_el = pou_el.find("transitions")
+        named_conditions = {t.attrib["name"]: t for t in transitions_el.findall("transition")
+                            } if transitions_el is not None else {}
+        passthrough = {"selectionDivergence", "selectionConvergence",
+                       "simultaneousDivergence", "simultaneousConvergence"}
+
+        def walk(start, edges, found, seen):
+            for nxt in edges[start]:
+                if nxt in seen:
+                    continue
+                seen.add(nxt)
+                el = nodes[nxt]
+                if el.tag == "step":
+                    found.append(step_of_id[nxt].name)
+                elif el.tag == "jumpStep":
+                    target = el.attrib.get("targetName")
+                    if target not in step_names:
+                        raise self.error(el, f"jump to unknown step {target!r}")
+                    found.append(target)
+                elif el.tag in passthrough:
+                    walk(nxt, edges, found, seen)
+            return found
+
+        transitions = []
+        extra_actions = []
+        for order, (lid, el) in enumerate(nodes.items()):
+            if el.tag == "transition":
+                sources = walk(lid, preds, [], set())
+                targets = walk(lid, succs, [], set())
+                if not sources or not targets:
+                    raise self.error(el, "transition is not connected to steps on both sides")
+                cond = self.condition(el, named_conditions)
+                prio = int(el.attrib.get("priority", 0) or 0)
+                transitions.append(ir.Transition(sources, targets, cond, prio,
+                                                 pos=ir.Pos(self.file, el.line, el.col)))
+            elif el.tag == "actionBlock":
+                owners = [p for p in preds[lid] if p in step_of_id]
+                if len(owners) != 1:
+                    raise self.error(el, "action block must be connected to one step")
+                step = step_of_id[owners[0]]
+                for n, a in enumerate(el.findall("action")):
+                    step.actions.append(self.action_assoc(a, step, n, extra_actions))
+        # selection divergence: a transition's order among those leaving the same step
+        by_source: dict[tuple, list[ir.Transition]] = {}
+        for t in transitions:
+            by_source.setdefault(tuple(t.sources), []).append(t)
+        for group in by_source.values():
+            if all(t.priority == 0 for t in group):
+                for i, t in enumerate(group):
+                    t.priority = i
+        return ir.Sfc(steps, transitions, extra_actions,
+                      pos=ir.Pos(self.file, sfc_el.line, sfc_el.col))
+
+    def condition(self, el: _El, named: dict):
+        cond = el.find("condition")
+        if cond is None:
+            raise self.error(el, "transition without a condition")
+        for c in cond.children:
+            if c.tag == "inline":
+                st = c.find("ST")
+                if st is None:
+                    raise self.error(c, "only ST transition conditions can be converted")
+                return self.st_expr(st)
+            if c.tag == "reference":
+                name = c.attrib["name"]
+                t = named.get(name)
+                if t is None:
+                    raise self.error(c, f"reference to unknown transition {name!r}")
+                st = t.find("body").find("ST") if t.find("body") is not None else None
+                if st is None:
+                    raise self.error(t, f"transition {name!r}: only ST bodies can be converted")
+                text, line, col = st.all_text()
+                if ":=" in text:  # CODESYS style: 'Name := expression;'
+                    stmts = self.st_body(st)
+                    assigns = [s for s in stmts if isinstance(s, ir.Assign)]
+                    if len(assigns) != 1:
+                        raise self.error(st, f"transition {name!r}: expected one assignment")
+                    return assigns[0].value
+                return self.st_expr(st)
+        raise self.error(cond, "only inline or referenced ST conditions can be converted")
+
+    def action_assoc(self, a: _El, step: ir.Step, n: int, extra: list) -> ir.ActionAssoc:
+        from .build import make_action_assoc
+
+        qualifier = a.attrib.get("qualifier", "N")
+        rest = []
+        if a.attrib.get("duration"):
+            rest.append(self.value_text(a, a.attrib["duration"]))
+        if a.attrib.get("indicator"):
+            rest.append(ir.Name(a.attrib["indicator"]))
+        ref = a.find("reference")
+        if ref is not None:
+            name = ref.attrib["name"]
+        else:
+            inline = a.find("inline")
+            st = inline.find("ST") if inline is not None else None
+            if st is None:
+                raise self.error(a, "only referenced or inline ST actions can be converted")
+            name = f"{step.name}_action{n}"
+            extra.append(ir.SfcAction(name, self.st_body(st), pos=ir.Pos(self.file, a.line, a.col)))
+
+        def err(message, pos):
+            return ProgramError(message, self.file, a.line, a.col)
+
+        return make_action_assoc(name, qualifier, rest, ir.Pos(self.file, a.line, a.col), err)
+
+    # ------------------------------------------------------------------ project
+    def project(self, root: _El) -> ir.Program:
+        prog = ir.Program()
+        types = root.find("types")
+        if types is not None:
+            dts = types.find("dataTypes")
+            for dt in dts.findall("dataType") if dts is not None else []:
+                prog.types.append(ir.TypeDecl(dt.attrib["name"],
+                                              self.type_of(dt.find("baseType"), dt),
+                                              self.init_of(dt.find("initialValue")),
+                                              pos=ir.Pos(self.file, dt.line, dt.col)))
+            pous = types.find("pous")
+            for p in pous.findall("pou") if pous is not None else []:
+                prog.pous.append(self.pou(p))
+        config_globals = set()
+        instances = root.find("instances")
+        if instances is not None:
+            cfgs = instances.find("configurations")
+            for c in cfgs.findall("configuration") if cfgs is not None else []:
+                prog.configurations.append(self.configuration(c))
+                config_globals |= {id(g) for g in c.iter("globalVars")}
+        # global variable lists kept elsewhere (CODESYS puts GVLs under addData)
+        for g in root.iter("globalVars"):
+            if id(g) in config_globals:
+                continue
+            block = ir.VarBlock("VAR_GLOBAL", self.variables(g, "VAR_GLOBAL"),
+                                ["CONSTANT"] if g.attrib.get("constant") == "true" else [],
+                                pos=ir.Pos(self.file, g.line, g.col))
+            prog.globals.append(ir.GlobalVars(g.attrib.get("name"), block,
+                                              pos=ir.Pos(self.file, g.line, g.col)))
+        prog.source = self.file
+        return prog
+
+    def configuration(self, c: _El) -> ir.Configuration:
+        cfg = ir.Configuration(c.attrib["name"], pos=ir.Pos(self.file, c.line, c.col))
+        for g in c.findall("globalVars"):
+            cfg.var_blocks.append(ir.VarBlock("VAR_GLOBAL", self.variables(g, "VAR_GLOBAL"),
+                                              pos=ir.Pos(self.file, g.line, g.col)))
+        for r in c.findall("resource"):
+            res = ir.Resource(r.attrib["name"], "PLC", pos=ir.Pos(self.file, r.line, r.col))
+            for g in r.findall("globalVars"):
+                res.var_blocks.append(ir.VarBlock("VAR_GLOBAL", self.variables(g, "VAR_GLOBAL"),
+                                                  pos=ir.Pos(self.file, g.line, g.col)))
+            for t in r.findall("task"):
+                params = {}
+                if t.attrib.get("interval"):
+                    params["INTERVAL"] = self.value_text(t, t.attrib["interval"])
+                if t.attrib.get("priority"):
+                    params["PRIORITY"] = self.value_text(t, t.attrib["priority"])
+                if t.attrib.get("single"):
+                    params["SINGLE"] = self.value_text(t, t.attrib["single"])
+                res.tasks.append(ir.Task(t.attrib["name"], params,
+                                         pos=ir.Pos(self.file, t.line, t.col)))
+                for pi in t.findall("pouInstance"):
+                    res.programs.append(ir.ProgramInstance(pi.attrib["name"],
+                                                           pi.attrib["typeName"],
+                                                           t.attrib["name"],
+                                                           pos=ir.Pos(self.file, pi.line, pi.col)))
+            for pi in r.findall("pouInstance"):
+                res.programs.append(ir.ProgramInstance(pi.attrib["name"], pi.attrib["typeName"],
+                                                       pos=ir.Pos(self.file, pi.line, pi.col)))
+            cfg.resources.append(res)
+        return cfg
+
+
+def parse_plcopen(text: str, filename: str = "<input>") -> ir.Program:
+    """Import a PLCopen TC6 XML project into the IR."""
+    imp = _Importer(filename)
+    root = _parse_xml(text, filename)
+    try:
+        return imp.project(root)
+    except KeyError as e:  # a required attribute is missing
+        raise ProgramError(f"missing required attribute {e.args[0]!r}", filename, 0, 0) from None
