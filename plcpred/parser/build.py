@@ -2,6 +2,7 @@
 ever materialised), and the glue that runs a grammar over a :class:`Tokenizer`."""
 from __future__ import annotations
 
+import itertools
 import threading
 
 from lark import Lark
@@ -560,6 +561,9 @@ class _Feed(Lexer):
         return lexer_state.text
 
 
+_END = Token("$END", "", 0, 0, 0)  # end of input, fed through the same loop
+
+
 class _Recording:
     """The last two tokens read, for error messages."""
     __slots__ = ("prev", "last")
@@ -670,49 +674,34 @@ class GrammarRunner:
             value_stack = []
             push_state = state_stack.append
             push_value = value_stack.append
-            for tok in tokenizer:
-                feed.prev = feed.last
-                feed.last = tok
+            for tok in itertools.chain(tokenizer, (_END,)):
+                if tok is not _END:
+                    feed.prev = feed.last
+                    feed.last = tok
                 ttype = tok.type
                 while True:
                     act = states[state_stack[-1]].get(ttype)
                     if act is None:
-                        raise _syntax_error(tok, _expected(states[state_stack[-1]]), feed,
-                                            filename)
+                        raise _syntax_error(None if tok is _END else tok,
+                                            _expected(states[state_stack[-1]]), feed, filename)
                     if act[0]:
                         push_state(act[1])
                         push_value(tok)
                         break
                     size, origin, callback = act[1]
-                    if callback is None:
+                    if callback is None:  # pass-through: the value stays where it is
                         del state_stack[-1]
-                        push_state(states[state_stack[-1]][origin][1])
-                        continue
-                    if size:
-                        args = value_stack[-size:]
-                        del state_stack[-size:]
-                        del value_stack[-size:]
                     else:
-                        args = []
+                        if size:
+                            args = value_stack[-size:]
+                            del state_stack[-size:]
+                            del value_stack[-size:]
+                        else:
+                            args = []
+                        push_value(callback(args))
                     push_state(states[state_stack[-1]][origin][1])
-                    push_value(callback(args))
-            # end of input: reduce until the start rule is complete
-            while True:
-                act = states[state_stack[-1]].get("$END")
-                if act is None:
-                    raise _syntax_error(None, _expected(states[state_stack[-1]]), feed, filename)
-                size, origin, callback = act[1]
-                if size:
-                    args = value_stack[-size:]
-                    del state_stack[-size:]
-                    del value_stack[-size:]
-                else:
-                    args = []
-                value = args[0] if callback is None else callback(args)
-                push_state(states[state_stack[-1]][origin][1])
-                push_value(value)
-                if state_stack[-1] == end_state:
-                    return value
+                    if tok is _END and state_stack[-1] == end_state:
+                        return value_stack[-1]
 
 
 class _Splice(list):
