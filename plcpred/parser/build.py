@@ -551,7 +551,9 @@ def make_action_assoc(name, qualifier, rest, pos, err):
 # ---------------------------------------------------------------------- running a grammar
 
 class _Feed(Lexer):
-    """Lets lark pull tokens from our own tokenizer (passed as the parse input)."""
+    """A do-nothing lexer, so that lark builds the LALR tables without compiling a lexer
+    of its own: tokens come from :class:`Tokenizer` and :meth:`GrammarRunner.parse`
+    drives the tables itself."""
     __future_interface__ = 2
 
     def __init__(self, lexer_conf):
@@ -627,11 +629,12 @@ def describe_expected(expected: set[str]) -> str:
 class GrammarRunner:
     """One LALR parser for a grammar, shared by all parses (built once, lazily).
 
-    lark builds the tables and the per-rule callbacks (token filtering, ``?`` inlining,
-    placeholders, then our :class:`IRBuilder` methods); the shift/reduce loop is our own.
-    lark's general loop serves interactive parsing and debugging too, and costs about twice
-    as much per token as this one. Unit reductions of ``?`` rules, which only pass their
-    single child up, skip the callback altogether.
+    lark builds the tables; the reduce callbacks (:func:`_compile_rule`, lark's
+    tree-building semantics calling :class:`IRBuilder` methods directly) and the
+    shift/reduce loop are our own. lark's general loop and callback wrappers serve
+    interactive parsing and debugging too, and cost about twice as much per token.
+    Unit reductions of ``?`` rules, which only pass their single child up, skip the
+    callback altogether.
     """
 
     def __init__(self, grammar: str, builder_cls=IRBuilder):

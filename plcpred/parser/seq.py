@@ -160,8 +160,7 @@ class SeqBuilder(IRBuilder):
                 transitions.append(item)
             else:
                 actions.append(item)
-        # join transitions come after the steps' own, in file order
-        return name, blocks, steps, transitions, actions
+        return name, blocks, steps, transitions, actions  # transitions in file order
 
 
 def _name_step_timer(cond, step_name: str):
