@@ -207,7 +207,8 @@ def parse_seq(text: str, filename: str = "<input>") -> ir.Program:
     builder_err = _RUNNER._builder._err
     initial = [s for s in steps if s.initial]
     if len(initial) != 1:
-        pos = (initial[1].pos if len(initial) > 1 else (steps[0].pos if steps else None))
+        pos = (initial[1].pos if len(initial) > 1
+               else (steps[0].pos if steps else ir.Pos(filename, 1, 1)))
         raise builder_err(f"a sequence needs exactly one 'initial step', found {len(initial)}",
                           pos)
     pou_name = name or _identifier(Path(filename).stem)
