@@ -127,3 +127,30 @@ def test_unconvertible_input_is_named(xml, fragment):
         parse_plcopen(xml, "bad.xml")
     assert fragment in ei.value.message
     assert ei.value.line > 0
+
+
+def test_methods_exported_as_vendor_data():
+    xml = project(pous='<pou name="FB" pouType="functionBlock"><interface><outputVars>'
+                       '<variable name="q"><type><BOOL/></type></variable></outputVars></interface>'
+                       '<body><ST><xhtml:p>q := Check(1);</xhtml:p></ST></body>'
+                       '<addData><data name="http://www.3s-software.com/plcopenxml/method" '
+                       'handleUnknown="implementation"><Method name="Check">'
+                       '<interface><returnType><BOOL/></returnType><inputVars><variable name="n">'
+                       '<type><INT/></type></variable></inputVars></interface>'
+                       '<body><ST><xhtml:p>Check := n &gt; 0;</xhtml:p></ST></body>'
+                       '</Method></data></addData></pou>')
+    fb = parse_plcopen(xml, "m.xml").pous[0]
+    (m,) = fb.methods
+    assert m.name == "Check" and m.return_type == ir.NamedType("BOOL")
+    assert m.body == [ir.Assign(ir.Name("Check"),
+                                ir.Binary(">", ir.Name("n"), ir.Literal(0, "ANY_INT")))]
+    from plcpred.parser.check import check_program
+    assert check_program(parse_plcopen(xml, "m.xml"))[0] == []
+
+
+def test_missing_attribute_is_reported_at_its_element():
+    xml = project(pous='<pou pouType="program"><body><ST><xhtml:p>;</xhtml:p></ST></body></pou>')
+    with pytest.raises(ProgramError) as ei:
+        parse_plcopen(xml, "a.xml")
+    assert ei.value.message == "<pou> needs a 'name' attribute"
+    assert ei.value.line == 3

@@ -347,3 +347,21 @@ def test_sfc_textual_form():
     assert t1.targets == ["S1", "S2"] and t2.sources == ["S1", "S2"]
     assert t2.priority == 2 and t2.name == "T2"
     assert sfc.actions[0].name == "Count"
+
+
+def test_var_config_with_instance_paths():
+    prog = parse_st("""PROGRAM Main VAR_OUTPUT lamp : BOOL; END_VAR END_PROGRAM
+    CONFIGURATION C
+      VAR_CONFIG
+        Res.Inst.lamp AT %QX1.0 : BOOL := TRUE;
+      END_VAR
+      RESOURCE Res ON PLC
+        PROGRAM Inst : Main;
+      END_RESOURCE
+    END_CONFIGURATION""")
+    block = prog.configurations[0].var_blocks[0]
+    assert block.kind == "VAR_CONFIG"
+    assert block.decls == [ir.VarDecl("Res.Inst.lamp", ir.NamedType("BOOL"),
+                                      ir.Literal(True, "BOOL"), "%QX1.0")]
+    from plcpred.parser.printer import to_st
+    assert parse_st(to_st(prog)) == prog

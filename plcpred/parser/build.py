@@ -108,13 +108,15 @@ class IRBuilder:
         return ir.Call(func, args or [], pos=func.pos)
 
     def name(self, tok):
-        return ir.Name(str(tok), pos=self._pos(tok))
+        return ir.Name(tok.value, pos=ir.Pos(self.file, tok.line, tok.column))
 
     def address(self, tok):
         return ir.DirectAddress(str(tok).upper(), pos=self._pos(tok))
 
     def int_lit(self, tok):
-        return ir.Literal(parse_int(tok.value), "ANY_INT", pos=self._pos(tok))
+        text = tok.value
+        value = int(text) if text.isdigit() else parse_int(text)
+        return ir.Literal(value, "ANY_INT", pos=ir.Pos(self.file, tok.line, tok.column))
 
     def real_lit(self, tok):
         return ir.Literal(float(tok.value.replace("_", "")), "ANY_REAL", pos=self._pos(tok))
@@ -330,6 +332,13 @@ class IRBuilder:
             raise self._err("an AT address can be given to one variable only",
                             self._pos(names[1]))
         return [ir.VarDecl(str(n), type_, init, addr, pos=self._pos(n)) for n in names]
+
+    def config_path(self, *names):
+        return _QualName(".".join(n.value for n in names), self._pos(names[0]))
+
+    def config_decl(self, path, address, type_, init):
+        """A VAR_CONFIG entry: ``Resource.Instance.Variable AT %QX1.0 : BOOL``."""
+        return [ir.VarDecl(str(path), type_, init, address.value.upper(), pos=path.pos)]
 
     # ------------------------------------------------------------------ POUs
     def modifiers(self, *mods):

@@ -128,6 +128,8 @@ var_block: var_kind var_qualifier* var_decl* _END_VAR
          | VAR_STAT | VAR_INST | VAR_CONFIG | VAR_ACCESS
 !var_qualifier: CONSTANT | RETAIN | NON_RETAIN | PERSISTENT
 var_decl: name_list [_AT ADDRESS] _COLON type_spec [_ASSIGN initializer] _SEMI
+        | config_path _AT ADDRESS _COLON type_spec [_ASSIGN initializer] _SEMI -> config_decl
+config_path: NAME (_DOT NAME)+
 """
 
 ST_TOP = r"""

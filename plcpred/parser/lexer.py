@@ -161,9 +161,6 @@ class Tokenizer:
             pos = start
             end = m.end()
             col = pos - line_start + 1
-            if kind == "lc":
-                pos = end
-                continue
             if kind == "ident":
                 word = value
                 if end < n and text[end] == "#":
@@ -203,6 +200,9 @@ class Tokenizer:
                 continue
             if kind == "addr":
                 yield Token("ADDRESS", value, pos, line, col)
+                pos = end
+                continue
+            if kind == "lc":
                 pos = end
                 continue
             # comments and pragmas that may span lines

@@ -115,6 +115,13 @@ class _Importer:
     def error(self, el: _El, message: str) -> ProgramError:
         return ProgramError(message, self.file, el.line, el.col)
 
+    def req(self, el: _El, name: str) -> str:
+        """A required attribute, or an error at the element that lacks it."""
+        try:
+            return el.attrib[name]
+        except KeyError:
+            raise self.error(el, f"<{el.tag}> needs a '{name}' attribute") from None
+
     # ------------------------------------------------------------------ ST fragments
     def _padded(self, text: str, line: int, col: int, header: str) -> str:
         """ST text placed at its true line/column, after a header on line 1."""
@@ -154,25 +161,25 @@ class _Importer:
             return ir.StringType(tag == "wstring",
                                  ir.Literal(int(length), "ANY_INT") if length else None)
         if tag == "derived":
-            return ir.NamedType(t.attrib["name"])
+            return ir.NamedType(self.req(t, "name"))
         if tag == "array":
             dims = []
             for d in t.findall("dimension"):
-                dims.append((self.value_text(d, d.attrib["lower"]),
-                             self.value_text(d, d.attrib["upper"])))
+                dims.append((self.value_text(d, self.req(d, "lower")),
+                             self.value_text(d, self.req(d, "upper"))))
             return ir.ArrayType(dims, self.type_of(t.find("baseType"), t))
         if tag == "pointer":
             return ir.PointerType(self.type_of(t.find("baseType"), t))
         if tag in ("subrangeSigned", "subrangeUnsigned"):
             rng = t.find("range")
             base = self.type_of(t.find("baseType"), t)
-            return ir.SubrangeType(base.name, self.value_text(rng, rng.attrib["lower"]),
-                                   self.value_text(rng, rng.attrib["upper"]))
+            return ir.SubrangeType(base.name, self.value_text(rng, self.req(rng, "lower")),
+                                   self.value_text(rng, self.req(rng, "upper")))
         if tag == "enum":
             values = []
             for v in t.find("values").findall("value") if t.find("values") else []:
                 val = v.attrib.get("value")
-                values.append((v.attrib["name"], self.value_text(v, val) if val else None))
+                values.append((self.req(v, "name"), self.value_text(v, val) if val else None))
             base = t.find("baseType")
             return ir.EnumType(values, self.type_of(base, t).name if base is not None else None)
         if tag == "struct":
@@ -192,14 +199,14 @@ class _Importer:
                 items.append((count, self.init_of(item)))
             return ir.ArrayInit(items)
         if v.tag == "structValue":
-            return ir.StructInit([(item.attrib["member"], self.init_of(item))
+            return ir.StructInit([(self.req(item, "member"), self.init_of(item))
                                   for item in v.findall("value")])
         raise self.error(v, f"cannot convert initial value <{v.tag}>")
 
     def variables(self, el: _El, kind: str | None) -> list[ir.VarDecl]:
         out = []
         for v in el.findall("variable"):
-            out.append(ir.VarDecl(v.attrib["name"], self.type_of(v.find("type"), v),
+            out.append(ir.VarDecl(self.req(v, "name"), self.type_of(v.find("type"), v),
                                   self.init_of(v.find("initialValue")),
                                   v.attrib.get("address"),
                                   pos=ir.Pos(self.file, v.line, v.col)))
@@ -236,7 +243,7 @@ class _Importer:
         return []
 
     def pou(self, el: _El) -> ir.Pou:
-        name = el.attrib["name"]
+        name = self.req(el, "name")
         kind = _POU_KINDS.get(el.attrib.get("pouType", ""))
         if kind is None:
             raise self.error(el, f"POU '{name}': unknown pouType "
@@ -248,12 +255,23 @@ class _Importer:
         actions = []
         acts = el.find("actions")
         for a in acts.findall("action") if acts is not None else []:
-            actions.append(ir.SfcAction(a.attrib["name"],
+            actions.append(ir.SfcAction(self.req(a, "name"),
                                         self.body_of(el, a.find("body"), name) or [],
                                         pos=ir.Pos(self.file, a.line, a.col)))
         body = self.body_of(el, el.find("body"), name)
         pou = ir.Pou(kind, name, self.var_blocks(iface), body, return_type=ret,
                      pos=ir.Pos(self.file, el.line, el.col))
+        # CODESYS and TwinCAT export a function block's methods as vendor data
+        for add in el.findall("addData"):
+            for m in add.iter("Method"):
+                m_iface = m.find("interface")
+                m_ret = None
+                if m_iface is not None and m_iface.find("returnType") is not None:
+                    m_ret = self.type_of(m_iface.find("returnType"), m_iface)
+                pou.methods.append(ir.Method(self.req(m, "name"), m_ret,
+                                             self.var_blocks(m_iface),
+                                             self.body_of(el, m.find("body"), name) or [],
+                                             pos=ir.Pos(self.file, m.line, m.col)))
         if isinstance(body, ir.Sfc):
             body.actions.extend(actions)
         else:
@@ -265,7 +283,7 @@ class _Importer:
         nodes: dict[str, _El] = {}
         for child in sfc_el.children:
             if "localId" in child.attrib:
-                nodes[child.attrib["localId"]] = child
+                nodes[self.req(child, "localId")] = child
         preds: dict[str, list[str]] = {k: [] for k in nodes}
         succs: dict[str, list[str]] = {k: [] for k in nodes}
         for lid, el in nodes.items():
@@ -280,7 +298,7 @@ class _Importer:
         step_of_id = {}
         for lid, el in nodes.items():
             if el.tag == "step":
-                step = ir.Step(el.attrib["name"], el.attrib.get("initialStep") == "true",
+                step = ir.Step(self.req(el, "name"), el.attrib.get("initialStep") == "true",
                                pos=ir.Pos(self.file, el.line, el.col))
                 steps.append(step)
                 step_of_id[lid] = step
@@ -289,7 +307,7 @@ class _Importer:
                                      "one initial step")
         step_names = {s.name for s in steps}
         transitions_el = pou_el.find("transitions")
-        named_conditions = {t.attrib["name"]: t for t in transitions_el.findall("transition")
+        named_conditions = {self.req(t, "name"): t for t in transitions_el.findall("transition")
                             } if transitions_el is not None else {}
         passthrough = {"selectionDivergence", "selectionConvergence",
                        "simultaneousDivergence", "simultaneousConvergence"}
@@ -352,7 +370,7 @@ class _Importer:
                     raise self.error(c, "only ST transition conditions can be converted")
                 return self.st_expr(st)
             if c.tag == "reference":
-                name = c.attrib["name"]
+                name = self.req(c, "name")
                 t = named.get(name)
                 if t is None:
                     raise self.error(c, f"reference to unknown transition {name!r}")
@@ -375,12 +393,12 @@ class _Importer:
         qualifier = a.attrib.get("qualifier", "N")
         rest = []
         if a.attrib.get("duration"):
-            rest.append(self.value_text(a, a.attrib["duration"]))
+            rest.append(self.value_text(a, self.req(a, "duration")))
         if a.attrib.get("indicator"):
-            rest.append(ir.Name(a.attrib["indicator"]))
+            rest.append(ir.Name(self.req(a, "indicator")))
         ref = a.find("reference")
         if ref is not None:
-            name = ref.attrib["name"]
+            name = self.req(ref, "name")
         else:
             inline = a.find("inline")
             st = inline.find("ST") if inline is not None else None
@@ -401,7 +419,7 @@ class _Importer:
         if types is not None:
             dts = types.find("dataTypes")
             for dt in dts.findall("dataType") if dts is not None else []:
-                prog.types.append(ir.TypeDecl(dt.attrib["name"],
+                prog.types.append(ir.TypeDecl(self.req(dt, "name"),
                                               self.type_of(dt.find("baseType"), dt),
                                               self.init_of(dt.find("initialValue")),
                                               pos=ir.Pos(self.file, dt.line, dt.col)))
@@ -428,32 +446,32 @@ class _Importer:
         return prog
 
     def configuration(self, c: _El) -> ir.Configuration:
-        cfg = ir.Configuration(c.attrib["name"], pos=ir.Pos(self.file, c.line, c.col))
+        cfg = ir.Configuration(self.req(c, "name"), pos=ir.Pos(self.file, c.line, c.col))
         for g in c.findall("globalVars"):
             cfg.var_blocks.append(ir.VarBlock("VAR_GLOBAL", self.variables(g, "VAR_GLOBAL"),
                                               pos=ir.Pos(self.file, g.line, g.col)))
         for r in c.findall("resource"):
-            res = ir.Resource(r.attrib["name"], "PLC", pos=ir.Pos(self.file, r.line, r.col))
+            res = ir.Resource(self.req(r, "name"), "PLC", pos=ir.Pos(self.file, r.line, r.col))
             for g in r.findall("globalVars"):
                 res.var_blocks.append(ir.VarBlock("VAR_GLOBAL", self.variables(g, "VAR_GLOBAL"),
                                                   pos=ir.Pos(self.file, g.line, g.col)))
             for t in r.findall("task"):
                 params = {}
                 if t.attrib.get("interval"):
-                    params["INTERVAL"] = self.value_text(t, t.attrib["interval"])
+                    params["INTERVAL"] = self.value_text(t, self.req(t, "interval"))
                 if t.attrib.get("priority"):
-                    params["PRIORITY"] = self.value_text(t, t.attrib["priority"])
+                    params["PRIORITY"] = self.value_text(t, self.req(t, "priority"))
                 if t.attrib.get("single"):
-                    params["SINGLE"] = self.value_text(t, t.attrib["single"])
-                res.tasks.append(ir.Task(t.attrib["name"], params,
+                    params["SINGLE"] = self.value_text(t, self.req(t, "single"))
+                res.tasks.append(ir.Task(self.req(t, "name"), params,
                                          pos=ir.Pos(self.file, t.line, t.col)))
                 for pi in t.findall("pouInstance"):
-                    res.programs.append(ir.ProgramInstance(pi.attrib["name"],
-                                                           pi.attrib["typeName"],
-                                                           t.attrib["name"],
+                    res.programs.append(ir.ProgramInstance(self.req(pi, "name"),
+                                                           self.req(pi, "typeName"),
+                                                           self.req(t, "name"),
                                                            pos=ir.Pos(self.file, pi.line, pi.col)))
             for pi in r.findall("pouInstance"):
-                res.programs.append(ir.ProgramInstance(pi.attrib["name"], pi.attrib["typeName"],
+                res.programs.append(ir.ProgramInstance(self.req(pi, "name"), self.req(pi, "typeName"),
                                                        pos=ir.Pos(self.file, pi.line, pi.col)))
             cfg.resources.append(res)
         return cfg
@@ -461,9 +479,4 @@ class _Importer:
 
 def parse_plcopen(text: str, filename: str = "<input>") -> ir.Program:
     """Import a PLCopen TC6 XML project into the IR."""
-    imp = _Importer(filename)
-    root = _parse_xml(text, filename)
-    try:
-        return imp.project(root)
-    except KeyError as e:  # a required attribute is missing
-        raise ProgramError(f"missing required attribute {e.args[0]!r}", filename, 0, 0) from None
+    return _Importer(filename).project(_parse_xml(text, filename))
