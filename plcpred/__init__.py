@@ -3,9 +3,11 @@
 Library first: the ``plcpred`` command is a thin layer over these calls.
 
 * :func:`plcpred.parser.load_program` - parse ``.st``, ``.seq`` or PLCopen ``.xml`` into the IR
+* :func:`plcpred.machine.load_machine` - read and validate a machine file (TOML)
 """
 __version__ = "0.1.0"
 
+from .machine import load_machine  # noqa: E402
 from .parser import load_program  # noqa: E402
 
-__all__ = ["load_program", "__version__"]
+__all__ = ["load_machine", "load_program", "__version__"]

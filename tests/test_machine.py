@@ -1,0 +1,131 @@
+"""Machine file loading and validation."""
+import pytest
+
+from plcpred.machine import MachineError, check_against_program, load_machine
+from plcpred.parser import parse_st
+
+PROGRAM = """PROGRAM Station
+VAR_INPUT start : BOOL; clamp_home, clamp_work : BOOL; END_VAR
+VAR_OUTPUT clamp_valve, blow, lamp : BOOL; END_VAR
+IF start AND clamp_home THEN clamp_valve := TRUE; END_IF
+blow := clamp_valve;
+lamp := FALSE;
+END_PROGRAM
+"""
+
+GOOD = """
+[machine]
+name = "station"
+program = "station.st"
+scan_ms = 5
+supply_bar_g = 6.0
+
+[signals]
+"%IX0.0" = "start"
+
+[[input]]
+signal = "%IX0.0"
+period_s = 2.5
+offset_s = 0.1
+pulse_ms = 100
+
+[[consumer]]
+name = "clamp"
+kind = "double_acting"
+bore_mm = 32
+rod_mm = 12
+stroke_mm = 25
+tube_id_mm = 4
+tube_length_m = [0.5, 0.7]
+valve = "clamp_valve"
+stroke_time_s = [0.2, 0.25]
+switch_delay_s = 0.015
+switches = { retracted = "clamp_home", extended = "clamp_work" }
+
+[[consumer]]
+name = "blow-off"
+kind = "nozzle"
+valve = "blow"
+orifice_mm = 1.5
+Cd = 0.8
+
+[[consumer]]
+name = "leak"
+kind = "leak"
+C = 3.4e-10
+b = 0.12
+m = 0.9
+"""
+
+
+def write(tmp_path, text, program=PROGRAM):
+    (tmp_path / "station.st").write_text(program)
+    f = tmp_path / "station.toml"
+    f.write_text(text)
+    return f
+
+
+def test_good_file_loads_with_defaults(tmp_path):
+    m = load_machine(write(tmp_path, GOOD))
+    assert m.name == "station" and m.scan_ms == 5 and m.supply_bar_g == 6.0
+    assert m.atmosphere_kpa == 101.325 and m.ambient_c == 20.0
+    clamp = m.consumer("clamp")
+    assert clamp.tube_length_m == (0.5, 0.7) and clamp.stroke_time_s == (0.2, 0.25)
+    assert clamp.valve == ["clamp_valve"] and not clamp.bistable
+    assert clamp.initial == "retracted"
+    nozzle = m.consumer("blow-off")
+    assert nozzle.b == 0.528 and nozzle.m == 0.5 and nozzle.flow_model == "iso6358"
+    assert m.consumer("leak").valve == []
+    assert m.inputs[0].period_s == 2.5 and m.inputs[0].pulse_ms == 100
+
+
+def test_cross_check_with_program_warns_on_undriven_outputs_and_unread_switches(tmp_path):
+    m = load_machine(write(tmp_path, GOOD))
+    warnings = check_against_program(m, parse_st(PROGRAM))
+    assert any("output 'LAMP'" in w and "drives no consumer" in w for w in warnings)
+    assert any("switch 'clamp_work' is never read" in w for w in warnings)
+    assert not any("clamp_home" in w for w in warnings)
+
+
+def test_unknown_signal_is_an_error_naming_table_and_key(tmp_path):
+    m = load_machine(write(tmp_path, GOOD.replace('valve = "blow"', 'valve = "blower"')))
+    with pytest.raises(MachineError) as ei:
+        check_against_program(m, parse_st(PROGRAM))
+    assert str(ei.value) == (f"{tmp_path / 'station.toml'}: consumer \"blow-off\": valve "
+                             "'blower' is not a variable of station.st")
+
+
+@pytest.mark.parametrize("edit, message", [
+    (("stroke_mm = 25", "stroke_mm = -25"), 'consumer "clamp": stroke_mm must be > 0'),
+    (("stroke_mm = 25", "stroke_mm = 25\ncolour = 'red'"), 'consumer "clamp": unknown key \'colour\''),
+    (("rod_mm = 12", "rod_mm = 40"), 'consumer "clamp": rod_mm (40) must be smaller than bore_mm'),
+    (("bore_mm = 32\n", ""), "consumer \"clamp\": missing required key 'bore_mm'"),
+    (('kind = "nozzle"', 'kind = "fan"'), 'kind must be one of'),
+    (("orifice_mm = 1.5\nCd = 0.8", "orifice_mm = 1.5"), "orifice_mm needs a discharge coefficient Cd"),
+    (('kind = "leak"', 'kind = "leak"\nvalve = "blow"'), 'consumer "leak": a leak is always on'),
+    (("supply_bar_g = 6.0", ""), "[machine]: missing required key 'supply_bar_g'"),
+    (('program = "station.st"', 'program = "missing.st"'), "program file 'missing.st' not found"),
+    (("period_s = 2.5", "period_s = 0.05"), "pulse_ms must be shorter than period_s"),
+    (('name = "blow-off"', 'name = "clamp"'), 'consumer "clamp": name is used twice'),
+    (("[[input]]", "[input]"), "[[input]]: write it as [[input]]"),
+    (("scan_ms = 5", "scan_ms = 'fast'"), "scan_ms must be a number"),
+])
+def test_bad_files_name_table_and_key(tmp_path, edit, message):
+    f = write(tmp_path, GOOD.replace(*edit, 1))
+    with pytest.raises(MachineError) as ei:
+        load_machine(f)
+    assert message in str(ei.value)
+    assert str(ei.value).startswith(str(f))
+
+
+def test_bistable_valve_and_auto_stroke_time(tmp_path):
+    text = GOOD.replace('valve = "clamp_valve"', 'valve = ["clamp_valve", "lamp"]').replace(
+        "stroke_time_s = [0.2, 0.25]", 'stroke_time_s = "auto"')
+    c = load_machine(write(tmp_path, text)).consumer("clamp")
+    assert c.bistable and c.stroke_time_s == "auto"
+
+
+def test_not_toml_is_a_clear_error(tmp_path):
+    f = write(tmp_path, "[machine\nname=")
+    with pytest.raises(MachineError, match="not valid TOML"):
+        load_machine(f)
