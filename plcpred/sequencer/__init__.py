@@ -1,0 +1,4 @@
+"""Unfolding a PLC program into timelines (work in progress: issue 3).
+
+* :mod:`plcpred.sequencer.stdfb` - the IEC 61131-3 standard function blocks
+"""
