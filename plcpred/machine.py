@@ -122,7 +122,9 @@ class _Reader:
             if required:
                 raise self.error(f"missing required key '{key}'")
             return default
-        v = self.table[key]
+        return self._checked(key, self.table[key], positive, nonneg)
+
+    def _checked(self, key, v, positive, nonneg) -> float:
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
             raise self.error(f"{key} must be a number, not {v!r}")
         if positive and v <= 0:
@@ -151,16 +153,7 @@ class _Reader:
         values = v if isinstance(v, list) else [v, v]
         if len(values) != 2:
             raise self.error(f"{key} must be a number or a list of two numbers")
-        out = []
-        for x in values:
-            if isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x):
-                raise self.error(f"{key} must contain numbers, not {x!r}")
-            if positive and x <= 0:
-                raise self.error(f"{key} must be > 0")
-            if nonneg and x < 0:
-                raise self.error(f"{key} must be >= 0")
-            out.append(float(x))
-        return tuple(out)
+        return tuple(self._checked(key, x, positive, nonneg) for x in values)
 
 
 def _consumer(file: str, index: int, table: dict) -> Consumer:
