@@ -154,3 +154,18 @@ def test_missing_attribute_is_reported_at_its_element():
         parse_plcopen(xml, "a.xml")
     assert ei.value.message == "<pou> needs a 'name' attribute"
     assert ei.value.line == 3
+
+
+def test_beremiz_style_export_with_layout_data_and_uppercase_string():
+    from pathlib import Path
+    prog = load_program(Path(__file__).parent / "data" / "beremiz_sfc.xml")
+    pou = prog.pous[0]
+    sfc = pou.body
+    assert [(t.sources, t.targets) for t in sfc.transitions] == [(["Init"], ["Work"]),
+                                                                 (["Work"], ["Init"])]
+    assert sfc.steps[1].actions == [ir.ActionAssoc("valve", "N")]
+    label = next(d for d in pou.decls() if d.name == "label")
+    assert label.type == ir.StringType(False, None)
+    assert label.init == ir.Literal("hi", "STRING")
+    from plcpred.parser.check import check_program
+    assert check_program(prog)[0] == []

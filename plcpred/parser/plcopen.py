@@ -154,11 +154,11 @@ class _Importer:
             raise self.error(where, "missing <type>")
         t = el.children[0]
         tag = t.tag
-        if tag.upper() in ELEMENTARY and tag not in ("string", "wstring"):
+        if tag.upper() in ELEMENTARY:
             return ir.NamedType(tag.upper())
-        if tag in ("string", "wstring"):
+        if tag.lower() in ("string", "wstring"):  # TC6 writes them lower case; some tools don't
             length = t.attrib.get("length")
-            return ir.StringType(tag == "wstring",
+            return ir.StringType(tag.lower() == "wstring",
                                  ir.Literal(int(length), "ANY_INT") if length else None)
         if tag == "derived":
             return ir.NamedType(self.req(t, "name"))
