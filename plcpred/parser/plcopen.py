@@ -11,7 +11,8 @@ from __future__ import annotations
 from xml.parsers import expat
 
 from . import ir
-from .errors import ProgramError
+from .build import make_action_assoc
+from .errors import ProgramError, at
 from .st import parse_st
 
 ELEMENTARY = {"BOOL", "BYTE", "WORD", "DWORD", "LWORD", "SINT", "INT", "DINT", "LINT",
@@ -388,8 +389,6 @@ class _Importer:
         raise self.error(cond, "only inline or referenced ST conditions can be converted")
 
     def action_assoc(self, a: _El, step: ir.Step, n: int, extra: list) -> ir.ActionAssoc:
-        from .build import make_action_assoc
-
         qualifier = a.attrib.get("qualifier", "N")
         rest = []
         if a.attrib.get("duration"):
@@ -407,10 +406,8 @@ class _Importer:
             name = f"{step.name}_action{n}"
             extra.append(ir.SfcAction(name, self.st_body(st), pos=ir.Pos(self.file, a.line, a.col)))
 
-        def err(message, pos):
-            return ProgramError(message, self.file, a.line, a.col)
-
-        return make_action_assoc(name, qualifier, rest, ir.Pos(self.file, a.line, a.col), err)
+        return make_action_assoc(name, qualifier, rest, ir.Pos(self.file, a.line, a.col),
+                                 lambda message, pos: at(pos, message))
 
     # ------------------------------------------------------------------ project
     def project(self, root: _El) -> ir.Program:

@@ -51,6 +51,7 @@ from pathlib import Path
 
 from . import ir
 from .build import GrammarRunner, IRBuilder, make_action_assoc
+from .errors import at
 from .grammar import COMMON, TERMINALS
 from .lexer import KEPT_KEYWORDS, KEYWORDS, Token, Tokenizer
 from .literals import NS_PER_UNIT
@@ -204,13 +205,11 @@ def parse_seq(text: str, filename: str = "<input>") -> ir.Program:
                           kept=SEQ_KEPT)
     name, blocks, steps, transitions, actions = _RUNNER.parse(
         _with_bare_durations(tokenizer), filename)
-    builder_err = _RUNNER._builder._err
     initial = [s for s in steps if s.initial]
     if len(initial) != 1:
         pos = (initial[1].pos if len(initial) > 1
                else (steps[0].pos if steps else ir.Pos(filename, 1, 1)))
-        raise builder_err(f"a sequence needs exactly one 'initial step', found {len(initial)}",
-                          pos)
+        raise at(pos, f"a sequence needs exactly one 'initial step', found {len(initial)}")
     pou_name = name or _identifier(Path(filename).stem)
     pou = ir.Pou("PROGRAM", pou_name, blocks, ir.Sfc(steps, transitions, actions,
                                                       pos=ir.Pos(filename, 1, 1)),
