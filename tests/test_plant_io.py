@@ -69,7 +69,7 @@ def test_zero_delay_edge_is_at_the_command_time():
     ([True, True], [True, True], True, True),      # both pulsed together: keeps state
 ])
 def test_valve_command(solenoids, rising, previous, expected):
-    assert valve_command("", solenoids, previous, rising) == expected
+    assert valve_command(solenoids, previous, rising) == expected
 
 
 def test_bad_parameters():

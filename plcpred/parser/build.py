@@ -600,7 +600,7 @@ _LITERAL_TOKENS = {"TYPED_LIT", "TIME_LIT", "DT_LIT", "TOD_LIT", "DATE_LIT", "EN
 
 
 def describe_token(tok) -> str:
-    if tok is None or tok.type == "$END":
+    if tok is None:
         return "end of file"
     if tok.type in ("NAME",):
         return f"identifier '{tok}'"
@@ -746,7 +746,7 @@ def _compile_rule(rule, builder):
     func = getattr(builder, name, None)
     expand1 = bool(opts.expand1) and not rule.alias  # an alias disables ? (as in lark)
     if (expand1 and len(plan) == 1 and not plan[0][1] and plan[0][2] == 0 and not trailing
-            and len(expansion) == 1 and rule.alias is None):
+            and len(expansion) == 1):
         return None
     simple = not trailing and all(not splice and not n for _, splice, n in plan)
     keep = [i for i, _, _ in plan]
@@ -781,7 +781,7 @@ def _expected(row) -> set[str]:
 
 def _syntax_error(tok, expected, feed: _Recording, filename: str) -> ProgramError:
     expected = set(expected)
-    if tok is None or tok.type == "$END":
+    if tok is None:  # end of input
         prev = feed.last
         line = prev.line if prev is not None else 1
         col = (prev.column + len(prev)) if prev is not None else 1

@@ -104,8 +104,7 @@ class CylinderPlant:
         return None
 
 
-def valve_command(kind: str, solenoids: list[bool], previous: bool,
-                  rising: list[bool]) -> bool:
+def valve_command(solenoids: list[bool], previous: bool, rising: list[bool]) -> bool:
     """The effective extend command of a valve.
 
     Monostable (one solenoid, spring return) and single-acting: extend while the solenoid
