@@ -572,7 +572,7 @@ class _Feed(Lexer):
         return lexer_state.text
 
 
-_END = Token("$END", "", 0, 0, 0)  # end of input, fed through the same loop
+_END = Token("$END", "", 0, 0)  # end of input, fed through the same loop
 
 
 class _Recording:

@@ -18,7 +18,7 @@ class Token:
     tokenizer does."""
     __slots__ = ("type", "value", "line", "column")
 
-    def __init__(self, type_: str, value: str, pos: int, line: int, column: int):
+    def __init__(self, type_: str, value: str, line: int, column: int):
         self.type = type_
         self.value = value
         self.line = line
@@ -164,34 +164,34 @@ class Tokenizer:
             if kind == "ident":
                 word = value
                 if end < n and text[end] == "#":
-                    tok, end = self._hash_literal(word, end, line, col, pos)
+                    tok, end = self._hash_literal(word, end, line, col)
                     yield tok
                     pos = end
                     continue
                 upper = word.upper()
                 toktype = keywords.get(upper)
                 if toktype is not None:
-                    yield Token(toktype, word, pos, line, col)
+                    yield Token(toktype, word, line, col)
                 elif upper == "REF" and text.startswith("=", end) and not text.startswith("=>", end):
-                    yield Token("_REFASSIGN", "REF=", pos, line, col)
+                    yield Token("_REFASSIGN", "REF=", line, col)
                     end += 1
                 else:
-                    yield Token("NAME", word, pos, line, col)
+                    yield Token("NAME", word, line, col)
                 pos = end
                 continue
             if kind == "op":
-                yield Token(ops[value], value, pos, line, col)
+                yield Token(ops[value], value, line, col)
                 pos = end
                 continue
             if kind == "num":
                 if m.group("frac") or m.group("exp"):
-                    yield Token("REAL", value, pos, line, col)
+                    yield Token("REAL", value, line, col)
                 else:
-                    yield Token("INTEGER", value, pos, line, col)
+                    yield Token("INTEGER", value, line, col)
                 pos = end
                 continue
             if kind in ("str", "wstr"):
-                yield Token("STRING_LIT" if kind == "str" else "WSTRING_LIT", value, pos, line, col)
+                yield Token("STRING_LIT" if kind == "str" else "WSTRING_LIT", value, line, col)
                 nls = value.count("\n")
                 if nls:
                     line += nls
@@ -199,7 +199,7 @@ class Tokenizer:
                 pos = end
                 continue
             if kind == "addr":
-                yield Token("ADDRESS", value, pos, line, col)
+                yield Token("ADDRESS", value, line, col)
                 pos = end
                 continue
             if kind == "lc":
@@ -244,7 +244,7 @@ class Tokenizer:
                 if depth == 0:
                     return i
 
-    def _hash_literal(self, word: str, hash_pos: int, line: int, col: int, start: int):
+    def _hash_literal(self, word: str, hash_pos: int, line: int, col: int):
         """``PREFIX#value``: a typed literal, a time/date literal, or ``Enum#Value``."""
         text = self.text
         upper = word.upper()
@@ -258,15 +258,15 @@ class Tokenizer:
                 if m is None:
                     raise self.error(f"malformed {table[upper]} literal after '{word}#'",
                                      line, col + len(word) + 1)
-                return Token(tokname, f"{table[upper]}#{m.group()}", start, line, col), m.end()
+                return Token(tokname, f"{table[upper]}#{m.group()}", line, col), m.end()
         if upper in ELEMENTARY_TYPES:
             m = _TYPED_VALUE.match(text, vstart)
             if m is None:
                 raise self.error(f"malformed {upper} literal after '{word}#'",
                                  line, col + len(word) + 1)
-            return Token("TYPED_LIT", f"{upper}#{m.group()}", start, line, col), m.end()
+            return Token("TYPED_LIT", f"{upper}#{m.group()}", line, col), m.end()
         m = _IDENT.match(text, vstart)
         if m is None:
             raise self.error(f"expected an enumeration value after '{word}#'",
                              line, col + len(word) + 1)
-        return Token("ENUM_LIT", f"{word}#{m.group()}", start, line, col), m.end()
+        return Token("ENUM_LIT", f"{word}#{m.group()}", line, col), m.end()

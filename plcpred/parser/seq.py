@@ -182,7 +182,7 @@ def _with_bare_durations(tokens):
         if pending is not None:
             if (tok.type == "NAME" and tok.value.lower() in _UNITS and tok.line == pending.line
                     and tok.column == pending.column + len(pending.value)):
-                yield Token("TIME_LIT", f"TIME#{pending.value}{tok.value}", 0, pending.line,
+                yield Token("TIME_LIT", f"TIME#{pending.value}{tok.value}", pending.line,
                             pending.column)
                 pending = None
                 continue
