@@ -81,20 +81,26 @@ class _Globals:
         if pou is None or pou.kind != "FUNCTION_BLOCK":
             return None
         ins, outs, other = set(), set(), set()
-        seen = set()
-        while pou is not None and pou.name.upper() not in seen:
-            seen.add(pou.name.upper())
-            for b in pou.var_blocks:
+        for p in self.fb_chain(pou):
+            for b in p.var_blocks:
                 names = {d.name.upper() for d in b.decls}
                 if b.kind in ("VAR_INPUT", "VAR_IN_OUT"):
                     ins |= names
                 elif b.kind == "VAR_OUTPUT":
                     outs |= names
-            other |= {m.name.upper() for m in pou.methods}
-            other |= {p.name.upper() for p in pou.properties}
-            other |= {a.name.upper() for a in pou.actions}
-            pou = self.pous.get(pou.extends.upper()) if pou.extends else None
+            other |= {m.name.upper() for m in p.methods}
+            other |= {pr.name.upper() for pr in p.properties}
+            other |= {a.name.upper() for a in p.actions}
         return ins, outs, other
+
+    def fb_chain(self, pou: ir.Pou) -> list[ir.Pou]:
+        """The POU, its base, its base's base ... (stopping at an unknown base or a cycle)."""
+        chain, seen = [], set()
+        while pou is not None and pou.name.upper() not in seen:
+            seen.add(pou.name.upper())
+            chain.append(pou)
+            pou = self.pous.get(pou.extends.upper()) if pou.extends else None
+        return chain
 
     def struct_members(self, type_name: str):
         t = self.types.get(type_name.upper())
@@ -193,15 +199,8 @@ class Checker:
 
     # ------------------------------------------------------------------ POUs
     def _pou_vars(self, pou: ir.Pou) -> dict[str, _Var]:
-        chain = []
-        seen = set()
-        p = pou
-        while p is not None and p.name.upper() not in seen:
-            seen.add(p.name.upper())
-            chain.append(p)
-            p = self.g.pous.get(p.extends.upper()) if p.extends else None
         scope: dict[str, _Var] = {}
-        for p in reversed(chain):
+        for p in reversed(self.g.fb_chain(pou)):
             for b in p.var_blocks:
                 for d in b.decls:
                     scope[d.name.upper()] = _Var(d, b.kind, "CONSTANT" in b.qualifiers, p.name)
