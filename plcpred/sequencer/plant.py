@@ -79,6 +79,24 @@ class CylinderPlant:
             direction = 0
         self._segments.append(_Segment(t_switch, x, direction))
 
+    def forget_before(self, t_ns: int) -> None:
+        """Drop trajectory segments that ended before ``t_ns`` (the sequencer only moves
+        forward, so a long run keeps a handful of segments instead of its whole history)."""
+        keep = 0
+        for i, s in enumerate(self._segments):
+            if s.t_ns <= t_ns:
+                keep = i
+        if keep:
+            del self._segments[:keep]
+
+    def key(self, t_ns: int) -> tuple:
+        """The motion from ``t_ns`` on, with times relative to it (for noticing that the
+        machine is back in an earlier state)."""
+        seg = self._segment_at(t_ns)
+        future = tuple((s.t_ns - t_ns, s.x, s.direction) for s in self._segments
+                       if s.t_ns > t_ns)
+        return (self.extend_cmd, self.position(t_ns), seg.direction) + future
+
     # ------------------------------------------------------------------ switches
     def switches(self, t_ns: int) -> tuple[bool, bool]:
         """(retracted switch, extended switch) at ``t_ns``."""

@@ -28,6 +28,15 @@ class StandardFB:
         """Everything that determines future behaviour (for detecting a repeating state)."""
         return tuple(getattr(self, s) for s in self.__slots__)
 
+    def key(self, rel: int | None) -> tuple:
+        """The state in a form that compares equal when the future behaves alike.
+
+        ``rel=None``: absolute, for asking "did this scan change anything?" between two
+        scans; the elapsed time of a running timer is left out because it follows from the
+        start time. ``rel=now``: absolute times become ages, for noticing that the whole
+        machine is back in an earlier state (tiling)."""
+        return self.state()
+
 
 # ---------------------------------------------------------------------- timers (table 46)
 
@@ -55,6 +64,13 @@ class TON(StandardFB):
             return self._start + max(self.PT, 0)
         return None
 
+    def key(self, rel):
+        start = self._start
+        if start is None:
+            return self.state()
+        return (self.IN, self.PT, self.Q, start if rel is None else rel - start) + tuple(
+            getattr(self, s) for s in self.__slots__[5:])
+
 
 class TOF(StandardFB):
     """Off-delay: Q follows IN up at once and falls PT after IN falls."""
@@ -81,6 +97,13 @@ class TOF(StandardFB):
         if not self.IN and self.Q and self._start is not None:
             return self._start + max(self.PT, 0)
         return None
+
+    def key(self, rel):
+        start = self._start
+        if start is None:
+            return self.state()
+        return (self.IN, self.PT, self.Q, start if rel is None else rel - start) + tuple(
+            getattr(self, s) for s in self.__slots__[5:])
 
 
 class TP(StandardFB):
@@ -114,6 +137,13 @@ class TP(StandardFB):
             return self._start + max(self.PT, 0)
         return None
 
+    def key(self, rel):
+        start = self._start
+        if start is None:
+            return self.state()
+        return (self.IN, self.PT, self.Q, start if rel is None else rel - start) + tuple(
+            getattr(self, s) for s in self.__slots__[5:])
+
 
 class TONR(StandardFB):
     """Retentive on-delay (CODESYS/TwinCAT): ET accumulates while IN, RESET clears it.
@@ -142,6 +172,14 @@ class TONR(StandardFB):
         if self.IN and not self.RESET and not self.Q and self._last is not None:
             return self._last + max(self.PT, 0) - self.ET
         return None
+
+    def key(self, rel):
+        head = (self.IN, self.PT, self.RESET, self.Q, self._was_in, self._last_pt)
+        if not self._was_in or self._last is None or self.Q:
+            return head + (self.ET, self._last is None)
+        # while accumulating, ET grows with time: keep its virtual start instead
+        start = self._last - self.ET
+        return head + (start if rel is None else rel - start,)
 
 
 # ---------------------------------------------------------------------- edges (table 44)

@@ -1,0 +1,577 @@
+"""The discrete-event executor: PLC scans (read inputs, run the programs, write outputs)
+at multiples of the scan time, jumping over scans in which nothing can change.
+
+Why jumping is exact: a scan is a deterministic function of the program state, the
+inputs and the time. When a scan leaves the state exactly as the previous scan did (a
+fixed point), every later scan does the same until something time-driven happens: an
+input edge (schedule or plant switch), a timer reaching PT (``next_event_ns`` of the
+standard FBs and of SFC action timers), or a step's elapsed time crossing a constant it
+is compared with. The executor jumps to the first scan at or after the earliest of those.
+Values that grow with time between scans (a running timer's ET, ``step.T`` read other
+than against a constant, TIME()) make it step every scan while they change.
+``scan_stepping=True`` runs every scan, as the reference the tests compare against.
+
+Long horizons: at each fixed point the whole state (variables, FB instances, timers,
+steps, cylinder motions, schedule phase) is recorded with times made relative; when a
+state comes back, the edges since its first occurrence repeat, so they are tiled up to
+the horizon. Random jitter in a schedule, pulses still to come and free-running counters
+that never repeat simply keep the executor running scan by scan to the horizon.
+"""
+from __future__ import annotations
+
+import sys
+import time as _time
+
+import numpy as np
+
+from ..parser import ir
+from ..parser.errors import ProgramError
+from . import runtime as rtm
+from .compiler import Compiled, compile_program
+from .plant import CylinderPlant, valve_command
+from .sfc import ActionSpec, SfcRuntime, SfcSpec
+from .stdfb import TON, TOF, TP, TONR, make_standard_fb
+from .timeline import NS, Signal, Timeline
+
+_TIMERS = (TON, TOF, TP, TONR)
+MAX_KEYS = 200_000
+
+
+class SequencerError(Exception):
+    """A problem running a machine (not a program syntax error)."""
+
+
+# ---------------------------------------------------------------------- namespace
+
+class FbBase:
+    __slots__ = ()
+
+
+def _copy(v):
+    import copy
+    return copy.deepcopy(v)
+
+
+def _setattrs(obj, **kw):
+    for k, v in kw.items():
+        setattr(obj, k, v)
+    return obj
+
+
+def _nest(flat, sizes):
+    if len(sizes) == 1:
+        return list(flat)
+    step = len(flat) // sizes[0]
+    return [_nest(flat[i * step:(i + 1) * step], sizes[1:]) for i in range(sizes[0])]
+
+
+def _snap_any(v, rel):
+    if isinstance(v, list):
+        return tuple(_snap_any(x, rel) for x in v)
+    if hasattr(v, "_snap"):
+        return v._snap(rel)
+    if hasattr(v, "key"):
+        return v.key(rel)
+    return v
+
+
+def _refkey(v):
+    if v is None:
+        return None
+    if isinstance(v, rtm.Ref):
+        return (id(v.obj), v.attr)
+    return id(v)
+
+
+def _for_range(start, end, step):
+    if step == 0:
+        raise ValueError("FOR with BY 0 never ends")
+    return range(start, end + (1 if step > 0 else -1), step)
+
+
+def _watchdog(kind, file, line, col):
+    raise rtm.Watchdog(f"watchdog: this {kind} loop did not finish within one scan "
+                       f"(more than {1_000_000} iterations)", file, line, col)
+
+
+def _sizeof(v):
+    return 1 if isinstance(v, bool) else 8
+
+
+def _namespace(timers: list, sfcs: list) -> dict:
+    def _stdfb(name):
+        fb = make_standard_fb(name)
+        if isinstance(fb, _TIMERS):
+            timers.append(fb)
+        return fb
+
+    return {
+        "k_FbBase": FbBase, "_SfcRuntime": SfcRuntime, "_SfcSpec": SfcSpec,
+        "_ActionSpec": ActionSpec, "_register": sfcs.append, "_stdfb": _stdfb,
+        "_setattrs": _setattrs, "_nest": _nest, "_copy": _copy, "_snap_any": _snap_any,
+        "_refkey": _refkey, "_for_range": _for_range, "_watchdog": _watchdog,
+        "_chkidx": rtm.check_index, "_getbit": rtm.getbit, "_setbit": rtm.setbit,
+        "_wrap": rtm.wrap, "_idiv": rtm.idiv, "_imod": rtm.imod, "_fdiv": rtm.fdiv,
+        "_fmod": __import__("math").fmod, "_tmul": rtm.tmul, "_tdiv": rtm.tdiv,
+        "_expt": rtm.expt, "_limit": rtm.limit, "_sel": rtm.sel, "_mux": rtm.mux,
+        "_shl": rtm.shl, "_shr": rtm.shr, "_rol": rtm.rol, "_ror": rtm.ror,
+        "_math": rtm.MATH, "_to_int": rtm.to_int, "_to_real": rtm.to_real,
+        "_to_time": rtm.to_time, "_to_bool": rtm.to_bool, "_to_string": rtm.to_string,
+        "_left": rtm.left, "_right": rtm.right, "_mid": rtm.mid, "_insert": rtm.insert,
+        "_delete": rtm.delete, "_replace": rtm.replace, "_find": rtm.find,
+        "_Ref": rtm.Ref, "_ItemRef": rtm.ItemRef, "_Box": rtm.Box, "_D": object(),
+        "_sizeof": _sizeof, "_now": 0, "_g": None,
+    }
+
+
+class ProgramInstance:
+    """A compiled project, instantiated: its PROGRAM instances, globals and timers."""
+
+    def __init__(self, program: ir.Program, compiled: Compiled | None = None):
+        self.compiled = compiled or compile_program(program)
+        self.filename = f"<plcpred {self._file(program)}>"
+        self.timers: list = []
+        self.sfcs: list = []
+        self.ns = _namespace(self.timers, self.sfcs)
+        code = compile(self.compiled.source, self.filename, "exec")
+        exec(code, self.ns)
+        self.programs = self.guard(self.ns["_build"])
+        self.g = self.ns["_g"]
+        self.names = [n for n, _ in self.compiled.programs]
+        self._bodies = [p._body for p in self.programs]
+
+    @staticmethod
+    def _file(program) -> str:
+        for p in program.pous:
+            if p.pos is not None:
+                return p.pos.file
+        return "program"
+
+    def scan(self, now_ns: int) -> None:
+        self.ns["_now"] = now_ns
+        for body in self._bodies:
+            body()
+
+    def guard(self, fn, *args):
+        """Run compiled code, turning Python exceptions into positioned errors."""
+        try:
+            return fn(*args)
+        except rtm.ExecutionError:
+            raise
+        except (ArithmeticError, IndexError, ValueError, TypeError, AttributeError,
+                RecursionError) as e:
+            pos = self._position(e.__traceback__)
+            msg = str(e) or type(e).__name__
+            if isinstance(e, AttributeError) and "NoneType" in msg:
+                msg = "a pointer, reference or interface variable is not set (NULL)"
+            raise rtm.ExecutionError(f"run-time error: {msg}", *pos) from None
+
+    def _position(self, tb):
+        found = None
+        while tb is not None:
+            if tb.tb_frame.f_code.co_filename == self.filename:
+                found = tb.tb_lineno
+            tb = tb.tb_next
+        if found is not None:
+            p = self.compiled.line_pos[found - 1] if found - 1 < len(
+                self.compiled.line_pos) else None
+            if p is not None:
+                return (p.file, p.line, p.col)
+        return ("", 0, 0)
+
+    def snap(self, rel=None) -> tuple:
+        return (self.g._snap(rel),) + tuple(p._snap(rel) for p in self.programs)
+
+    # ------------------------------------------------------------------ variables
+    def locate(self, name: str):
+        """(object, attribute, type) of a program-level or global variable."""
+        key = name.upper()
+        hits = []
+        for inst, prog in zip(self.names, self.programs):
+            fbt = self.compiled.program_types[inst]
+            if "." in key and key.split(".", 1)[0] == inst.upper():
+                sub = key.split(".", 1)[1]
+                d = fbt.var(sub)
+                if d is not None:
+                    return prog, sub, self.compiled.types.resolve(d.type, d.pos)
+            d = fbt.var(key)
+            if d is not None and not any(b.kind == "VAR_EXTERNAL" and d in b.decls
+                                         for t in fbt.chain() for b in t.pou.var_blocks):
+                hits.append((prog, key, self.compiled.types.resolve(d.type, d.pos)))
+        if key in self.compiled.globals_types:
+            hits.append((self.g, key, self.compiled.globals_types[key][1]))
+        if not hits:
+            return None
+        return hits[0]
+
+
+# ---------------------------------------------------------------------- inputs
+
+class Schedule:
+    """The edges one scheduled input goes through: (time_ns, value) sorted."""
+
+    def __init__(self, spec, horizon_ns: int):
+        self.spec = spec
+        base = bool(spec.initial)
+        pulse_ns = round(spec.pulse_ms * 1e6)
+        if spec.period_s is not None:
+            period_ns = round(spec.period_s * NS)
+            n = int((horizon_ns - spec.offset_s * NS) // period_ns) + 2
+            starts = spec.offset_s * NS + np.arange(max(n, 0)) * period_ns
+            if spec.jitter_s > 0:
+                rng = np.random.default_rng(spec.seed)
+                starts = starts + rng.uniform(-spec.jitter_s, spec.jitter_s, len(starts)) * NS
+            starts = np.maximum(np.round(starts), 0).astype(np.int64)
+            self.period_ns = period_ns
+        else:
+            starts = np.array([round(p * NS) for p in spec.pulses_s], dtype=np.int64)
+            self.period_ns = None
+        times, values = [], []
+        last_end = -1
+        for s in starts.tolist():
+            s = max(s, last_end)
+            times += [s, s + pulse_ns]
+            values += [not base, base]
+            last_end = s + pulse_ns
+        self.times = times
+        self.values = values
+        self.initial = base
+        self.first_ns = int(starts[0]) if len(starts) else None
+        self.k = 0
+        self.value = base
+        self.random = spec.jitter_s > 0
+
+    def advance(self, t_ns: int) -> bool:
+        times, k = self.times, self.k
+        while k < len(times) and times[k] <= t_ns:
+            self.value = self.values[k]
+            k += 1
+        self.k = k
+        return self.value
+
+    def next_ns(self):
+        return self.times[self.k] if self.k < len(self.times) else None
+
+    def key(self, t_ns: int):
+        """Phase of a periodic schedule; None when the future is not periodic."""
+        if self.random:
+            return None
+        if self.period_ns is None:
+            return ("done", self.value) if self.k >= len(self.times) else None
+        if t_ns < self.first_ns:
+            return ("before", self.first_ns - t_ns)
+        return ("phase", (t_ns - self.first_ns) % self.period_ns, self.value)
+
+
+class Cylinder:
+    """A cylinder of the machine file driving its end switches."""
+
+    def __init__(self, consumer, valve_slots, switch_slots):
+        st = consumer.stroke_time_s
+        self.name = consumer.name
+        self.plant = CylinderPlant(round(st[0] * NS), round(st[1] * NS),
+                                   round(consumer.switch_delay_s * NS),
+                                   consumer.initial == "extended")
+        self.valves = valve_slots       # [(obj, attr)]
+        self.switches = switch_slots    # {"retracted"|"extended": (obj, attr)}
+        self.prev = [False] * len(valve_slots)
+
+    def command(self, t_ns: int) -> None:
+        sol = [bool(getattr(o, a)) for o, a in self.valves]
+        rising = [s and not p for s, p in zip(sol, self.prev)]
+        self.prev = sol
+        ext = valve_command(sol, self.plant.extend_cmd, rising)
+        self.plant.command(t_ns, ext)
+
+
+# ---------------------------------------------------------------------- the executor
+
+class Sequencer:
+    """Run a program against a machine's plant I/O model.
+
+    ``machine`` may be None (a bare program: inputs hold their declared initial values).
+    """
+
+    def __init__(self, program: ir.Program, machine=None, scan_ms: float | None = None,
+                 compiled: Compiled | None = None):
+        self.program = program
+        self.machine = machine
+        self.scan_ns = round((scan_ms if scan_ms is not None else
+                              (machine.scan_ms if machine is not None else 10.0)) * 1e6)
+        if self.scan_ns <= 0:
+            raise SequencerError("the scan time must be positive")
+        self.compiled = compiled or compile_program(program)
+
+    # ------------------------------------------------------------------ setup
+    def _signals(self, inst: ProgramInstance):
+        """(inputs, outputs) as lists of (name, obj, attr, type)."""
+        c = self.compiled
+        ins, outs, seen = [], [], set()
+
+        def add(lst, name, hit):
+            obj, attr, t = hit
+            k = (id(obj), attr)
+            if k in seen:
+                return
+            seen.add(k)
+            lst.append((name, obj, attr, t))
+
+        multi = len(inst.programs) > 1
+        for gname, (n, t, d) in c.globals_types.items():
+            if d.address and d.address.upper().startswith("%I"):
+                add(ins, n, (inst.g, gname, t))
+            elif d.address and d.address.upper().startswith("%Q"):
+                add(outs, n, (inst.g, gname, t))
+        for name, prog in zip(inst.names, inst.programs):
+            fbt = c.program_types[name]
+            for b in fbt.pou.var_blocks:
+                for d in b.decls:
+                    if b.kind == "VAR_EXTERNAL":
+                        continue
+                    addr = (d.address or "").upper()
+                    label = f"{name}.{d.name}" if multi else d.name
+                    t = c.types.resolve(d.type, d.pos)
+                    if t.cat not in ("bool", "int", "real", "time"):
+                        continue
+                    if b.kind == "VAR_INPUT" or addr.startswith("%I"):
+                        add(ins, label, (prog, d.name.upper(), t))
+                    elif b.kind == "VAR_OUTPUT" or addr.startswith("%Q"):
+                        add(outs, label, (prog, d.name.upper(), t))
+        if self.machine is not None:
+            for s in self._machine_inputs():
+                hit = self._locate(inst, s)
+                add(ins, self._display(inst, s, hit), hit)
+            for cons in self.machine.consumers:
+                for v in cons.valve:
+                    hit = self._locate(inst, v)
+                    add(outs, self._display(inst, v, hit), hit)
+        return ins, outs
+
+    def _display(self, inst, signal, hit):
+        obj, attr, t = hit
+        if obj is inst.g:
+            return inst.compiled.globals_types[attr][0]
+        return self._resolve(signal)
+
+    def _machine_inputs(self):
+        names = [s.signal for s in self.machine.inputs]
+        for cons in self.machine.consumers:
+            names += list(cons.switches.values())
+        return names
+
+    def _resolve(self, signal: str) -> str:
+        if self.machine is not None:
+            for addr, name in self.machine.signals.items():
+                if addr.upper() == signal.upper():
+                    return name
+        return signal
+
+    def _locate(self, inst, signal):
+        hit = inst.locate(self._resolve(signal))
+        if hit is None:
+            where = f"{self.machine.path}: " if self.machine is not None else ""
+            raise SequencerError(f"{where}signal '{signal}' is not a variable of the program")
+        return hit
+
+    # ------------------------------------------------------------------ run
+    def run(self, horizon_ns: int, scan_stepping: bool = False, tiling: bool = True,
+            progress=None) -> Timeline:
+        """Unfold the program over ``[0, horizon_ns]`` and return the timeline."""
+        wall0 = _time.perf_counter()
+        inst = ProgramInstance(self.program, self.compiled)
+        ins, outs = self._signals(inst)
+        machine = self.machine
+        scan = self.scan_ns
+        schedules, cylinders = [], []
+        scheduled = {}
+        if machine is not None:
+            for spec in machine.inputs:
+                obj, attr, t = self._locate(inst, spec.signal)
+                sch = Schedule(spec, horizon_ns)
+                schedules.append((sch, obj, attr))
+                scheduled[(id(obj), attr)] = sch
+            for cons in machine.consumers:
+                if not cons.is_cylinder or not cons.switches:
+                    continue
+                if not isinstance(cons.stroke_time_s, tuple):
+                    raise SequencerError(
+                        f"{machine.path}: consumer \"{cons.name}\": its switches need "
+                        "stroke_time_s = [extend, retract] (\"auto\" needs the plant model, "
+                        "which is not available yet)")
+                valves = [self._locate(inst, v)[:2] for v in cons.valve]
+                sw = {role: self._locate(inst, s)[:2] for role, s in cons.switches.items()}
+                cylinders.append(Cylinder(cons, valves, sw))
+        steps = []
+        multi = len(inst.programs) > 1
+        for name, prog in zip(inst.names, inst.programs):
+            sfc = getattr(prog, "_sfc", None)
+            if sfc is not None:
+                for i, sname in enumerate(sfc.spec.steps):
+                    steps.append((f"{name}.{sname}.X" if multi else f"{sname}.X", sfc, i))
+
+        # initial inputs: schedules and switches (others keep their declared values)
+        for sch, obj, attr in schedules:
+            setattr(obj, attr, sch.initial)
+
+        def write_inputs(t):
+            for sch, obj, attr in schedules:
+                setattr(obj, attr, sch.advance(t))
+            for cyl in cylinders:
+                r, e = cyl.plant.switches(t)
+                if "retracted" in cyl.switches:
+                    o, a = cyl.switches["retracted"]
+                    setattr(o, a, r)
+                if "extended" in cyl.switches:
+                    o, a = cyl.switches["extended"]
+                    setattr(o, a, e)
+
+        signals = ([Signal(n, "input", t.cat) for n, _, _, t in ins]
+                   + [Signal(n, "step", "bool") for n, _, _ in steps]
+                   + [Signal(n, "output", t.cat) for n, _, _, t in outs])
+        n_in = len(ins)
+        watch = [(o, a) for _, o, a, _ in ins]
+        watch_out = [(o, a) for _, o, a, _ in outs]
+        last = [None] * len(signals)
+        tt, ss, vv = [], [], []
+
+        def record(t):
+            k = 0
+            for o, a in watch:
+                v = getattr(o, a)
+                if v != last[k]:
+                    last[k] = v
+                    tt.append(t)
+                    ss.append(k)
+                    vv.append(v)
+                k += 1
+            for _, sfc, i in steps:
+                v = sfc.x[i]
+                if v != last[k]:
+                    last[k] = v
+                    tt.append(t)
+                    ss.append(k)
+                    vv.append(v)
+                k += 1
+            for o, a in watch_out:
+                v = getattr(o, a)
+                if v != last[k]:
+                    last[k] = v
+                    tt.append(t)
+                    ss.append(k)
+                    vv.append(v)
+                k += 1
+
+        timers = inst.timers
+        sfcs = inst.sfcs
+        reads_et = self.compiled.reads_et
+        always_step = scan_stepping or self.compiled.reads_clock
+        can_tile = tiling and not scan_stepping and not self.compiled.reads_clock \
+            and not any(s.random for s, _, _ in schedules)
+        seen: dict = {}
+        prev_snap = None
+        t = 0
+        scans = 0
+        tiled_from = None
+        guard = inst.guard
+        while t <= horizon_ns:
+            write_inputs(t)
+            guard(inst.scan, t)
+            scans += 1
+            for cyl in cylinders:
+                cyl.command(t)
+            record(t)
+            if always_step:
+                t += scan
+                continue
+            snap = inst.snap()
+            if snap != prev_snap:
+                prev_snap = snap
+                t += scan
+                continue
+            # a fixed point: find the next thing that can change anything
+            nxt = None
+            for sch, _, _ in schedules:
+                e = sch.next_ns()
+                if e is not None and (nxt is None or e < nxt):
+                    nxt = e
+            for cyl in cylinders:
+                cyl.plant.forget_before(t)
+                e = cyl.plant.next_event_ns(t)
+                if e is not None and (nxt is None or e < nxt):
+                    nxt = e
+            running = False
+            for tm in timers:
+                e = tm.next_event_ns()
+                if e is not None:
+                    running = True
+                    if nxt is None or e < nxt:
+                        nxt = e
+            for sfc in sfcs:
+                e = sfc.next_event_ns(t)
+                if e is not None and (nxt is None or e < nxt):
+                    nxt = e
+            if reads_et and running:
+                nxt = t + scan
+            if can_tile and len(seen) < MAX_KEYS:
+                key = self._state_key(inst, t, schedules, cylinders)
+                if key is not None:
+                    t1 = seen.get(key)
+                    if t1 is not None:
+                        tiled_from = (t1, t)
+                        break
+                    seen[key] = t
+            if nxt is None:
+                break  # nothing will ever change again
+            t = max(t + scan, -(-nxt // scan) * scan)
+        time_ns = np.asarray(tt, dtype=np.int64)
+        sig = np.asarray(ss, dtype=np.int32)
+        val = np.asarray([float(v) for v in vv], dtype=np.float64)
+        if tiled_from is not None:
+            time_ns, sig, val = _tile(time_ns, sig, val, tiled_from, horizon_ns)
+        info = {"scans": scans, "scan_ms": scan / 1e6, "wall_s": _time.perf_counter() - wall0,
+                "mode": "scan-stepping" if scan_stepping else "event-driven",
+                "period_s": (tiled_from[1] - tiled_from[0]) / NS if tiled_from else None,
+                "tiled_from_s": tiled_from[1] / NS if tiled_from else None}
+        return Timeline(signals, time_ns, sig, val, horizon_ns, info)
+
+    @staticmethod
+    def _state_key(inst, t, schedules, cylinders):
+        parts = []
+        for sch, _, _ in schedules:
+            k = sch.key(t)
+            if k is None:
+                return None
+            parts.append(k)
+        for cyl in cylinders:
+            parts.append(cyl.plant.key(t))
+            parts.append(tuple(cyl.prev))
+        return (inst.snap(t), tuple(parts))
+
+
+def _tile(time_ns, sig, val, period, horizon_ns):
+    """Repeat the edges in (t1, t2] every t2 - t1 up to the horizon."""
+    t1, t2 = period
+    p = t2 - t1
+    m = (time_ns > t1) & (time_ns <= t2)
+    pt, ps, pv = time_ns[m], sig[m], val[m]
+    if len(pt) == 0:
+        return time_ns, sig, val
+    reps = int((horizon_ns - t2) // p) + 1
+    k = np.arange(1, reps + 1, dtype=np.int64)
+    tt = (pt[None, :] + k[:, None] * p).ravel()
+    keep = tt <= horizon_ns
+    return (np.concatenate([time_ns, tt[keep]]),
+            np.concatenate([sig, np.tile(ps, reps)[keep]]),
+            np.concatenate([val, np.tile(pv, reps)[keep]]))
+
+
+def run_machine(machine, horizon_ns: int, scan_stepping: bool = False,
+                tiling: bool = True) -> Timeline:
+    """Load the machine's program, check it against the machine and unfold it."""
+    from ..machine import check_against_program
+    from ..parser import load_program
+
+    program = load_program(machine.program_path)
+    check_against_program(machine, program)
+    return Sequencer(program, machine).run(horizon_ns, scan_stepping=scan_stepping,
+                                           tiling=tiling)

@@ -1,0 +1,306 @@
+"""Resolved IEC types for the compiler: what a value is at run time and how it is
+initialised, copied and compared."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ..parser import ir
+from ..parser.errors import at
+from ..parser.literals import INT_TYPES
+from ..parser.stdlib import STANDARD_FBS
+
+SIGNED = {"SINT", "INT", "DINT", "LINT"}
+BIT_STRINGS = {"BYTE", "WORD", "DWORD", "LWORD"}
+TIME_NAMES = {"TIME", "LTIME"}
+DATE_NAMES = {"DATE", "LDATE", "TOD", "TIME_OF_DAY", "LTOD", "LTIME_OF_DAY", "DT",
+              "DATE_AND_TIME", "LDT", "LDATE_AND_TIME"}
+
+
+@dataclass(frozen=True)
+class Elem:
+    """An elementary type. ``cat``: bool, int, real, time, date, string."""
+    name: str
+    cat: str
+    bits: int = 0      # integers: width (0 for an untyped literal)
+    signed: bool = True
+
+    def default(self):
+        return {"bool": False, "real": 0.0, "string": ""}.get(self.cat, 0)
+
+
+BOOL = Elem("BOOL", "bool")
+ANY_INT = Elem("ANY_INT", "int")
+ANY_REAL = Elem("ANY_REAL", "real")
+REAL = Elem("LREAL", "real")
+TIME = Elem("TIME", "time")
+STRING = Elem("STRING", "string")
+DINT = Elem("DINT", "int", 32, True)
+
+
+def elementary(name: str) -> Elem | None:
+    up = name.upper()
+    if up in ("BOOL", "BIT"):
+        return BOOL
+    if up in INT_TYPES:
+        return Elem(up, "int", INT_TYPES[up], up in SIGNED)
+    if up in ("REAL", "LREAL"):
+        return Elem(up, "real")
+    if up in TIME_NAMES:
+        return Elem(up, "time")
+    if up in DATE_NAMES:
+        return Elem(up, "date")
+    if up in ("STRING", "WSTRING", "CHAR", "WCHAR"):
+        return Elem(up, "string")
+    if up in ("ANY_INT", "ANY_NUM", "ANY_BIT", "ANY", "ANY_ELEMENTARY"):
+        return ANY_INT
+    if up == "ANY_REAL":
+        return ANY_REAL
+    return None
+
+
+@dataclass(eq=False)
+class EnumT:
+    name: str
+    values: dict[str, int]
+    cat = "int"
+    bits = 0
+    signed = True
+
+    def default(self):
+        return next(iter(self.values.values()), 0)
+
+
+@dataclass(eq=False)
+class StructT:
+    name: str
+    members: dict[str, "object"] = field(default_factory=dict)  # UPPER -> type
+    decls: list = field(default_factory=list)
+    union: bool = False
+    cls_name: str = ""
+    cat = "struct"
+
+
+@dataclass(eq=False)
+class ArrayT:
+    dims: list[tuple[int, int]]
+    elem: object
+    cat = "array"
+
+    @property
+    def size(self) -> int:
+        n = 1
+        for lo, hi in self.dims:
+            n *= hi - lo + 1
+        return n
+
+
+@dataclass(eq=False)
+class FbT:
+    """A user FUNCTION_BLOCK (or PROGRAM) type."""
+    name: str
+    pou: ir.Pou
+    base: "FbT | None" = None
+    cls_name: str = ""
+    cat = "fb"
+
+    def chain(self):
+        t = self
+        while t is not None:
+            yield t
+            t = t.base
+
+    def var(self, key: str):
+        for t in self.chain():
+            for d in t.pou.decls():
+                if d.name.upper() == key:
+                    return d
+        return None
+
+    def method(self, key: str):
+        for t in self.chain():
+            for m in t.pou.methods:
+                if m.name.upper() == key:
+                    return m, t
+        return None
+
+    def prop(self, key: str):
+        for t in self.chain():
+            for p in t.pou.properties:
+                if p.name.upper() == key:
+                    return p, t
+        return None
+
+    def action(self, key: str):
+        for t in self.chain():
+            for a in t.pou.actions:
+                if a.name.upper() == key:
+                    return a, t
+        return None
+
+
+@dataclass(eq=False)
+class StdFbT:
+    name: str
+    cat = "stdfb"
+
+    @property
+    def inputs(self):
+        return STANDARD_FBS[self.name][0]
+
+    @property
+    def outputs(self):
+        return STANDARD_FBS[self.name][1]
+
+
+@dataclass(eq=False)
+class ItfT:
+    name: str
+    itf: ir.Interface
+    cat = "itf"
+
+    def method(self, key):
+        for m in self.itf.methods:
+            if m.name.upper() == key:
+                return m, None
+        return None
+
+    def prop(self, key):
+        for p in self.itf.properties:
+            if p.name.upper() == key:
+                return p, None
+        return None
+
+
+@dataclass(eq=False)
+class PtrT:
+    target: object
+    reference: bool = False
+    cat = "ptr"
+
+
+VOID = Elem("VOID", "void")
+
+OBJECT_CATS = ("struct", "array", "fb", "stdfb", "itf")
+
+
+def is_object(t) -> bool:
+    """Values held by reference in Python (copied explicitly on assignment)."""
+    return t.cat in OBJECT_CATS
+
+
+class TypeTable:
+    """Named types of a project, resolved lazily (types may refer to later ones)."""
+
+    def __init__(self, program: ir.Program):
+        self.program = program
+        self.decls = {t.name.upper(): t for t in program.types}
+        self.pous = {p.name.upper(): p for p in program.pous}
+        self.interfaces = {i.name.upper(): i for i in program.interfaces}
+        self.resolved: dict[str, object] = {}
+        self.structs: list[StructT] = []
+        self.fbs: dict[str, FbT] = {}
+        self.enum_values: dict[str, list[tuple[EnumT, int]]] = {}
+
+    def named(self, name: str, pos=None):
+        up = name.upper()
+        if up in self.resolved:
+            return self.resolved[up]
+        e = elementary(up)
+        if e is not None:
+            return e
+        if up in STANDARD_FBS:
+            return StdFbT(up)
+        if up in self.decls:
+            decl = self.decls[up]
+            if isinstance(decl.type, ir.StructType):
+                t = StructT(decl.name, union=decl.type.union, cls_name=f"S_{up}")
+                self.resolved[up] = t
+                self.structs.append(t)
+                base = self.named(decl.type.extends, decl.pos) if decl.type.extends else None
+                if base is not None:
+                    t.members.update(base.members)
+                    t.decls.extend(base.decls)
+                for d in decl.type.members:
+                    t.members[d.name.upper()] = self.resolve(d.type)
+                    t.decls.append(d)
+                return t
+            if isinstance(decl.type, ir.EnumType):
+                t = self._enum(decl.name, decl.type)
+                self.resolved[up] = t
+                return t
+            t = self.resolve(decl.type)
+            self.resolved[up] = t
+            return t
+        if up in self.pous and self.pous[up].kind in ("FUNCTION_BLOCK", "PROGRAM"):
+            return self.fb(up)
+        if up in self.interfaces:
+            return ItfT(self.interfaces[up].name, self.interfaces[up])
+        raise at(pos, f"unknown type '{name}'")
+
+    def fb(self, up: str) -> FbT:
+        if up not in self.fbs:
+            pou = self.pous[up]
+            t = FbT(pou.name, pou, cls_name=f"FB_{up}")
+            self.fbs[up] = t
+            if pou.extends:
+                base = self.named(pou.extends, pou.pos)
+                if not isinstance(base, FbT):
+                    raise at(pou.pos, f"{pou.name} EXTENDS {pou.extends}, which is not a "
+                                      "function block")
+                t.base = base
+        return self.fbs[up]
+
+    def _enum(self, name, et: ir.EnumType) -> EnumT:
+        values, nxt = {}, 0
+        for vname, vexpr in et.values:
+            if vexpr is not None:
+                nxt = self.const_int(vexpr)
+            values[vname.upper()] = nxt
+            nxt += 1
+        t = EnumT(name, values)
+        for k, v in values.items():
+            self.enum_values.setdefault(k, []).append((t, v))
+        return t
+
+    def const_int(self, e) -> int:
+        if isinstance(e, ir.Literal) and isinstance(e.value, int):
+            return int(e.value)
+        if isinstance(e, ir.Unary) and e.op == "-":
+            return -self.const_int(e.operand)
+        if isinstance(e, ir.Binary) and e.op in ("+", "-", "*"):
+            a, b = self.const_int(e.left), self.const_int(e.right)
+            return a + b if e.op == "+" else a - b if e.op == "-" else a * b
+        if isinstance(e, ir.Name):
+            c = self.constants.get(e.name.upper()) if hasattr(self, "constants") else None
+            if c is not None:
+                return c
+        raise at(getattr(e, "pos", None), "expected a constant integer here")
+
+    def resolve(self, tr, pos=None):
+        if isinstance(tr, ir.NamedType):
+            return self.named(tr.name, tr.pos or pos)
+        if isinstance(tr, ir.StringType):
+            return STRING
+        if isinstance(tr, ir.ArrayType):
+            dims = []
+            for lo, hi in tr.dims:
+                if lo is None:
+                    raise at(tr.pos, "ARRAY[*] (variable length) is not supported by the "
+                                     "executor")
+                dims.append((self.const_int(lo), self.const_int(hi)))
+            return ArrayT(dims, self.resolve(tr.element, tr.pos))
+        if isinstance(tr, ir.PointerType):
+            return PtrT(self.resolve(tr.target, tr.pos), tr.reference)
+        if isinstance(tr, ir.SubrangeType):
+            return self.named(tr.base, tr.pos)
+        if isinstance(tr, ir.EnumType):
+            return self._enum("<anonymous>", tr)
+        if isinstance(tr, ir.StructType):
+            t = StructT("<anonymous>", cls_name=f"S_ANON{len(self.structs)}",
+                        union=tr.union)
+            for d in tr.members:
+                t.members[d.name.upper()] = self.resolve(d.type)
+                t.decls.append(d)
+            self.structs.append(t)
+            return t
+        raise at(pos, f"unsupported type {type(tr).__name__}")
