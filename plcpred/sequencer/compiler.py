@@ -106,6 +106,8 @@ class Compiler:
         self.gvl_names = {g.name.upper() for g in program.globals if g.name}
         self._jump = None
         self._loop_depth = 0
+        self.sinks: dict[str, set] = {}
+        self._member_names = _member_names(program)
 
     # ================================================================== project
     def compile(self) -> Compiled:
@@ -279,13 +281,66 @@ class Compiler:
                 self._stmts(a.body, scope, 2)
                 e(2, "pass")
         e(1, "def _snap(self, rel):")
+        sinks = self._sinks(fb, scope)
+        self.sinks[fb.name] = sinks
         parts = [self._snap_code(f"self.{d.name.upper()}", scope.names[d.name.upper()][1])
-                 for d in own if d not in temps]
+                 for d in own if d not in temps and d.name.upper() not in sinks]
         if pou.is_sfc:
             parts.append("self._sfc.key(rel)")
         if fb.base:
             parts.append(f"{fb.base.cls_name}._snap(self, rel)")
         e(2, "return (" + "".join(p + ", " for p in parts) + ")")
+
+    def _sinks(self, fb: FbT, scope: Scope) -> set:
+        """Local variables whose values never reach an output, a condition, a call or an
+        index: counters and statistics such as ``nParts := nParts + 1``. They are left out
+        of the state the executor compares, so a machine that counts its parts still
+        reaches fixed points and repeats its cycle. Decided from the data flow of the
+        FB's own code; anything named as ``x.member`` anywhere is never a sink."""
+        pou = fb.pou
+        cands = set()
+        for b in pou.var_blocks:
+            if b.kind not in ("VAR", "VAR_TEMP"):
+                continue
+            for d in b.decls:
+                t = scope.names[d.name.upper()][1]
+                while isinstance(t, ArrayT):
+                    t = t.elem
+                if not d.address and t.cat in ("bool", "int", "real", "time", "date",
+                                               "string", "struct"):
+                    cands.add(d.name.upper())
+        cands -= self._member_names
+        if not cands:
+            return set()
+        flow = _Flow({k for k, f in self.functions.items()
+                      if any(b.kind == "VAR_EXTERNAL" for b in f.var_blocks)
+                      or _member_names(f.body, ir.Name, "name") & set(self.globals)})
+        bodies = []
+        if pou.is_sfc:
+            for tr in pou.body.transitions:
+                flow.use(tr.condition)
+            for st in pou.body.steps:
+                for a in st.actions:
+                    flow.used.add(a.action.upper())
+                    if a.time is not None:
+                        flow.use(a.time)
+            bodies += [a.body for a in pou.body.actions]
+        else:
+            bodies.append(pou.body)
+        bodies += [a.body for a in pou.actions] + [m.body for m in pou.methods]
+        bodies += [acc.body for p in pou.properties for acc in p.accessors]
+        for body in bodies:
+            flow.stmts(body)
+        sinks = cands - flow.used
+        changed = True
+        while changed:
+            changed = False
+            for target, reads in flow.flows:
+                if target is None or target not in sinks:
+                    if reads & sinks:
+                        sinks -= reads
+                        changed = True
+        return sinks
 
     def _snap_code(self, code: str, t) -> str:
         if t.cat in ("fb", "struct"):
@@ -1361,6 +1416,126 @@ class Compiler:
 
 
 # ---------------------------------------------------------------------- helpers
+
+def _member_names(program, cls=ir.Member, attr="member") -> set:
+    """Every ``x.member`` name used in the project (or, with ``cls=ir.Name``, every name)."""
+    names = set()
+
+    def walk(x):
+        if isinstance(x, cls):
+            names.add(getattr(x, attr).upper())
+        if isinstance(x, list):
+            for y in x:
+                walk(y)
+        elif hasattr(x, "__dataclass_fields__"):
+            for f in x.__dataclass_fields__:
+                if f != "pos":
+                    walk(getattr(x, f))
+        elif isinstance(x, tuple):
+            for y in x:
+                walk(y)
+    walk(program.pous if isinstance(program, ir.Program) else program)
+    if isinstance(program, ir.Program):
+        walk(program.configurations)
+    return names
+
+
+def _root(e):
+    while isinstance(e, (ir.Member, ir.Index, ir.BitAccess)):
+        e = e.base
+    return e.name.upper() if isinstance(e, ir.Name) else None
+
+
+class _Flow:
+    """Where each variable's value goes: ``flows`` (assignment target, names read) and
+    ``used`` (names read by conditions, calls, indices and anything else that can steer
+    the program)."""
+
+    def __init__(self, impure=frozenset()):
+        self.flows: list[tuple[str | None, set]] = []
+        self.used: set = set()
+        self.impure = impure  # user functions that reach globals (VAR_EXTERNAL)
+
+    def reads(self, e) -> set:
+        out = set()
+
+        def walk(x):
+            if isinstance(x, ir.Name):
+                out.add(x.name.upper())
+            elif isinstance(x, ir.Index):
+                walk(x.base)
+                for i in x.indices:
+                    self.use(i)
+            elif isinstance(x, ir.Deref):
+                self.use(x.base)
+            elif isinstance(x, ir.Call):
+                if isinstance(x.func, ir.Member) or (
+                        isinstance(x.func, ir.Name) and x.func.name.upper() in self.impure):
+                    # methods change their instance; some functions write globals
+                    for a in x.args:
+                        if a.value is not None:
+                            self.use(a.value)
+                elif isinstance(x.func, ir.Name) and x.func.name.upper() in ("ADR", "REF"):
+                    for a in x.args:
+                        if a.value is not None:
+                            self.use(a.value)
+                walk(x.func)
+                for a in x.args:
+                    if a.value is not None:
+                        walk(a.value)
+            else:
+                for c in _children(x):
+                    walk(c)
+        walk(e)
+        return out
+
+    def use(self, e):
+        self.used |= self.reads(e)
+
+    def stmts(self, body):
+        for s in body:
+            self.stmt(s)
+
+    def stmt(self, s):
+        if isinstance(s, ir.Assign):
+            target = _root(s.target)
+            reads = self.reads(s.value)
+            if isinstance(s.target, (ir.Index, ir.Member, ir.BitAccess)):
+                reads |= self.reads(s.target) - {target}
+            if s.op != ":=" or isinstance(s.target, ir.Deref) or target is None:
+                self.used |= reads
+                if target is not None:
+                    self.used.add(target)
+            self.flows.append((target, reads))
+        elif isinstance(s, ir.CallStmt):
+            self.use(s.call.func)
+            for a in s.call.args:
+                if a.value is None:
+                    continue
+                if a.output:
+                    self.flows.append((_root(a.value), {_root(s.call.func) or ""}))
+                else:
+                    self.use(a.value)
+        elif isinstance(s, ir.If):
+            for cond, body in s.branches:
+                self.use(cond)
+                self.stmts(body)
+            self.stmts(s.else_body or [])
+        elif isinstance(s, ir.Case):
+            self.use(s.selector)
+            for br in s.branches:
+                self.stmts(br.body)
+            self.stmts(s.else_body or [])
+        elif isinstance(s, ir.For):
+            self.used.add(s.var.upper())
+            for e in (s.start, s.end, s.step):
+                if e is not None:
+                    self.use(e)
+            self.stmts(s.body)
+        elif isinstance(s, (ir.While, ir.Repeat)):
+            self.use(s.cond)
+            self.stmts(s.body)
+
 
 def _children(e):
     if isinstance(e, ir.Binary):
