@@ -40,6 +40,7 @@ _STDFB_MEMBERS = {"IN": ty.BOOL, "PT": ty.TIME, "Q": ty.BOOL, "ET": ty.TIME, "CL
                   "CU": ty.BOOL, "CD": ty.BOOL, "LD": ty.BOOL, "PV": ty.DINT, "CV": ty.DINT,
                   "QU": ty.BOOL, "QD": ty.BOOL, "RESET": ty.BOOL}
 _CMP = {"=": "==", "<>": "!=", "<": "<", ">": ">", "<=": "<=", ">=": ">="}
+_PLAIN = re.compile(r"[A-Za-z_][\w.]*")  # a variable read: already in range, no wrap
 _CONV = re.compile(r"^(?:([A-Z_]+?)_)?TO_([A-Z_]+)$")
 
 
@@ -1379,7 +1380,8 @@ class Compiler:
             if isinstance(tt, EnumT):
                 return code
             if vc == "int":
-                if (isinstance(vt, Elem) and vt.name == tt.name) or _literal_fits(code, tt):
+                if (isinstance(vt, Elem) and vt.name == tt.name and _PLAIN.fullmatch(code)) \
+                        or _literal_fits(code, tt):
                     return code
                 return _wrap_code(code, tt)
             if vc == "bool":

@@ -563,15 +563,3 @@ def _tile(time_ns, sig, val, period, horizon_ns):
     return (np.concatenate([time_ns, tt[keep]]),
             np.concatenate([sig, np.tile(ps, reps)[keep]]),
             np.concatenate([val, np.tile(pv, reps)[keep]]))
-
-
-def run_machine(machine, horizon_ns: int, scan_stepping: bool = False,
-                tiling: bool = True) -> Timeline:
-    """Load the machine's program, check it against the machine and unfold it."""
-    from ..machine import check_against_program
-    from ..parser import load_program
-
-    program = load_program(machine.program_path)
-    check_against_program(machine, program)
-    return Sequencer(program, machine).run(horizon_ns, scan_stepping=scan_stepping,
-                                           tiling=tiling)

@@ -1,0 +1,200 @@
+"""ST execution semantics: the compiled program against hand-worked IEC results."""
+import pytest
+
+from plcpred.parser import parse_st
+from plcpred.sequencer import CompileError, ExecutionError, Watchdog
+from plcpred.sequencer.executor import ProgramInstance
+
+MS = 1_000_000
+
+
+def run(src, scans=1, scan_ms=10, setup=None):
+    inst = ProgramInstance(parse_st(src, "t.st"))
+    prog = inst.programs[0]
+    for k in range(scans):
+        if setup:
+            setup(prog, k)
+        inst.guard(inst.scan, k * scan_ms * MS)
+    return prog
+
+
+def body(decls, code):
+    return f"PROGRAM P\nVAR\n{decls}\nEND_VAR\n{code}\nEND_PROGRAM\n"
+
+
+def test_integer_types_wrap_at_assignment():
+    p = run(body("a : INT := 32767; b : USINT := 250; c : SINT := -128; d : UDINT;",
+                 "a := a + 1; b := b + 10; c := c - 1; d := d - 1;"))
+    assert (p.A, p.B, p.C, p.D) == (-32768, 4, 127, 2**32 - 1)
+
+
+def test_integer_division_and_mod_truncate_toward_zero():
+    p = run(body("a, b, c, d : DINT; r : REAL;",
+                 "a := -7 / 2; b := -7 MOD 2; c := 7 MOD -2; d := 7 / 2; r := 7.0 / 2;"))
+    assert (p.A, p.B, p.C, p.D, p.R) == (-3, -1, 1, 3, 3.5)
+
+
+def test_division_by_zero_names_the_line():
+    with pytest.raises(ExecutionError) as e:
+        run(body("a, z : INT;", "a := 1;\na := a / z;"))
+    assert e.value.line == 6 and "division by zero" in str(e.value)
+
+
+def test_time_arithmetic_and_conversions():
+    p = run(body("t : TIME := T#1s; u : TIME; n : DINT; r : REAL; k : INT;",
+                 "u := t * 3 + T#250ms; n := TIME_TO_DINT(u); r := DINT_TO_REAL(n) / 1000.0;"
+                 "k := REAL_TO_INT(2.5); u := u / 2;"))
+    assert p.U == 1_625 * MS and p.N == 3250 and p.R == 3.25 and p.K == 3
+
+
+def test_standard_functions():
+    p = run(body("a, b, c : INT; w : WORD; m : REAL; s : STRING;",
+                 "a := MAX(3, 9, 4); b := LIMIT(0, 12, 10); c := SEL(TRUE, 1, 2) + MUX(2, 5, 6, 7);"
+                 "w := ROL(WORD#16#8001, 1) OR SHL(WORD#1, 4); m := ABS(-2.0) + SQRT(16.0);"
+                 "s := CONCAT('ab', LEFT('xyz', 2));"))
+    assert (p.A, p.B, p.C) == (9, 10, 9)
+    assert p.W == 0x0003 | 0x10
+    assert p.M == 6.0 and p.S == "abxy"
+
+
+def test_case_with_ranges_lists_and_else():
+    src = body("i, r : INT;", "CASE i OF 0: r := 10; 1, 2: r := 20; 3..5: r := 30; "
+                              "ELSE r := 99; END_CASE; i := i + 1;")
+    seen = []
+    inst = ProgramInstance(parse_st(src))
+    for k in range(7):
+        inst.scan(k)
+        seen.append(inst.programs[0].R)
+    assert seen == [10, 20, 20, 30, 30, 30, 99]
+
+
+def test_loops_exit_continue_and_for_variable():
+    p = run(body("i, s, n, w : INT;",
+                 "FOR i := 1 TO 10 BY 2 DO IF i = 5 THEN CONTINUE; END_IF; s := s + i; END_FOR;"
+                 "WHILE TRUE DO n := n + 1; IF n >= 4 THEN EXIT; END_IF; END_WHILE;"
+                 "REPEAT w := w + 3; UNTIL w > 7 END_REPEAT;"))
+    assert p.S == 1 + 3 + 7 + 9 and p.N == 4 and p.W == 9 and p.I == 11
+
+
+def test_jmp_forward_and_backward():
+    p = run(body("n, k : INT;", "again: n := n + 1; IF n < 5 THEN JMP again; END_IF;"
+                                "JMP skip; k := 99; skip: k := k + 1;"))
+    assert p.N == 5 and p.K == 1
+
+
+def test_endless_loop_stops_with_watchdog_naming_the_line():
+    src = body("i : INT;", "i := 0;\nWHILE i >= 0 DO\n  i := 1;\nEND_WHILE;")
+    with pytest.raises(Watchdog) as e:
+        run(src)
+    assert e.value.line == 6 and "WHILE" in str(e.value)
+
+
+def test_arrays_structs_and_copy_semantics():
+    src = """
+TYPE Pt : STRUCT x : INT; y : INT := 7; END_STRUCT END_TYPE
+PROGRAM P
+VAR a : ARRAY[1..3] OF INT := [1, 2(5)]; m : ARRAY[0..1, 0..2] OF INT;
+    p, q : Pt; ps : ARRAY[1..2] OF Pt := [(x := 3)]; i : INT := 3; s : INT; END_VAR
+q := p; q.x := 4; m[1, 2] := 8; s := a[i] + a[1] + ps[1].x + ps[2].y + m[1, 2];
+END_PROGRAM
+"""
+    p = run(src)
+    assert p.P.X == 0 and p.Q.X == 4 and p.S == 5 + 1 + 3 + 7 + 8
+
+
+def test_array_index_out_of_range_is_an_error():
+    with pytest.raises(ExecutionError) as e:
+        run(body("a : ARRAY[1..3] OF INT; i : INT := 4; x : INT;", "x := a[i];"))
+    assert "outside" in str(e.value) and e.value.line == 5
+
+
+def test_enums_bare_and_qualified():
+    src = """TYPE E : (Idle, Run := 5, Stop); END_TYPE
+PROGRAM P VAR st : E; n : INT; END_VAR
+IF st = E.Idle THEN st := Run; ELSIF st = Run THEN st := E#Stop; END_IF
+n := n + 1;
+END_PROGRAM"""
+    inst = ProgramInstance(parse_st(src))
+    vals = []
+    for k in range(3):
+        inst.scan(k)
+        vals.append(inst.programs[0].ST)
+    assert vals == [5, 6, 6]
+
+
+def test_function_with_in_out_output_and_defaults():
+    src = """FUNCTION F : INT
+VAR_INPUT a : INT; b : INT := 10; END_VAR
+VAR_IN_OUT acc : INT; END_VAR
+VAR_OUTPUT twice : INT; END_VAR
+acc := acc + a; twice := 2 * a; F := a + b;
+END_FUNCTION
+PROGRAM P VAR r, acc, tw : INT; END_VAR
+r := F(a := 3, acc := acc, twice => tw);
+r := r + F(1, 1, acc);
+END_PROGRAM"""
+    p = run(src)
+    assert (p.R, p.ACC, p.TW) == (13 + 2, 4, 6)
+
+
+def test_fb_inputs_are_retained_between_calls():
+    src = """FUNCTION_BLOCK Acc VAR_INPUT inc : INT := 1; END_VAR VAR_OUTPUT total : INT; END_VAR
+total := total + inc;
+END_FUNCTION_BLOCK
+PROGRAM P VAR f : Acc; out : INT; n : INT; END_VAR
+IF n = 0 THEN f(inc := 5); ELSE f(total => out); END_IF
+n := n + 1;
+END_PROGRAM"""
+    p = run(src, scans=3)
+    assert p.F.TOTAL == 15 and p.OUT == 15
+
+
+def test_methods_properties_inheritance_super_and_pointers():
+    src = """FUNCTION_BLOCK Base VAR_OUTPUT n : INT; END_VAR VAR k : INT := 1; END_VAR
+n := n + k;
+METHOD Bump : INT VAR_INPUT amount : INT; END_VAR k := k + amount; Bump := k; END_METHOD
+PROPERTY Twice : INT
+GET Twice := 2 * n; END_GET
+SET k := Twice; END_SET
+END_PROPERTY
+END_FUNCTION_BLOCK
+FUNCTION_BLOCK Child EXTENDS Base VAR_OUTPUT calls : INT; END_VAR
+SUPER^(); calls := calls + 1;
+END_FUNCTION_BLOCK
+PROGRAM P VAR c : Child; r : REFERENCE TO Child; p : POINTER TO Child; v, t : INT;
+  x : INT; px : POINTER TO INT; END_VAR
+r REF= c; p := ADR(c);
+c();
+v := r.Bump(amount := 2);
+p^();
+t := c.Twice;
+c.Twice := 100;
+px := ADR(x); px^ := 42;
+END_PROGRAM"""
+    p = run(src)
+    assert p.C.CALLS == 2 and p.C.N == 1 + 3 and p.V == 3 and p.T == 8
+    assert p.C.K == 100 and p.X == 42
+
+
+def test_bit_access_read_and_write():
+    p = run(body("w : WORD := 16#0004; b : BOOL;", "b := w.2; w.0 := TRUE; w.2 := FALSE;"))
+    assert p.B is True and p.W == 1
+
+
+def test_unsupported_constructs_are_positioned_compile_errors():
+    with pytest.raises(CompileError) as e:
+        ProgramInstance(parse_st(body("x : INT;", "x := 1;\n%QX0.0 := TRUE;"), "u.st"))
+    assert (e.value.file, e.value.line) == ("u.st", 6)
+
+
+def test_standard_fbs_in_programs_use_scan_time():
+    src = body("t : TON; p : TP; q1, q2 : BOOL; c : CTU;",
+               "t(IN := TRUE, PT := T#35ms, Q => q1); p(IN := NOT t.Q, PT := T#20ms);"
+               "q2 := p.Q; c(CU := p.Q, PV := 2);")
+    inst = ProgramInstance(parse_st(src))
+    q1 = []
+    for k in range(6):
+        inst.scan(k * 10 * MS)
+        q1.append(inst.programs[0].Q1)
+    assert q1 == [False, False, False, False, True, True]
+    assert inst.programs[0].C.CV == 1
