@@ -23,7 +23,7 @@ def parse_int(text: str) -> int:
     """``1_000``, ``16#FF``, ``2#1010_0101``, ``8#17``, with an optional sign."""
     text = text.replace("_", "")
     sign = 1
-    if text[:1] in "+-":
+    if text and text[0] in "+-":
         sign = -1 if text[0] == "-" else 1
         text = text[1:]
     if "#" in text:
@@ -35,7 +35,7 @@ def parse_int(text: str) -> int:
 def parse_duration_ns(text: str) -> int:
     """``1h2m3s4ms``, ``-1.5s``, ``250ms`` (the part after ``T#``) -> nanoseconds."""
     sign = 1
-    if text[:1] in "+-":
+    if text and text[0] in "+-":
         sign = -1 if text[0] == "-" else 1
         text = text[1:]
     total = Fraction(0)

@@ -275,13 +275,43 @@ class Cylinder:
         self.valves = valve_slots       # [(obj, attr)]
         self.switches = switch_slots    # {"retracted"|"extended": (obj, attr)}
         self.prev = [False] * len(valve_slots)
+        self.bistable = len(valve_slots) == 2
+        self._until = -1                # switch values below are valid before this time
+        self._from = 0
+        self._values = (True, False)
 
     def command(self, t_ns: int) -> None:
-        sol = [bool(getattr(o, a)) for o, a in self.valves]
-        rising = [s and not p for s, p in zip(sol, self.prev)]
-        self.prev = sol
-        ext = valve_command(sol, self.plant.extend_cmd, rising)
+        if not self.bistable:
+            o, a = self.valves[0]
+            ext = bool(getattr(o, a))
+            self.prev[0] = ext
+            if ext == self.plant.extend_cmd:
+                return
+        else:
+            sol = [bool(getattr(o, a)) for o, a in self.valves]
+            rising = [x and not p for x, p in zip(sol, self.prev)]
+            self.prev = sol
+            ext = valve_command(sol, self.plant.extend_cmd, rising)
+            if ext == self.plant.extend_cmd:
+                return
+        self.plant.forget_before(t_ns)
         self.plant.command(t_ns, ext)
+        self._until = -1
+
+    def read(self, t_ns: int) -> tuple[bool, bool]:
+        """(retracted, extended) switch values at ``t_ns`` (times only move forward)."""
+        if self._from <= t_ns < self._until:
+            return self._values
+        plant = self.plant
+        self._values = plant.switches(t_ns)
+        self._from = t_ns
+        nxt = plant.next_event_ns(t_ns)
+        self._until = nxt if nxt is not None else 1 << 62
+        return self._values
+
+    def next_event_ns(self, t_ns: int):
+        self.read(t_ns)
+        return self._until if self._until < 1 << 62 else None
 
 
 # ---------------------------------------------------------------------- the executor
@@ -417,7 +447,7 @@ class Sequencer:
             for sch, obj, attr in schedules:
                 setattr(obj, attr, sch.advance(t))
             for cyl in cylinders:
-                r, e = cyl.plant.switches(t)
+                r, e = cyl.read(t)
                 if "retracted" in cyl.switches:
                     o, a = cyl.switches["retracted"]
                     setattr(o, a, r)
@@ -496,7 +526,7 @@ class Sequencer:
                     nxt = e
             for cyl in cylinders:
                 cyl.plant.forget_before(t)
-                e = cyl.plant.next_event_ns(t)
+                e = cyl.next_event_ns(t)
                 if e is not None and (nxt is None or e < nxt):
                     nxt = e
             running = False

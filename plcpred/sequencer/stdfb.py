@@ -67,9 +67,8 @@ class TON(StandardFB):
     def key(self, rel):
         start = self._start
         if start is None:
-            return self.state()
-        return (self.IN, self.PT, self.Q, start if rel is None else rel - start) + tuple(
-            getattr(self, s) for s in self.__slots__[5:])
+            return (self.IN, self.PT, self.Q, self.ET)
+        return (self.IN, self.PT, self.Q, start if rel is None else rel - start, None)
 
 
 class TOF(StandardFB):
@@ -101,9 +100,8 @@ class TOF(StandardFB):
     def key(self, rel):
         start = self._start
         if start is None:
-            return self.state()
-        return (self.IN, self.PT, self.Q, start if rel is None else rel - start) + tuple(
-            getattr(self, s) for s in self.__slots__[5:])
+            return (self.IN, self.PT, self.Q, self.ET)
+        return (self.IN, self.PT, self.Q, start if rel is None else rel - start, None)
 
 
 class TP(StandardFB):
@@ -140,9 +138,9 @@ class TP(StandardFB):
     def key(self, rel):
         start = self._start
         if start is None:
-            return self.state()
-        return (self.IN, self.PT, self.Q, start if rel is None else rel - start) + tuple(
-            getattr(self, s) for s in self.__slots__[5:])
+            return (self.IN, self.PT, self.Q, self.ET, self._prev_in)
+        return (self.IN, self.PT, self.Q, start if rel is None else rel - start, None,
+                self._prev_in)
 
 
 class TONR(StandardFB):
@@ -191,6 +189,9 @@ class R_TRIG(StandardFB):
     def __init__(self):
         self.CLK, self.Q, self._m = False, False, False
 
+    def key(self, rel):
+        return (self.CLK, self.Q, self._m)
+
     def execute(self, now_ns: int) -> None:
         self.Q = self.CLK and not self._m
         self._m = self.CLK
@@ -202,6 +203,9 @@ class F_TRIG(StandardFB):
 
     def __init__(self):
         self.CLK, self.Q, self._m = False, False, False
+
+    def key(self, rel):
+        return (self.CLK, self.Q, self._m)
 
     def execute(self, now_ns: int) -> None:
         self.Q = not self.CLK and self._m

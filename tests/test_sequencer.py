@@ -1,0 +1,281 @@
+"""The executor as a whole: event jumps equal scan stepping (on every sample and on
+generated programs), tiling equals a full run, the plant and schedules drive the inputs,
+and timeline.csv follows the contract."""
+import csv
+import random
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from plcpred import unfold
+from plcpred.machine import Consumer, InputSchedule, Machine, load_machine
+from plcpred.parser import load_program, parse_st
+from plcpred.sequencer import Sequencer, parse_horizon
+
+SAMPLES = Path(__file__).resolve().parent.parent / "samples"
+MACHINES = sorted(SAMPLES.glob("*.toml")) + [SAMPLES / "prototype_rig" / "rig.toml"]
+
+
+@pytest.mark.parametrize("path", MACHINES, ids=lambda p: p.stem)
+def test_event_driven_equals_scan_stepping_on_every_sample(path):
+    machine = load_machine(path)
+    fast = unfold(machine, "40s", tiling=False)
+    ref = unfold(machine, "40s", scan_stepping=True)
+    assert fast == ref
+    assert fast.info["scans"] <= ref.info["scans"]
+    assert len(fast.time_ns) > len(fast.signals)   # something happened
+
+
+@pytest.mark.parametrize("path", MACHINES, ids=lambda p: p.stem)
+def test_tiling_equals_a_full_run(path):
+    machine = load_machine(path)
+    tiled = unfold(machine, "3m")
+    full = unfold(machine, "3m", tiling=False)
+    assert tiled == full
+
+
+def test_cycling_samples_tile():
+    tl = unfold(SAMPLES / "pick_place.toml", "10m")
+    assert tl.info["period_s"] == pytest.approx(4.0)
+    assert tl.count_rising("qZ") == 150          # one pick per part, parts every 4 s
+
+
+@pytest.mark.parametrize("program", ["rig.seq", "rig.xml"])
+def test_rig_chart_gives_the_same_valve_timeline_as_the_st_program(program):
+    machine = load_machine(SAMPLES / "prototype_rig" / "rig.toml")
+    st = unfold(machine, "30s")
+    chart = unfold(machine, "30s", program=SAMPLES / "prototype_rig" / program)
+    for sig in ("Y_A", "Y_B", "Y_C", "Y_KNIVES", "A_EXT", "C_RET"):
+        t1, v1 = st.edge_times_ns(sig)
+        t2, v2 = chart.edge_times_ns(sig)
+        assert np.array_equal(t1, t2) and np.array_equal(v1, v2), sig
+
+
+def test_rig_sequence_1_timing_follows_the_plant_model():
+    tl = unfold(SAMPLES / "prototype_rig" / "rig.toml", "30s")
+    # PB1 at 0.5 s; A: 15 ms switching delay + 0.40 s stroke -> A_EXT at 0.915 s, seen at
+    # the 0.92 s scan; B 300 ms later; knives blow 10 s
+    assert tl.edges("Y_A")["time_s"].tolist() == [0, 0.5, 4.56]
+    assert tl.edges("A_RET")["time_s"].tolist() == [0, 0.52, 4.83]
+    assert tl.edges("A_EXT")["time_s"].tolist() == [0, 0.92, 4.58]
+    assert tl.edges("Y_B")["time_s"].tolist() == [0, 1.22, 4.56]
+    knives = tl.intervals("Y_KNIVES")
+    assert knives["duration_s"].tolist() == pytest.approx([10.0])
+
+
+# ---------------------------------------------------------------------- plant I/O
+
+def machine_for(program_text, consumers, inputs=(), scan_ms=10.0, tmp_path=None):
+    program = parse_st(program_text, "gen.st")
+    m = Machine("gen", Path("gen.toml"), Path("gen.st"), scan_ms=scan_ms)
+    m.consumers = list(consumers)
+    m.inputs = list(inputs)
+    return program, m
+
+
+def cylinder(name, valve, ret, ext, times=(0.1, 0.2), delay=0.02, kind="double_acting",
+             initial="retracted"):
+    switches = {}
+    if ret:
+        switches["retracted"] = ret
+    if ext:
+        switches["extended"] = ext
+    return Consumer(name, kind, valve=list(valve), bore_mm=20, rod_mm=8, stroke_mm=50,
+                    stroke_time_s=times, switch_delay_s=delay, switches=switches,
+                    initial=initial)
+
+
+PLANT_PROG = """PROGRAM P
+VAR_INPUT go, r0, r1 : BOOL; END_VAR
+VAR_OUTPUT y, yb_on, yb_off : BOOL; END_VAR
+y := go;
+yb_on := go AND r0;
+yb_off := NOT go AND r1;
+END_PROGRAM"""
+
+
+def test_switches_follow_delay_and_separate_stroke_times():
+    prog, m = machine_for(PLANT_PROG, [cylinder("c", ["y"], "r0", "r1", (0.1, 0.2), 0.02)],
+                          [InputSchedule("go", pulses_s=[0.5], pulse_ms=1000)], scan_ms=1)
+    tl = Sequencer(prog, m).run(parse_horizon("3s"))
+    assert tl.edges("r0")["time_s"].tolist() == [0, 0.52, 1.72]
+    assert tl.edges("r1")["time_s"].tolist() == [0, 0.62, 1.52]
+
+
+def test_bistable_valve_keeps_its_state_and_initial_extended():
+    prog, m = machine_for("""PROGRAM P VAR_INPUT go, back, r0, r1 : BOOL; END_VAR
+VAR_OUTPUT ext, ret : BOOL; END_VAR
+ext := go; ret := back;
+END_PROGRAM""", [cylinder("c", ["ext", "ret"], "r0", "r1", (0.1, 0.1), 0.0,
+                          initial="extended")],
+                          [InputSchedule("go", pulses_s=[0.5, 1.5], pulse_ms=50),
+                           InputSchedule("back", pulses_s=[1.0], pulse_ms=50)], scan_ms=1)
+    tl = Sequencer(prog, m).run(parse_horizon("2s"))
+    # starts extended; the first extend pulse changes nothing; the valve then keeps its
+    # state after each pulse ends. With no switching delay the switch leaves at the scan
+    # that commands the move and the PLC sees it at the next scan.
+    assert tl.value_at("r1", 0) == 1
+    assert tl.edges("r1")["time_s"].tolist() == [0, 1.001, 1.6]
+    assert tl.edges("r0")["time_s"].tolist() == [0, 1.1, 1.501]
+
+
+def test_single_acting_spring_return():
+    prog, m = machine_for(PLANT_PROG, [cylinder("c", ["y"], None, "r1", (0.1, 0.3), 0.0,
+                                                kind="single_acting")],
+                          [InputSchedule("go", pulses_s=[0.2], pulse_ms=500)], scan_ms=1)
+    tl = Sequencer(prog, m).run(parse_horizon("2s"))
+    assert tl.edges("r1")["time_s"].tolist() == [0, 0.3, 0.701]   # leaves as the spring acts
+
+
+def test_schedules_periodic_offset_and_seeded_jitter():
+    prog, m = machine_for(PLANT_PROG, [],
+                          [InputSchedule("go", period_s=1.0, offset_s=0.25, pulse_ms=100,
+                                         jitter_s=0.05, seed=7)], scan_ms=1)
+    a = Sequencer(prog, m).run(parse_horizon("10s"))
+    b = Sequencer(prog, m).run(parse_horizon("10s"))
+    assert a == b                                   # the seed makes it reproducible
+    assert a.info["period_s"] is None               # random jitter disables tiling
+    rises = a.intervals("go")["start_s"].to_numpy()
+    assert len(rises) == 10
+    assert np.all(np.abs(rises - (0.25 + np.arange(10))) <= 0.05 + 0.001)
+    assert not np.allclose(rises, 0.25 + np.arange(10), atol=0.002)
+
+
+def test_unscheduled_inputs_hold_their_declared_initial_value():
+    prog = parse_st("PROGRAM P VAR_INPUT stop : BOOL := TRUE; END_VAR "
+                    "VAR_OUTPUT run : BOOL; END_VAR run := stop; END_PROGRAM")
+    tl = Sequencer(prog, None).run(parse_horizon("1s"))
+    assert tl.value_at("stop", 0.5) == 1 and tl.value_at("run", 0.5) == 1
+
+
+# ---------------------------------------------------------------------- generated programs
+
+def _bool_expr(rng, names, depth=0):
+    if depth > 1 or rng.random() < 0.35:
+        n = rng.choice(names)
+        return n if rng.random() < 0.7 else f"NOT {n}"
+    op = rng.choice(["AND", "OR", "XOR"])
+    return f"({_bool_expr(rng, names, depth + 1)} {op} {_bool_expr(rng, names, depth + 1)})"
+
+
+def generated_program(seed):
+    """A random station: scheduled inputs, two cylinders, timers of every kind, an edge
+    detector, a counter, a CASE state machine, sometimes a read of a timer's ET."""
+    rng = random.Random(seed)
+    sigs = ["i0", "i1", "c0r", "c0e", "c1r", "c1e"]
+    lines = []
+    timers = []
+    for k in range(4):
+        kind = rng.choice(["TON", "TOF", "TP", "TONR"])
+        timers.append((f"t{k}", kind))
+    names = sigs + [f"t{k}.Q" for k in range(4)] + ["m0", "m1", "e.Q", "cnt.Q"]
+    lines.append("e(CLK := " + _bool_expr(rng, sigs) + ");")
+    lines.append(f"cnt(CU := e.Q, R := {_bool_expr(rng, sigs)}, PV := {rng.randint(2, 4)});")
+    lines.append("CASE s OF")
+    for st in range(3):
+        lines.append(f"  {st}: IF {_bool_expr(rng, names)} THEN s := {(st + 1) % 3}; END_IF")
+    lines.append("END_CASE;")
+    for name, kind in timers:
+        pt = rng.choice([30, 70, 150, 400, 1000])
+        extra = f", RESET := {_bool_expr(rng, sigs)}" if kind == "TONR" else ""
+        lines.append(f"{name}(IN := {_bool_expr(rng, names)}, PT := T#{pt}ms{extra});")
+    lines.append(f"m0 := {_bool_expr(rng, names)};")
+    lines.append(f"m1 := s = {rng.randint(0, 2)} OR {_bool_expr(rng, names)};")
+    if rng.random() < 0.3:
+        lines.append("m1 := m1 AND t0.ET > T#20ms;")
+    lines.append(f"y0 := {_bool_expr(rng, names)};")
+    lines.append(f"y1 := s = {rng.randint(0, 2)} AND {_bool_expr(rng, names)};")
+    decls = "\n".join(f"  {n} : {k};" for n, k in timers)
+    text = f"""PROGRAM Gen
+VAR_INPUT i0, i1, c0r, c0e, c1r, c1e : BOOL; END_VAR
+VAR_OUTPUT y0, y1 : BOOL; END_VAR
+VAR
+{decls}
+  e : R_TRIG; cnt : CTU; s : INT; m0, m1 : BOOL;
+END_VAR
+{chr(10).join(lines)}
+END_PROGRAM
+"""
+    inputs = [InputSchedule(f"i{k}", period_s=rng.choice([0.7, 1.3, 2.9]),
+                            offset_s=rng.choice([0.0, 0.123, 0.5]),
+                            pulse_ms=rng.choice([5, 60, 300])) for k in range(2)]
+    cyls = [cylinder(f"c{k}", [f"y{k}"], f"c{k}r", f"c{k}e",
+                     (rng.choice([0.05, 0.2, 0.33]), rng.choice([0.07, 0.25])),
+                     rng.choice([0.0, 0.013])) for k in range(2)]
+    return text, inputs, cyls, rng.choice([1.0, 4.0, 10.0])
+
+
+@pytest.mark.parametrize("seed", range(24))
+def test_event_driven_equals_scan_stepping_on_generated_programs(seed):
+    text, inputs, cyls, scan_ms = generated_program(seed)
+    prog, m = machine_for(text, cyls, inputs, scan_ms=scan_ms)
+    horizon = parse_horizon("12s")
+    fast = Sequencer(prog, m).run(horizon, tiling=False)
+    ref = Sequencer(prog, m).run(horizon, scan_stepping=True)
+    assert fast == ref, text
+    tiled = Sequencer(prog, m).run(parse_horizon("60s"))
+    full = Sequencer(prog, m).run(parse_horizon("60s"), tiling=False)
+    assert tiled == full, text
+
+
+# ---------------------------------------------------------------------- files and CLI
+
+def test_timeline_csv_contract(tmp_path):
+    tl = unfold(SAMPLES / "prototype_rig" / "rig.toml", "20s")
+    tl.to_csv(tmp_path / "timeline.csv")
+    with open(tmp_path / "timeline.csv", newline="") as f:
+        rows = list(csv.reader(f))
+    assert rows[0] == ["time_s", "signal", "value"]
+    body = rows[1:]
+    times = [float(r[0]) for r in body]
+    assert times == sorted(times)
+    at_zero = {r[1] for r in body if float(r[0]) == 0}
+    assert at_zero == set(tl.names)                      # every initial value at 0
+    assert {r[2] for r in body} <= {"0", "1"}
+    # one row per change: no signal repeats its previous value
+    last = {}
+    for t, s, v in body:
+        assert last.get(s) != v
+        last[s] = v
+
+
+def test_cli_timeline_writes_the_file_and_reports(tmp_path):
+    out = tmp_path / "out"
+    r = subprocess.run([sys.executable, "-m", "plcpred.cli", "timeline",
+                        str(SAMPLES / "sorter.toml"), "--horizon", "T#1m", "--out", str(out)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "sorter" in r.stdout and (out / "timeline.csv").is_file()
+    lines = (out / "timeline.csv").read_text().splitlines()
+    assert float(lines[-1].split(",")[0]) <= 60
+
+
+def test_cli_timeline_errors_are_clear(tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[machine]\nprogram = "nothere.st"\nsupply_bar_g = 5\n')
+    r = subprocess.run([sys.executable, "-m", "plcpred.cli", "timeline", str(bad),
+                        "--horizon", "10s", "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True)
+    assert r.returncode == 1 and "nothere.st" in r.stderr and "Traceback" not in r.stderr
+    assert not (tmp_path / "o" / "timeline.csv").exists()
+    r = subprocess.run([sys.executable, "-m", "plcpred.cli", "timeline",
+                        str(SAMPLES / "sorter.toml"), "--horizon", "soon", "--out",
+                        str(tmp_path / "o")], capture_output=True, text=True)
+    assert r.returncode == 2 and "horizon" in r.stderr
+
+
+@pytest.mark.parametrize("text,ns", [("90s", 90 * 10**9), ("T#1m30s", 90 * 10**9),
+                                     ("8h", 8 * 3600 * 10**9), ("1.5h", 5400 * 10**9),
+                                     ("250ms", 250 * 10**6), ("2", 2 * 10**9),
+                                     ("1m", 60 * 10**9)])
+def test_parse_horizon(text, ns):
+    assert parse_horizon(text) == ns
+
+
+@pytest.mark.parametrize("text", ["", "0s", "-5s", "abc", "T#"])
+def test_parse_horizon_rejects(text):
+    with pytest.raises(ValueError):
+        parse_horizon(text)
