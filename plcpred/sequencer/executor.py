@@ -158,13 +158,18 @@ class ProgramInstance:
             return fn(*args)
         except rtm.ExecutionError:
             raise
-        except (ArithmeticError, IndexError, ValueError, TypeError, AttributeError,
-                RecursionError) as e:
-            pos = self._position(e.__traceback__)
-            msg = str(e) or type(e).__name__
-            if isinstance(e, AttributeError) and "NoneType" in msg:
-                msg = "a pointer, reference or interface variable is not set (NULL)"
-            raise rtm.ExecutionError(f"run-time error: {msg}", *pos) from None
+        except Exception as e:
+            raise self.positioned(e) from None
+
+    def positioned(self, e: BaseException) -> rtm.ExecutionError:
+        """A Python exception raised by compiled code, as an error at its source line."""
+        pos = self._position(e.__traceback__)
+        msg = str(e) or type(e).__name__
+        if isinstance(e, AttributeError) and "NoneType" in msg:
+            msg = "a pointer, reference or interface variable is not set (NULL)"
+        if isinstance(e, RecursionError):
+            msg = "recursion: a POU calls itself"
+        return rtm.ExecutionError(f"run-time error: {msg}", *pos)
 
     def _position(self, tb):
         found = None
@@ -286,17 +291,18 @@ class Cylinder:
             ext = bool(getattr(o, a))
             self.prev[0] = ext
             if ext == self.plant.extend_cmd:
-                return
+                return False
         else:
             sol = [bool(getattr(o, a)) for o, a in self.valves]
             rising = [x and not p for x, p in zip(sol, self.prev)]
             self.prev = sol
             ext = valve_command(sol, self.plant.extend_cmd, rising)
             if ext == self.plant.extend_cmd:
-                return
+                return False
         self.plant.forget_before(t_ns)
         self.plant.command(t_ns, ext)
         self._until = -1
+        return True
 
     def read(self, t_ns: int) -> tuple[bool, bool]:
         """(retracted, extended) switch values at ``t_ns`` (times only move forward)."""
@@ -442,54 +448,43 @@ class Sequencer:
         # initial inputs: schedules and switches (others keep their declared values)
         for sch, obj, attr in schedules:
             setattr(obj, attr, sch.initial)
+        drive = []  # (obj, attr, value) written at the start of every scan
 
-        def write_inputs(t):
+        def drive_inputs(t):
+            """Input values at ``t`` and the first time any of them can change."""
+            drive.clear()
+            nxt = None
             for sch, obj, attr in schedules:
-                setattr(obj, attr, sch.advance(t))
+                drive.append((obj, attr, sch.advance(t)))
+                e = sch.next_ns()
+                if e is not None and (nxt is None or e < nxt):
+                    nxt = e
             for cyl in cylinders:
                 r, e = cyl.read(t)
                 if "retracted" in cyl.switches:
-                    o, a = cyl.switches["retracted"]
-                    setattr(o, a, r)
+                    drive.append((*cyl.switches["retracted"], r))
                 if "extended" in cyl.switches:
-                    o, a = cyl.switches["extended"]
-                    setattr(o, a, e)
+                    drive.append((*cyl.switches["extended"], e))
+                if cyl._until < (nxt if nxt is not None else 1 << 62):
+                    nxt = cyl._until
+            return nxt if nxt is not None else 1 << 62
 
         signals = ([Signal(n, "input", t.cat) for n, _, _, t in ins]
                    + [Signal(n, "step", "bool") for n, _, _ in steps]
                    + [Signal(n, "output", t.cat) for n, _, _, t in outs])
-        n_in = len(ins)
-        watch = [(o, a) for _, o, a, _ in ins]
-        watch_out = [(o, a) for _, o, a, _ in outs]
+        values_now = _value_getter([(o, a) for _, o, a, _ in ins]
+                                   + [(sfc, i) for _, sfc, i in steps]
+                                   + [(o, a) for _, o, a, _ in outs])
         last = [None] * len(signals)
         tt, ss, vv = [], [], []
 
-        def record(t):
-            k = 0
-            for o, a in watch:
-                v = getattr(o, a)
-                if v != last[k]:
-                    last[k] = v
+        def record(t, values):
+            for k, (v, was) in enumerate(zip(values, last)):
+                if v != was or was is None:
                     tt.append(t)
                     ss.append(k)
                     vv.append(v)
-                k += 1
-            for _, sfc, i in steps:
-                v = sfc.x[i]
-                if v != last[k]:
-                    last[k] = v
-                    tt.append(t)
-                    ss.append(k)
-                    vv.append(v)
-                k += 1
-            for o, a in watch_out:
-                v = getattr(o, a)
-                if v != last[k]:
-                    last[k] = v
-                    tt.append(t)
-                    ss.append(k)
-                    vv.append(v)
-                k += 1
+            last[:] = values
 
         timers = inst.timers
         sfcs = inst.sfcs
@@ -499,60 +494,68 @@ class Sequencer:
             and not any(s.random for s, _, _ in schedules)
         seen: dict = {}
         prev_snap = None
+        prev_values = None
         t = 0
         scans = 0
         tiled_from = None
-        guard = inst.guard
-        while t <= horizon_ns:
-            write_inputs(t)
-            guard(inst.scan, t)
-            scans += 1
-            for cyl in cylinders:
-                cyl.command(t)
-            record(t)
-            if always_step:
-                t += scan
-                continue
-            snap = inst.snap()
-            if snap != prev_snap:
-                prev_snap = snap
-                t += scan
-                continue
-            # a fixed point: find the next thing that can change anything
-            nxt = None
-            for sch, _, _ in schedules:
-                e = sch.next_ns()
-                if e is not None and (nxt is None or e < nxt):
-                    nxt = e
-            for cyl in cylinders:
-                cyl.plant.forget_before(t)
-                e = cyl.next_event_ns(t)
-                if e is not None and (nxt is None or e < nxt):
-                    nxt = e
-            running = False
-            for tm in timers:
-                e = tm.next_event_ns()
-                if e is not None:
-                    running = True
-                    if nxt is None or e < nxt:
+        next_input = 0
+        scan_fn = inst.scan
+        try:
+            while t <= horizon_ns:
+                if t >= next_input:
+                    next_input = drive_inputs(t)
+                for o, a, v in drive:
+                    setattr(o, a, v)
+                scan_fn(t)
+                scans += 1
+                for cyl in cylinders:
+                    if cyl.command(t):
+                        next_input = t
+                values = values_now()
+                if values != prev_values:
+                    record(t, values)
+                    prev_values = values
+                if always_step:
+                    t += scan
+                    continue
+                snap = inst.snap()
+                if snap != prev_snap:
+                    prev_snap = snap
+                    t += scan
+                    continue
+                # a fixed point: find the next thing that can change anything: an input
+                # edge (schedules, switches), a timer, a step time threshold
+                if next_input <= t:
+                    next_input = drive_inputs(t)
+                nxt = next_input if next_input < 1 << 62 else None
+                running = False
+                for tm in timers:
+                    e = tm.next_event_ns()
+                    if e is not None:
+                        running = True
+                        if nxt is None or e < nxt:
+                            nxt = e
+                for sfc in sfcs:
+                    e = sfc.next_event_ns(t)
+                    if e is not None and (nxt is None or e < nxt):
                         nxt = e
-            for sfc in sfcs:
-                e = sfc.next_event_ns(t)
-                if e is not None and (nxt is None or e < nxt):
-                    nxt = e
-            if reads_et and running:
-                nxt = t + scan
-            if can_tile and len(seen) < MAX_KEYS:
-                key = self._state_key(inst, t, schedules, cylinders)
-                if key is not None:
-                    t1 = seen.get(key)
-                    if t1 is not None:
-                        tiled_from = (t1, t)
-                        break
-                    seen[key] = t
-            if nxt is None:
-                break  # nothing will ever change again
-            t = max(t + scan, -(-nxt // scan) * scan)
+                if reads_et and running:
+                    nxt = t + scan
+                if can_tile and len(seen) < MAX_KEYS:
+                    key = self._state_key(inst, t, schedules, cylinders)
+                    if key is not None:
+                        t1 = seen.get(key)
+                        if t1 is not None:
+                            tiled_from = (t1, t)
+                            break
+                        seen[key] = t
+                if nxt is None:
+                    break  # nothing will ever change again
+                t = max(t + scan, -(-nxt // scan) * scan)
+        except (rtm.ExecutionError, SequencerError):
+            raise
+        except Exception as e:  # a fault inside the compiled program
+            raise inst.positioned(e) from None
         time_ns = np.asarray(tt, dtype=np.int64)
         sig = np.asarray(ss, dtype=np.int32)
         val = np.asarray([float(v) for v in vv], dtype=np.float64)
@@ -576,6 +579,18 @@ class Sequencer:
             parts.append(cyl.plant.key(t))
             parts.append(tuple(cyl.prev))
         return (inst.snap(t), tuple(parts))
+
+
+def _value_getter(slots):
+    """A function returning the current values of ``(object, attribute)`` slots (an SFC
+    runtime with a step index reads that step's flag) as one tuple, built in one go."""
+    names, parts = {}, []
+    for k, (obj, attr) in enumerate(slots):
+        names[f"o{k}"] = obj
+        parts.append(f"o{k}.x[{attr}]" if isinstance(obj, SfcRuntime) else f"o{k}.{attr}")
+    src = "def values():\n    return (" + "".join(p + ", " for p in parts) + ")\n"
+    exec(src, names)
+    return names["values"]
 
 
 def _tile(time_ns, sig, val, period, horizon_ns):
