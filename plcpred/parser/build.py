@@ -635,6 +635,28 @@ def describe_expected(expected: set[str]) -> str:
     return names[0] if len(names) == 1 else "one of " + ", ".join(names)
 
 
+def _cache_path(grammar: str):
+    """Where lark may keep the analysed grammar between runs (building the LALR tables
+    takes about half a second); False when there is no writable cache directory."""
+    import hashlib
+    import os
+    import tempfile
+
+    import lark as _lark
+
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    digest = hashlib.sha256((grammar + _lark.__version__).encode()).hexdigest()[:16]
+    for root in (os.path.join(base, "plcpred"), os.path.join(tempfile.gettempdir(),
+                                                              "plcpred-cache")):
+        try:
+            os.makedirs(root, exist_ok=True)
+            if os.access(root, os.W_OK):
+                return os.path.join(root, f"grammar-{digest}.lark.cache")
+        except OSError:
+            continue
+    return False
+
+
 class GrammarRunner:
     """One LALR parser for a grammar, shared by all parses (built once, lazily).
 
@@ -656,7 +678,8 @@ class GrammarRunner:
     def _get(self):
         if self._tables is None:
             self._builder = self._builder_cls()
-            lark = Lark(self._grammar, parser="lalr", lexer=_Feed, maybe_placeholders=True)
+            lark = Lark(self._grammar, parser="lalr", lexer=_Feed, maybe_placeholders=True,
+                        cache=_cache_path(self._grammar))
             table = lark.parser.parser.parser.parse_table  # frontend -> LALR_Parser -> _Parser
             compiled = {}
             states = {}

@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from ..parser.literals import parse_duration_ns
 
@@ -60,16 +59,20 @@ class Timeline:
                            f"{', '.join(self.names)})") from None
 
     @property
-    def df(self) -> pd.DataFrame:
+    def df(self) -> "pd.DataFrame":
         """``time_s, signal, value`` as a DataFrame (one row per change)."""
+        import pandas as pd  # only here: importing pandas costs half a second
+
         names = np.array(self.names, dtype=object)
         return pd.DataFrame({"time_s": self.time_ns / NS,
                              "signal": names[self.signal_idx] if len(names) else [],
                              "value": self.values})
 
-    def edges(self, name: str) -> pd.DataFrame:
+    def edges(self, name: str) -> "pd.DataFrame":
         """The changes of one signal: ``time_s, value`` (the first row is its initial
         value at 0)."""
+        import pandas as pd
+
         m = self.signal_idx == self._idx(name)
         return pd.DataFrame({"time_s": self.time_ns[m] / NS, "value": self.values[m]})
 
@@ -77,9 +80,11 @@ class Timeline:
         m = self.signal_idx == self._idx(name)
         return self.time_ns[m], self.values[m]
 
-    def intervals(self, name: str) -> pd.DataFrame:
+    def intervals(self, name: str) -> "pd.DataFrame":
         """Periods in which the signal is non-zero (TRUE): ``start_s, end_s, duration_s``;
         a period still open at the horizon ends there."""
+        import pandas as pd
+
         t, v = self.edge_times_ns(name)
         on = v != 0
         starts, ends = [], []
