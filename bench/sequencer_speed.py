@@ -48,7 +48,7 @@ def main(argv=None) -> int:
     step_h = args.stepping_horizon
     machines = [m for m in MACHINES if not args.only or args.only in m.name]
     print(f"{'machine':<16} {'24h wall s':>10} {'x real time':>12} {'tiled':>6} "
-          f"{'changes':>9} | {step_h + " event s":>10} {step_h + " stepping s":>13} {'speed-up':>9}")
+          f"{'changes':>9} | {step_h + ' event s':>10} {step_h + ' stepping s':>13} {'speed-up':>9}")
     with tempfile.TemporaryDirectory() as tmp:
         for path in machines:
             machine = load_machine(path)
