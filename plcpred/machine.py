@@ -323,6 +323,21 @@ def load_machine(path) -> Machine:
     return machine
 
 
+def program_addresses(program) -> dict[str, str]:
+    """Hardware address -> name of the variable declared AT it (``"%QX0.0" -> "Y_A"``), so
+    a machine file may name a signal by its address without a [signals] entry."""
+    out = {}
+    blocks = [g.block for g in program.globals]
+    blocks += [b for c in program.configurations for b in c.var_blocks]
+    blocks += [b for c in program.configurations for r in c.resources for b in r.var_blocks]
+    blocks += [b for p in program.pous if p.kind == "PROGRAM" for b in p.var_blocks]
+    for b in blocks:
+        for d in b.decls:
+            if d.address and "*" not in d.address:
+                out.setdefault(d.address.upper(), d.name)
+    return out
+
+
 def _program_io(program):
     """(all variable names, output names, names read anywhere) of a program, upper case."""
     from .parser.check import Checker
@@ -350,7 +365,8 @@ def check_against_program(machine: Machine, program) -> list[str]:
     are returned (and added to ``machine.warnings``)."""
     file = str(machine.path)
     names, outputs, read = _program_io(program)
-    by_address = {addr.upper(): name for addr, name in machine.signals.items()}
+    by_address = program_addresses(program)
+    by_address.update({addr.upper(): name for addr, name in machine.signals.items()})
     program_file = machine.program_path.name
 
     def resolve(signal: str) -> str:

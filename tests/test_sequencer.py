@@ -279,3 +279,15 @@ def test_parse_horizon(text, ns):
 def test_parse_horizon_rejects(text):
     with pytest.raises(ValueError):
         parse_horizon(text)
+
+
+def test_signals_may_be_named_by_their_declared_address(tmp_path):
+    rig = (SAMPLES / "prototype_rig" / "rig.toml").read_text()
+    text = rig.replace('program = "rig.st"', f'program = "{SAMPLES / "prototype_rig" / "rig.st"}"')
+    text = text.replace('valve = "Y_A"', 'valve = "%QX0.0"').replace(
+        'retracted = "A_RET"', 'retracted = "%IX0.2"')
+    (tmp_path / "m.toml").write_text(text)
+    by_address = unfold(tmp_path / "m.toml", "20s")
+    by_name = unfold(SAMPLES / "prototype_rig" / "rig.toml", "20s")
+    assert np.array_equal(by_address.edge_times_ns("Y_A")[0], by_name.edge_times_ns("Y_A")[0])
+    assert "Y_A" in by_address.names and "A_RET" in by_address.names

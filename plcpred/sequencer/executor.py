@@ -396,10 +396,15 @@ class Sequencer:
         return names
 
     def _resolve(self, signal: str) -> str:
+        """A machine file's signal: a variable name, or a hardware address named in
+        [signals] or declared with AT in the program."""
         if self.machine is not None:
             for addr, name in self.machine.signals.items():
                 if addr.upper() == signal.upper():
                     return name
+        if signal.startswith("%"):
+            from ..machine import program_addresses
+            return program_addresses(self.program).get(signal.upper(), signal)
         return signal
 
     def _locate(self, inst, signal):
