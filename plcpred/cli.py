@@ -87,10 +87,7 @@ def cmd_timeline(args) -> int:
         machine = load_machine(args.machine)
         tl = unfold(machine, horizon_ns / 1e9, scan_stepping=args.scan_stepping,
                     program=args.program)
-    except (MachineError, SequencerError) as e:
-        print(e, file=sys.stderr)
-        return 1
-    except (ProgramError, CompileError, ExecutionError) as e:
+    except (MachineError, SequencerError, ProgramError, CompileError, ExecutionError) as e:
         print(e, file=sys.stderr)
         return 1
     for w in machine.warnings:

@@ -710,26 +710,19 @@ class Compiler:
             e(ind, "else:", pos)
             self._store(var, f"({r}[-1] + {r}.step if {r} else {start})", ty.ANY_INT, scope,
                         ind + 1, pos)
-        elif isinstance(s, ir.While):
+        elif isinstance(s, (ir.While, ir.Repeat)):
+            # REPEAT tests its condition after the body: the first pass always runs, and
+            # CONTINUE still reaches the test
             n = self.src.temp("n")
             code, t = self._expr(s.cond, scope)
+            cond = self._to(code, t, BOOL, s.cond)
+            kind = "WHILE" if isinstance(s, ir.While) else "REPEAT"
             e(ind, f"{n} = 0", pos)
-            e(ind, f"while {self._to(code, t, BOOL, s.cond)}:", pos)
-            e(ind + 1, f"{n} += 1", pos)
-            e(ind + 1, f"if {n} > {WATCHDOG_ITERATIONS}: _watchdog('WHILE', {_pos_args(pos)})",
+            e(ind, f"while {cond}:" if kind == "WHILE" else f"while {n} == 0 or not {cond}:",
               pos)
-            self._loop_depth += 1
-            self._stmts(s.body, scope, ind + 1, True)
-            self._loop_depth -= 1
-            e(ind + 1, "pass")
-        elif isinstance(s, ir.Repeat):
-            n = self.src.temp("n")
-            code, t = self._expr(s.cond, scope)
-            e(ind, f"{n} = 0", pos)
-            e(ind, f"while {n} == 0 or not {self._to(code, t, BOOL, s.cond)}:", pos)
             e(ind + 1, f"{n} += 1", pos)
-            e(ind + 1, f"if {n} > {WATCHDOG_ITERATIONS}: _watchdog('REPEAT', {_pos_args(pos)})",
-              pos)
+            e(ind + 1, f"if {n} > {WATCHDOG_ITERATIONS}: _watchdog({kind!r}, "
+                       f"{_pos_args(pos)})", pos)
             self._loop_depth += 1
             self._stmts(s.body, scope, ind + 1, True)
             self._loop_depth -= 1
