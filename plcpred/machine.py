@@ -374,6 +374,9 @@ def check_against_program(machine: Machine, program) -> list[str]:
 
     def require(where: str, key: str, signal: str) -> str:
         name = resolve(signal)
+        base, dot, bit = name.rpartition(".")
+        if dot and bit.isdigit() and base.upper() in names:
+            name = base  # one bit of a WORD/BYTE variable
         if name.upper() not in names:
             raise MachineError(file, where, f"{key} '{signal}' is not a variable of "
                                             f"{program_file}")

@@ -27,6 +27,7 @@ import numpy as np
 from ..parser import ir
 from ..parser.errors import ProgramError
 from . import runtime as rtm
+from . import types
 from .compiler import Compiled, compile_program
 from .plant import CylinderPlant, valve_command
 from .sfc import ActionSpec, SfcRuntime, SfcSpec
@@ -45,6 +46,23 @@ class SequencerError(Exception):
 
 class FbBase:
     __slots__ = ()
+
+
+class BitView:
+    """One bit of an integer variable as a BOOL signal (``wValves.3`` in a machine file)."""
+    __slots__ = ("obj", "attr", "mask")
+
+    def __init__(self, obj, attr, bit):
+        self.obj, self.attr, self.mask = obj, attr, 1 << bit
+
+    @property
+    def V(self) -> bool:
+        return bool(getattr(self.obj, self.attr) & self.mask)
+
+    @V.setter
+    def V(self, on) -> None:
+        x = getattr(self.obj, self.attr)
+        setattr(self.obj, self.attr, x | self.mask if on else x & ~self.mask)
 
 
 def _copy(v):
@@ -408,7 +426,13 @@ class Sequencer:
         return signal
 
     def _locate(self, inst, signal):
-        hit = inst.locate(self._resolve(signal))
+        name = self._resolve(signal)
+        hit = inst.locate(name)
+        base, dot, bit = name.rpartition(".")
+        if hit is None and dot and bit.isdigit():
+            word = inst.locate(base)
+            if word is not None and word[2].cat == "int":
+                hit = (BitView(word[0], word[1], int(bit)), "V", types.BOOL)
         if hit is None:
             where = f"{self.machine.path}: " if self.machine is not None else ""
             raise SequencerError(f"{where}signal '{signal}' is not a variable of the program")
