@@ -107,6 +107,45 @@ def cmd_timeline(args) -> int:
     return 0
 
 
+def cmd_predict(args) -> int:
+    from .air import predict
+    from .machine import MachineError, load_machine
+    from .parser import ProgramError
+    from .report import consumer_table
+    from .sequencer import (CompileError, ExecutionError, SequencerError, parse_horizon)
+
+    try:
+        horizon_ns = parse_horizon(args.horizon)
+        dt_s = parse_horizon(args.dt) / 1e9 if args.dt else None
+    except ValueError as e:
+        return _fail(str(e).replace("horizon", "duration") if args.dt else str(e))
+    try:
+        machine = load_machine(args.machine)
+        result = predict(machine, horizon_ns / 1e9, dt=dt_s, program=args.program)
+        result.write(args.out, plot=not args.no_plot)
+    except (MachineError, SequencerError, ProgramError, CompileError, ExecutionError) as e:
+        print(e, file=sys.stderr)
+        return 1
+    for w in machine.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    prof = result.profile
+    split = prof.by_role_nl()
+    total = prof.total_nl or 1.0
+    print(f"{machine.name}: {prof.horizon_s:g} s at {machine.supply_bar_g:g} bar(g), "
+          f"grid {prof.dt_s:g} s")
+    print()
+    print(consumer_table(prof))
+    print()
+    print(f"active {split['active']:.2f} NL ({100 * split['active'] / total:.1f} %), "
+          f"passive {split['passive']:.2f} NL ({100 * split['passive'] / total:.1f} %), "
+          f"leaks {split['leak']:.2f} NL ({100 * split['leak'] / total:.1f} %)")
+    print(f"mean {prof.mean_l_min:.1f} NL/min, peak {prof.peak_l_min():.1f} NL/min "
+          f"(grid), {prof.peak_l_min(1.0):.1f} NL/min (1 s), "
+          f"{prof.peak_l_min(60.0):.1f} NL/min (1 min)")
+    print(f"wrote {', '.join(str(p) for p in result.write_files)}")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="plcpred",
@@ -140,6 +179,24 @@ def build_parser() -> argparse.ArgumentParser:
                    help="execute every scan instead of jumping between events (the slow "
                         "reference the event-driven mode must equal)")
     p.set_defaults(func=cmd_timeline)
+
+    p = sub.add_parser("predict", help="forecast a machine's compressed-air demand",
+                       description="Run the machine's program (as `timeline` does) and turn "
+                                   "its timeline into air demand: D1 volumes per cylinder "
+                                   "stroke, D2 flows of nozzles while on and of leaks always. "
+                                   "Writes DIR/timeline.csv, demand.csv (NL/min per consumer "
+                                   "on a time grid), summary.json and demand.png, and prints "
+                                   "a table of per-consumer totals.")
+    p.add_argument("machine", metavar="MACHINE", help="machine file (.toml)")
+    p.add_argument("--horizon", required=True,
+                   help="how long to run: 60s, 1m30s, 8h, T#1m30s (m = minutes)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument("--dt", help="grid step of demand.csv (default 10ms, coarser for long "
+                                "horizons so the file stays under a few tens of MB)")
+    p.add_argument("--program", metavar="PROGRAM",
+                   help="run this program instead of the one the machine file names")
+    p.add_argument("--no-plot", action="store_true", help="skip demand.png")
+    p.set_defaults(func=cmd_predict)
     return ap
 
 

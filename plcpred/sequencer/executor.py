@@ -361,6 +361,7 @@ class Sequencer:
         """(inputs, outputs) as lists of (name, obj, attr, type)."""
         c = self.compiled
         ins, outs, seen = [], [], set()
+        self.signal_names = {}  # machine file signal -> timeline name
 
         def add(lst, name, hit):
             obj, attr, t = hit
@@ -394,11 +395,13 @@ class Sequencer:
         if self.machine is not None:
             for s in self._machine_inputs():
                 hit = self._locate(inst, s)
-                add(ins, self._display(inst, s, hit), hit)
+                self.signal_names[s] = self._display(inst, s, hit)
+                add(ins, self.signal_names[s], hit)
             for cons in self.machine.consumers:
                 for v in cons.valve:
                     hit = self._locate(inst, v)
-                    add(outs, self._display(inst, v, hit), hit)
+                    self.signal_names[v] = self._display(inst, v, hit)
+                    add(outs, self.signal_names[v], hit)
         return ins, outs
 
     def _display(self, inst, signal, hit):
@@ -593,7 +596,8 @@ class Sequencer:
         info = {"scans": scans, "scan_ms": scan / 1e6, "wall_s": _time.perf_counter() - wall0,
                 "mode": "scan-stepping" if scan_stepping else "event-driven",
                 "period_s": (tiled_from[1] - tiled_from[0]) / NS if tiled_from else None,
-                "tiled_from_s": tiled_from[1] / NS if tiled_from else None}
+                "tiled_from_s": tiled_from[1] / NS if tiled_from else None,
+                "machine_signals": dict(self.signal_names)}
         return Timeline(signals, time_ns, sig, val, horizon_ns, info)
 
     @staticmethod

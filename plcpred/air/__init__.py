@@ -1,0 +1,13 @@
+"""Air demand from timelines: the activation/transition consumption model.
+
+* :mod:`~plcpred.air.flow` - D2/D3 flows through restrictions (extended ISO 6358)
+* :mod:`~plcpred.air.volumes` - D1 free-air volumes per stroke
+* :mod:`~plcpred.air.demand` - edges to a :class:`DemandProfile` on a time grid
+* :func:`predict` - machine file to timeline, demand profile and files
+"""
+from .demand import (ConsumerModel, DemandProfile, activation_matrix, consumer_models,
+                     demand_profile)
+from .predict import Prediction, default_dt, predict
+
+__all__ = ["ConsumerModel", "DemandProfile", "Prediction", "activation_matrix",
+           "consumer_models", "default_dt", "demand_profile", "predict"]

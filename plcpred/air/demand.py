@@ -1,0 +1,355 @@
+"""From a timeline to an air-demand profile: the activation/transition model (domain.md
+section 2) evaluated on a regular time grid.
+
+* **Active consumers** (cylinders, semi-rotary drives, grippers) take their D1 volume on
+  each change of their valve's effective command: rising (extend, cap end) or falling
+  (retract, rod end) for a monostable valve; only rising for a single-acting cylinder; for
+  a bistable valve a rising edge of a solenoid that changes the state (the last pulsed
+  solenoid decides; both at once keep the state).
+* **Passive consumers** (nozzles, air knives) flow at their D2 rate while their output is
+  on; **leaks** always.
+
+Shape of a stroke: its volume is spread evenly (a rectangle) over the valve's switching
+delay plus the stroke time in that direction, starting at the edge. Without a stroke time
+it is spread over the switching delay alone, and without either it lands at the edge
+instant. Volumes are placed on the grid by integrating exactly, so each edge's total is
+the same whatever the grid (air that would flow after the horizon is not counted).
+
+Grid: cells ``[k dt, (k+1) dt)``; a cell's flow is its volume divided by ``dt`` (also for a
+last, partial cell), so summing ``flow * dt`` gives the total exactly.
+
+Matrix form (the thesis' formulation, :func:`activation_matrix`): ``A[i, j]`` the effective
+state of device i at the end of cell j, ``Z = |A[:, j] - A[:, j-1]|`` split into rising and
+falling parts; active air per cell ``Zx^T q_extend + Zr^T q_retract``, passive
+``A^T qdot dt``. It equals the exact profile when no cell holds two edges of one device.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..machine import CYLINDER_KINDS
+from ..sequencer.timeline import NS, atomic_write_text
+from .flow import bar_g_to_pa, celsius_to_k, flow_nl_min, orifice_conductance
+from .volumes import consumer_stroke_volumes_nl
+
+
+@dataclass
+class ConsumerModel:
+    """One consumer of the machine file with its air figures worked out."""
+    name: str
+    kind: str
+    valve: list[str]
+    role: str                         # "active" | "passive" | "leak"
+    extend_nl: float = 0.0            # D1a per extend stroke
+    retract_nl: float = 0.0           # D1b per retract stroke
+    flow_l_min: float = 0.0           # D2 while on
+    pressure_bar_g: float = 0.0
+    delay_s: float = 0.0
+    stroke_time_s: tuple[float, float] | None = None
+    initial_extended: bool = False
+
+
+def consumer_models(machine) -> list[ConsumerModel]:
+    """D1 volumes and D2 flows of every consumer at the machine's supply (a nozzle's own
+    regulator where it has one), with the supply at ``ambient_c``."""
+    t_supply_k = celsius_to_k(machine.ambient_c)
+    p_atm_pa = machine.atmosphere_kpa * 1000.0
+    out = []
+    for c in machine.consumers:
+        if c.kind in CYLINDER_KINDS:
+            p_pa = bar_g_to_pa(machine.supply_bar_g, machine.atmosphere_kpa)
+            v_ext, v_ret = consumer_stroke_volumes_nl(c, p_pa, t_supply_k)
+            st = c.stroke_time_s if isinstance(c.stroke_time_s, tuple) else None
+            out.append(ConsumerModel(c.name, c.kind, list(c.valve), "active", v_ext, v_ret,
+                                     pressure_bar_g=machine.supply_bar_g,
+                                     delay_s=c.switch_delay_s, stroke_time_s=st,
+                                     initial_extended=c.initial == "extended"))
+        else:
+            p_bar_g = c.pressure_bar_g if c.pressure_bar_g is not None else machine.supply_bar_g
+            C = c.C if c.C is not None else orifice_conductance(c.orifice_mm, c.Cd)
+            q = float(flow_nl_min(C, c.b, c.m, c.a, bar_g_to_pa(p_bar_g, machine.atmosphere_kpa),
+                                  p_atm_pa, t_supply_k, c.flow_model))
+            out.append(ConsumerModel(c.name, c.kind, list(c.valve),
+                                     "leak" if c.kind == "leak" else "passive",
+                                     flow_l_min=q, pressure_bar_g=p_bar_g))
+    return out
+
+
+# ---------------------------------------------------------------------- edges
+
+def _signal(timeline, name: str, signal_map: dict):
+    key = signal_map.get(name, name)
+    return timeline.edge_times_ns(key)
+
+
+def valve_transitions(timeline, model: ConsumerModel, signal_map=None):
+    """(times_ns, extend) of the changes of a valve's effective command: ``extend`` is
+    True for a change to extend. Starts from the cylinder's initial position."""
+    signal_map = signal_map or timeline.info.get("machine_signals", {})
+    init = model.initial_extended
+    if len(model.valve) == 1:
+        t, v = _signal(timeline, model.valve[0], signal_map)
+        state = v != 0
+    else:
+        codes_t, codes = [], []
+        for sig, code in ((model.valve[0], 1), (model.valve[1], -1)):
+            t, v = _signal(timeline, sig, signal_map)
+            on = v != 0
+            rising = on & ~np.concatenate([[False], on[:-1]])
+            codes_t.append(t[rising])
+            codes.append(np.full(int(rising.sum()), code, dtype=np.int64))
+        tt = np.concatenate(codes_t)
+        cc = np.concatenate(codes)
+        # pulses in the same scan add up: extend + retract = 0 keeps the state
+        t, inv = np.unique(tt, return_inverse=True)
+        net = np.bincount(inv, weights=cc, minlength=len(t))
+        keep = net != 0
+        t, state = t[keep], net[keep] > 0
+    prev = np.concatenate([[init], state[:-1]]) if len(state) else state
+    change = state != prev
+    return t[change], state[change]
+
+
+def passive_intervals(timeline, model: ConsumerModel, signal_map=None):
+    """(start_ns, end_ns) arrays of the periods a passive consumer's output is on (the
+    last may end at the horizon)."""
+    signal_map = signal_map or timeline.info.get("machine_signals", {})
+    t, v = _signal(timeline, model.valve[0], signal_map)
+    on = v != 0
+    prev = np.concatenate([[False], on[:-1]])
+    starts = t[on & ~prev]
+    ends = t[~on & prev]
+    if len(ends) < len(starts):
+        ends = np.concatenate([ends, [timeline.horizon_ns]])
+    return starts, ends
+
+
+# ---------------------------------------------------------------------- grid integration
+
+def _cumulative(points_s, start_s, duration_s, amount):
+    """Sum over items of ``amount * clip((x - start) / duration, 0, 1)`` at ``points_s``:
+    the cumulative volume of rectangles, exact at any point. A zero duration is a step
+    counted from strictly after its start (so it lands in the cell that starts there)."""
+    points_s = np.asarray(points_s, dtype=float)
+    start_s = np.asarray(start_s, dtype=float)
+    duration_s = np.asarray(duration_s, dtype=float)
+    amount = np.asarray(amount, dtype=float)
+    out = np.zeros(len(points_s))
+    step = duration_s <= 0
+    if step.any():
+        order = np.argsort(start_s[step], kind="stable")
+        ts = start_s[step][order]
+        cum = np.concatenate([[0.0], np.cumsum(amount[step][order])])
+        out += cum[np.searchsorted(ts, points_s, side="left")]
+    ramp = ~step
+    if ramp.any():
+        rate = amount[ramp] / duration_s[ramp]
+        bp = np.concatenate([start_s[ramp], start_s[ramp] + duration_s[ramp]])
+        dslope = np.concatenate([rate, -rate])
+        order = np.argsort(bp, kind="stable")
+        bp, dslope = bp[order], dslope[order]
+        slope = np.cumsum(dslope)                       # slope just after each breakpoint
+        cum_at_bp = np.concatenate([[0.0], np.cumsum(slope[:-1] * np.diff(bp))])
+        k = np.searchsorted(bp, points_s, side="right") - 1
+        inside = k >= 0
+        kk = np.clip(k, 0, None)
+        out += np.where(inside, cum_at_bp[kk] + slope[kk] * (points_s - bp[kk]), 0.0)
+    return out
+
+
+def grid_edges_s(horizon_s: float, dt_s: float) -> np.ndarray:
+    n = max(1, int(math.ceil(horizon_s / dt_s - 1e-9)))
+    edges = np.arange(n + 1, dtype=float) * dt_s
+    edges[-1] = min(edges[-1], horizon_s)
+    return edges
+
+
+# ---------------------------------------------------------------------- the profile
+
+@dataclass
+class DemandProfile:
+    """Air demand on a regular grid: per-consumer normal litres per cell, flows in NL/min."""
+    names: list[str]
+    roles: list[str]
+    cell_nl: np.ndarray                 # consumers x cells
+    dt_s: float
+    horizon_s: float
+    active_nl: np.ndarray               # per consumer
+    passive_nl: np.ndarray
+    strokes: dict = field(default_factory=dict)   # name -> (extend, retract) counts
+    models: list = field(default_factory=list)
+
+    @property
+    def n_cells(self) -> int:
+        return self.cell_nl.shape[1]
+
+    @property
+    def time_s(self) -> np.ndarray:
+        """Start of each cell."""
+        return np.arange(self.n_cells) * self.dt_s
+
+    @property
+    def flow_l_min(self) -> np.ndarray:
+        """Per-consumer mean flow in each cell, NL/min (consumers x cells)."""
+        return self.cell_nl / self.dt_s * 60.0
+
+    @property
+    def total_flow_l_min(self) -> np.ndarray:
+        return self.cell_nl.sum(axis=0) / self.dt_s * 60.0
+
+    @property
+    def total_nl(self) -> float:
+        return float(self.cell_nl.sum())
+
+    @property
+    def consumer_nl(self) -> np.ndarray:
+        return self.cell_nl.sum(axis=1)
+
+    @property
+    def mean_l_min(self) -> float:
+        return self.total_nl / self.horizon_s * 60.0
+
+    def peak_l_min(self, window_s: float | None = None) -> float:
+        """The highest total flow on the grid, or the highest mean over any window of
+        ``window_s`` (rounded to whole cells)."""
+        return float(np.max(self.moving_average_l_min(window_s))) if window_s else float(
+            np.max(self.total_flow_l_min))
+
+    def moving_average_l_min(self, window_s: float) -> np.ndarray:
+        """Total flow averaged over the trailing ``window_s`` (whole cells; windows that
+        would start before 0 are left out)."""
+        k = max(1, int(round(window_s / self.dt_s)))
+        total = self.cell_nl.sum(axis=0)
+        if k >= len(total):
+            return np.array([total.sum() / (len(total) * self.dt_s) * 60.0])
+        c = np.concatenate([[0.0], np.cumsum(total)])
+        return (c[k:] - c[:-k]) / (k * self.dt_s) * 60.0
+
+    def cumulative_nl(self) -> np.ndarray:
+        """Normal litres used by the end of each cell."""
+        return np.cumsum(self.cell_nl.sum(axis=0))
+
+    def by_role_nl(self) -> dict:
+        out = {"active": 0.0, "passive": 0.0, "leak": 0.0}
+        for role, v in zip(self.roles, self.consumer_nl):
+            out[role] += float(v)
+        return out
+
+    # ------------------------------------------------------------------ files
+    def to_csv(self, path) -> None:
+        """``demand.csv``: ``time_s,total_l_min,<consumer>_l_min...``; each row is the mean
+        flow over the cell starting at ``time_s``."""
+        cols = [self.time_s, self.total_flow_l_min] + list(self.flow_l_min)
+        header = "time_s,total_l_min," + ",".join(
+            _csv_name(n) + "_l_min" for n in self.names)
+        data = np.column_stack(cols)
+        fmt = ["%.6g"] + ["%.6f"] * (len(cols) - 1)
+        import io
+        buf = io.StringIO()
+        np.savetxt(buf, data, delimiter=",", fmt=fmt, header=header, comments="")
+        atomic_write_text(path, buf.getvalue())
+
+    def summary(self) -> dict:
+        consumers = {}
+        for i, (name, role) in enumerate(zip(self.names, self.roles)):
+            entry = {"total_nl": float(self.consumer_nl[i]),
+                     "active_nl": float(self.active_nl[i]),
+                     "passive_nl": float(self.passive_nl[i]), "kind": role}
+            if name in self.strokes:
+                entry["strokes"] = {"extend": int(self.strokes[name][0]),
+                                    "retract": int(self.strokes[name][1])}
+            m = self.models[i] if i < len(self.models) else None
+            if m is not None and role == "active":
+                entry["extend_nl_per_stroke"] = m.extend_nl
+                entry["retract_nl_per_stroke"] = m.retract_nl
+            elif m is not None:
+                entry["flow_l_min_while_on"] = m.flow_l_min
+            consumers[name] = entry
+        split = self.by_role_nl()
+        return {"total_nl": self.total_nl, "mean_l_min": self.mean_l_min,
+                "peak_l_min": self.peak_l_min(), "peak_1s_l_min": self.peak_l_min(1.0),
+                "horizon_s": self.horizon_s, "dt_s": self.dt_s,
+                "active_nl": split["active"], "passive_nl": split["passive"],
+                "leak_nl": split["leak"], "consumers": consumers}
+
+    def write_summary(self, path, extra: dict | None = None) -> None:
+        data = self.summary()
+        if extra:
+            data.update(extra)
+        atomic_write_text(path, json.dumps(data, indent=2) + "\n")
+
+
+def _csv_name(name: str) -> str:
+    return "".join(ch if ch.isalnum() or ch in "_-." else "_" for ch in name)
+
+
+def demand_profile(timeline, models: list[ConsumerModel], dt_s: float = 0.01,
+                   signal_map=None) -> DemandProfile:
+    """Integrate every consumer's air over the grid (see the module docstring)."""
+    if dt_s <= 0:
+        raise ValueError("dt must be positive")
+    horizon_s = timeline.horizon_ns / NS
+    edges = grid_edges_s(horizon_s, dt_s)
+    n = len(models)
+    cells = np.zeros((n, len(edges) - 1))
+    active = np.zeros(n)
+    passive = np.zeros(n)
+    strokes = {}
+    for i, m in enumerate(models):
+        if m.role == "active":
+            t_ns, ext = valve_transitions(timeline, m, signal_map)
+            t_s = t_ns / NS
+            vol = np.where(ext, m.extend_nl, m.retract_nl)
+            if m.stroke_time_s is not None:
+                dur = m.delay_s + np.where(ext, m.stroke_time_s[0], m.stroke_time_s[1])
+            else:
+                dur = np.full(len(t_s), m.delay_s)
+            strokes[m.name] = (int(ext.sum()), int((~ext).sum()))
+            cum = _cumulative(edges, t_s, dur, vol)
+            cells[i] = np.diff(cum)
+            active[i] = cells[i].sum()
+        else:
+            rate_nl_s = m.flow_l_min / 60.0
+            if m.role == "leak":
+                starts, ends = np.array([0.0]), np.array([horizon_s])
+            else:
+                s_ns, e_ns = passive_intervals(timeline, m, signal_map)
+                starts, ends = s_ns / NS, e_ns / NS
+            cum = _cumulative(edges, starts, ends - starts, rate_nl_s * (ends - starts))
+            cells[i] = np.diff(cum)
+            passive[i] = cells[i].sum()
+    return DemandProfile([m.name for m in models], [m.role for m in models], cells, dt_s,
+                         horizon_s, active, passive, strokes, list(models))
+
+
+def activation_matrix(timeline, models: list[ConsumerModel], dt_s: float, signal_map=None):
+    """(A, Zx, Zr): effective states at the end of each cell (devices x cells) and their
+    rising and falling transitions (see the module docstring)."""
+    horizon_s = timeline.horizon_ns / NS
+    edges = grid_edges_s(horizon_s, dt_s)
+    ends_ns = np.round(edges[1:] * NS).astype(np.int64)
+    A = np.zeros((len(models), len(ends_ns)))
+    A0 = np.zeros(len(models))
+    for i, m in enumerate(models):
+        if m.role == "leak":
+            A[i] = 1.0
+            A0[i] = 1.0
+            continue
+        if m.role == "active":
+            t, ext = valve_transitions(timeline, m, signal_map)
+            states = np.concatenate([[m.initial_extended], ext]).astype(float)
+            A0[i] = float(m.initial_extended)
+        else:
+            s = signal_map or timeline.info.get("machine_signals", {})
+            t, v = _signal(timeline, m.valve[0], s)
+            states = np.concatenate([[0.0], (v != 0).astype(float)])
+        k = np.searchsorted(t, ends_ns, side="left")   # edges strictly before the cell end
+        A[i] = states[k]
+    prev = np.concatenate([A0[:, None], A[:, :-1]], axis=1)
+    Zx = np.clip(A - prev, 0, None)
+    Zr = np.clip(prev - A, 0, None)
+    return A, Zx, Zr
