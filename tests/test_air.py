@@ -113,6 +113,32 @@ def test_rig_strokes_reproduce_the_published_table(name, extend, retract):
     assert model.retract_nl * P0_PA / P_ATM_PA == pytest.approx(retract, abs=0.002)
 
 
+def rig_total_without_leak(machine_file, horizon, choked=True):
+    from plcpred import predict
+    m = load_machine(SAMPLES / "prototype_rig" / machine_file)
+    m.consumers = [c for c in m.consumers if c.kind != "leak"]
+    if choked:
+        for c in m.consumers:
+            c.flow_model = "choked"
+    return predict(m, horizon).profile.total_nl
+
+
+def test_rig_sequence_1_matches_the_published_simplified_total():
+    # 13.13 L (domain.md section 5). The knives' blow time is not published; the sample
+    # uses the 3.7 s that makes this hold, so this checks consistency of the cylinder
+    # volumes and the knife flow rather than validating them independently.
+    assert rig_total_without_leak("rig.toml", "20s") == pytest.approx(13.13, rel=0.02)
+
+
+def test_rig_sequence_2_is_near_the_published_simplified_total():
+    # 41.98 L: A 30 cycles, B once, C 50 cycles, knives 10 s at 2 bar(g). Ours is 2-4 %
+    # higher: our litres are at P0 = 100 kPa (the thesis' at P_atm, 1.3 %), B's retract at
+    # the end of the run is counted, and the knives' actual pressure is not published.
+    total = rig_total_without_leak("rig_seq2.toml", "62s")
+    assert total == pytest.approx(41.98, rel=0.04)
+    assert total > 41.98
+
+
 # ---------------------------------------------------------------------- edge rules
 
 def timeline(signals: dict, horizon_s=10.0):
