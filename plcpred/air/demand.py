@@ -258,11 +258,13 @@ class DemandProfile:
         for i, (name, role) in enumerate(zip(self.names, self.roles)):
             entry = {"total_nl": float(self.consumer_nl[i]),
                      "active_nl": float(self.active_nl[i]),
-                     "passive_nl": float(self.passive_nl[i]), "kind": role}
+                     "passive_nl": float(self.passive_nl[i]), "role": role}
+            m = self.models[i] if i < len(self.models) else None
+            if m is not None:
+                entry["kind"] = m.kind
             if name in self.strokes:
                 entry["strokes"] = {"extend": int(self.strokes[name][0]),
                                     "retract": int(self.strokes[name][1])}
-            m = self.models[i] if i < len(self.models) else None
             if m is not None and role == "active":
                 entry["extend_nl_per_stroke"] = m.extend_nl
                 entry["retract_nl_per_stroke"] = m.retract_nl
