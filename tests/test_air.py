@@ -256,3 +256,38 @@ def test_predict_rejects_a_bad_dt(tmp_path):
                         "--horizon", "30s", "--out", str(tmp_path), "--dt", "fast"],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "Traceback" not in r.stderr
+
+
+MACHINES = sorted(SAMPLES.glob("*.toml")) + sorted((SAMPLES / "prototype_rig").glob("*.toml"))
+
+
+@pytest.mark.parametrize("path", MACHINES, ids=lambda p: p.stem)
+def test_every_sample_predicts_hand_totals_from_its_strokes_and_on_times(path):
+    from plcpred import predict
+    res = predict(path, "2m", dt=0.05)
+    prof, tl = res.profile, res.timeline
+    names = tl.info["machine_signals"]
+    expected = 0.0
+    for m in res.models:
+        if m.role == "leak":
+            expected += m.flow_l_min * 120 / 60
+        elif m.role == "passive":
+            expected += m.flow_l_min / 60 * tl.on_time_s(names[m.valve[0]])
+        elif len(m.valve) == 1:
+            # monostable: one extend per rising edge, one retract per falling edge, less
+            # any stroke still flowing at the horizon
+            n_up = tl.count_rising(names[m.valve[0]])
+            t, v = tl.edge_times_ns(names[m.valve[0]])
+            n_down = int(np.count_nonzero((v[1:] == 0) & (v[:-1] != 0)))
+            n_down += int(m.initial_extended and v[0] == 0)
+            expected += n_up * m.extend_nl + n_down * m.retract_nl
+    tail = 0.0
+    for m in res.models:    # strokes cut off by the horizon
+        if m.role == "active" and m.stroke_time_s:
+            t, ext = valve_transitions(tl, m, names)
+            dur = m.delay_s + np.where(ext, m.stroke_time_s[0], m.stroke_time_s[1])
+            vol = np.where(ext, m.extend_nl, m.retract_nl)
+            late = (t / S + dur) > 120
+            tail += float((vol[late] * np.clip((t[late] / S + dur[late] - 120) / dur[late], 0, 1)).sum())
+    assert prof.total_nl == pytest.approx(expected - tail, rel=1e-9)
+    assert prof.total_nl > 0
