@@ -146,6 +146,155 @@ def cmd_predict(args) -> int:
     return 0
 
 
+def _fraction(text: str) -> float:
+    """``10%`` or ``0.1``."""
+    t = text.strip()
+    return float(t[:-1]) / 100 if t.endswith("%") else float(t)
+
+
+def _bar(text: str) -> float:
+    t = text.strip().lower()
+    if t.endswith("kpa"):
+        return float(t[:-3]) / 100
+    return float(t[:-3]) if t.endswith("bar") else float(t)
+
+
+def _model_errors():
+    from .machine import MachineError
+    from .parser import ProgramError
+    from .sequencer import CompileError, ExecutionError, SequencerError
+    return (MachineError, SequencerError, ProgramError, CompileError, ExecutionError)
+
+
+def cmd_size(args) -> int:
+    import json
+    from pathlib import Path
+
+    from .air import predict
+    from .air.sizing import size
+    from .report import plot_demand, plot_sizing, sizing_html, sizing_markdown
+    from .sequencer import parse_horizon
+    from .sequencer.timeline import atomic_write_text
+
+    try:
+        horizon_s = parse_horizon(args.horizon) / 1e9
+        dt_s = parse_horizon(args.dt) / 1e9 if args.dt else None
+        allowance, band = _fraction(args.allowance), _bar(args.band)
+        idle_after = parse_horizon(args.idle_after) / 1e9 if args.idle_after else 0.0
+    except ValueError as e:
+        return _fail(f"{e}")
+    try:
+        result = predict(args.machine, horizon_s, dt=dt_s, program=args.program)
+        s = size(result.profile, allowance=allowance, band_bar=band, hours_per_year=args.hours,
+                 sec_kwh_per_nm3=args.sec, price_per_kwh=args.price, idle_after_s=idle_after)
+    except _model_errors() as e:
+        print(e, file=sys.stderr)
+        return 1
+    except ValueError as e:
+        return _fail(str(e))
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    name = result.machine.name
+    data = {"machine": name, **s.to_dict(),
+            "consumers": result.profile.summary()["consumers"]}
+    atomic_write_text(out / "sizing.json", json.dumps(data, indent=2) + "\n")
+    plot_sizing(result.profile, s, out / "sizing.png",
+                title=f"{name}: demand and compressor design flow")
+    plot_demand(result.profile, out / "demand.png", title=f"{name}: air demand")
+    md = sizing_markdown(name, s, result.profile)
+    atomic_write_text(out / "sizing.md", md)
+    images = {p: (out / p).read_bytes() for p in ("sizing.png", "demand.png")}
+    atomic_write_text(out / "sizing.html", sizing_html(md, images))
+    print(f"{name}: mean {s.mean_l_min:.1f} NL/min, peak {s.peak_l_min:.1f} (grid) / "
+          f"{s.peak_1s_l_min:.1f} (1 s) / {s.peak_1min_l_min:.1f} (1 min) NL/min")
+    print(f"compressor design flow {s.design_flow_l_min:.1f} NL/min "
+          f"(mean + {100 * s.allowance:g} %); receiver {s.receiver_l:.1f} L for a "
+          f"{s.band_bar:g} bar band (deficit {s.deficit_nl:.2f} NL at {s.deficit_at_s:g} s)")
+    print(f"energy {s.energy_kwh_per_year:,.0f} kWh/year, cost {s.cost_per_year:,.0f}/year; "
+          f"idle air {100 * s.idle_share:.1f} %")
+    print(f"wrote {out / 'sizing.json'}, {out / 'sizing.md'}, {out / 'sizing.html'}")
+    return 0
+
+
+def _allowance(text: str):
+    """(kind, value): ``2%`` -> ("pct", 2.0); ``0.5NL`` -> ("nl", 0.5)."""
+    t = text.strip().upper().replace(" ", "")
+    if t.endswith("%"):
+        return "pct", float(t[:-1])
+    if t.endswith("NL"):
+        return "nl", float(t[:-2])
+    if t.endswith("L"):
+        return "nl", float(t[:-1])
+    raise ValueError(f"--max-increase takes a percentage (2%) or normal litres (0.5NL), "
+                     f"not {text!r}")
+
+
+def cmd_compare(args) -> int:
+    import json
+
+    from .air import predict
+    from .sequencer import parse_horizon
+
+    try:
+        horizon_s = parse_horizon(args.horizon) / 1e9
+        dt_s = parse_horizon(args.dt) / 1e9 if args.dt else None
+        kind, limit = _allowance(args.max_increase)
+        if limit < 0:
+            raise ValueError("--max-increase must not be negative")
+    except ValueError as e:
+        print(f"plcpred: error: {e}", file=sys.stderr)
+        return 2
+    try:
+        base = predict(args.base, horizon_s, dt=dt_s, program=args.program_base)
+        new = predict(args.new or args.base, horizon_s, dt=dt_s, program=args.program_new)
+    except _model_errors() as e:
+        print(e, file=sys.stderr)
+        return 2
+    except (ValueError, OSError) as e:
+        print(f"plcpred: error: {e}", file=sys.stderr)
+        return 2
+    b, n = base.profile, new.profile
+    names = list(dict.fromkeys(b.names + n.names))
+    bt = dict(zip(b.names, b.consumer_nl))
+    nt = dict(zip(n.names, n.consumer_nl))
+    rows = []
+    for name in names:
+        x, y = float(bt.get(name, 0.0)), float(nt.get(name, 0.0))
+        rows.append({"consumer": name, "base_nl": x, "new_nl": y, "delta_nl": y - x,
+                     "delta_pct": (y - x) / x * 100 if x else None,
+                     "only_in": "base" if name not in nt else "new" if name not in bt else None})
+    delta = n.total_nl - b.total_nl
+    delta_pct = delta / b.total_nl * 100 if b.total_nl else (0.0 if not delta else float("inf"))
+    allowed_nl = limit if kind == "nl" else b.total_nl * limit / 100
+    ok = delta <= allowed_nl + 1e-9
+    verdict = "ok" if ok else "FAIL"
+    result = {"base": {"machine": base.machine.name, "total_nl": b.total_nl,
+                       "mean_l_min": b.mean_l_min, "peak_l_min": b.peak_l_min()},
+              "new": {"machine": new.machine.name, "total_nl": n.total_nl,
+                      "mean_l_min": n.mean_l_min, "peak_l_min": n.peak_l_min()},
+              "horizon_s": horizon_s, "delta_nl": delta, "delta_pct": delta_pct,
+              "max_increase": args.max_increase, "allowed_increase_nl": allowed_nl,
+              "within_allowance": ok, "consumers": rows}
+    if args.json:
+        print(json.dumps(result, indent=2))
+        return 0 if ok else 1
+    w = max(8, max(len(r["consumer"]) for r in rows))
+    print(f"air use over {horizon_s:g} s: base {base.machine.name}, new {new.machine.name}")
+    print(f"{'consumer':<{w}}  {'base NL':>10}  {'new NL':>10}  {'delta NL':>10}  {'delta':>8}")
+    print("-" * (w + 46))
+    for r in rows:
+        pct = "" if r["delta_pct"] is None else f"{r['delta_pct']:+.1f} %"
+        note = f"  (only in {r['only_in']})" if r["only_in"] else ""
+        print(f"{r['consumer']:<{w}}  {r['base_nl']:>10.2f}  {r['new_nl']:>10.2f}  "
+              f"{r['delta_nl']:>+10.2f}  {pct:>8}{note}")
+    print("-" * (w + 46))
+    print(f"{'total':<{w}}  {b.total_nl:>10.2f}  {n.total_nl:>10.2f}  {delta:>+10.2f}  "
+          f"{delta_pct:>+7.1f} %")
+    print(f"{verdict}: new uses {delta:+.2f} NL ({delta_pct:+.1f} %); allowed "
+          f"+{allowed_nl:.2f} NL ({args.max_increase})")
+    return 0 if ok else 1
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="plcpred",
@@ -197,6 +346,52 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run this program instead of the one the machine file names")
     p.add_argument("--no-plot", action="store_true", help="skip demand.png")
     p.set_defaults(func=cmd_predict)
+
+    p = sub.add_parser("size", help="size the compressor and receiver for a machine",
+                       description="Predict the machine's demand over the horizon and size "
+                                   "its supply: mean, peaks (grid, 1 s, 1 min), 95th "
+                                   "percentile, a compressor design flow (mean plus an "
+                                   "allowance), the receiver that holds the pressure within a "
+                                   "band, energy and cost per year, and the air used while "
+                                   "idle. Writes DIR/sizing.json, sizing.md and sizing.html "
+                                   "(self-contained, plots embedded).")
+    p.add_argument("machine", metavar="MACHINE")
+    p.add_argument("--horizon", required=True, help="e.g. 1h, 8h, T#30m")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--dt", help="grid step (default 10ms, coarser for long horizons)")
+    p.add_argument("--allowance", default="10%",
+                   help="design flow above the mean (default 10%%)")
+    p.add_argument("--band", default="1bar",
+                   help="pressure band the receiver must hold (default 1bar)")
+    p.add_argument("--hours", type=float, default=4000.0,
+                   help="operating hours per year (default 4000)")
+    p.add_argument("--sec", type=float, default=0.1,
+                   help="specific energy, kWh per normal m^3 (default 0.1)")
+    p.add_argument("--price", type=float, default=0.15,
+                   help="energy price per kWh (default 0.15)")
+    p.add_argument("--idle-after", metavar="DURATION",
+                   help="count air as idle only once no cylinder has moved for this long "
+                        "(default: whenever no cylinder moves)")
+    p.add_argument("--program", metavar="PROGRAM")
+    p.set_defaults(func=cmd_size)
+
+    p = sub.add_parser("compare", help="compare two machines or programs (CI gate)",
+                       description="Predict BASE and NEW over the same horizon and print a "
+                                   "per-consumer table of totals and deltas. Exit 0 when NEW "
+                                   "is within the allowance, 1 when it uses more air, 2 on an "
+                                   "error. NEW defaults to BASE, for comparing two programs "
+                                   "with --program-new.")
+    p.add_argument("base", metavar="BASE", help="machine file (.toml)")
+    p.add_argument("new", metavar="NEW", nargs="?", help="machine file (default: BASE)")
+    p.add_argument("--horizon", required=True)
+    p.add_argument("--max-increase", default="0%",
+                   help="allowed increase: a percentage (2%%) or normal litres (0.5NL); "
+                        "default 0%%")
+    p.add_argument("--program-base", metavar="PROGRAM", help="program to run on BASE")
+    p.add_argument("--program-new", metavar="PROGRAM", help="program to run on NEW")
+    p.add_argument("--dt", help="grid step")
+    p.add_argument("--json", action="store_true", help="print the comparison as JSON")
+    p.set_defaults(func=cmd_compare)
     return ap
 
 

@@ -1,0 +1,116 @@
+"""Compressor and receiver sizing from a demand profile (domain.md section 6).
+
+* **Design flow** of the compressor: the mean demand plus an allowance (default 10 %).
+  Compressors are sized for the average, receivers and lines for the peaks.
+* **Receiver**: when demand exceeds the design flow the receiver supplies the difference
+  and its pressure falls; when demand is below it the compressor refills it (never past
+  full). The largest cumulative deficit over the horizon,
+  ``max_t [D(t) - min_{s<=t} D(s)]`` with ``D(t) = integral (q - Q_design) dt``, sets the
+  volume that keeps the pressure within the band dP: ``V = deficit_NL * P0 / dP``
+  (normal litres are at P0 = 100 kPa).
+* **Energy**: ``E = q_avg * SEC * hours / efficiency`` with the specific energy SEC in kWh per
+  normal m^3 (default 0.1, the published 0.30-0.35 kW per l/s at 7 bar gauge); cost = E *
+  price.
+* **Idle air**: air used while no cylinder is moving (only leaks and blowers on), as a share
+  of the total; with ``idle_after_s`` the machine must also have been still that long.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from .flow import P0_PA
+
+DEFAULT_ALLOWANCE = 0.10
+DEFAULT_BAND_BAR = 1.0
+DEFAULT_SEC_KWH_NM3 = 0.1
+DEFAULT_HOURS = 4000.0      # two shifts, about 250 days
+DEFAULT_PRICE = 0.15        # per kWh, in the user's currency
+
+
+@dataclass
+class Sizing:
+    mean_l_min: float
+    peak_l_min: float
+    peak_1s_l_min: float
+    peak_1min_l_min: float
+    p95_l_min: float
+    design_flow_l_min: float
+    allowance: float
+    deficit_nl: float
+    deficit_at_s: float
+    band_bar: float
+    receiver_l: float
+    energy_kwh_per_year: float
+    cost_per_year: float
+    hours_per_year: float
+    sec_kwh_per_nm3: float
+    price_per_kwh: float
+    total_nl: float
+    active_nl: float
+    passive_nl: float
+    leak_nl: float
+    idle_nl: float
+    idle_share: float
+    horizon_s: float
+    dt_s: float
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def receiver_deficit(flow_l_min, dt_s: float, design_flow_l_min: float):
+    """(largest deficit in NL, time in s at which it occurs, deficit curve at the end of
+    each cell) of demand over a constant supply (a Lindley recursion, vectorised)."""
+    net_nl = (np.asarray(flow_l_min, dtype=float) - design_flow_l_min) * dt_s / 60.0
+    d = np.concatenate([[0.0], np.cumsum(net_nl)])
+    deficit = d - np.minimum.accumulate(d)
+    k = int(np.argmax(deficit))
+    return float(deficit[k]), k * dt_s, deficit[1:]
+
+
+def idle_mask(profile, idle_after_s: float = 0.0) -> np.ndarray:
+    """Cells in which no cylinder moves (and, with ``idle_after_s``, none has moved for
+    that long before)."""
+    active = np.array([r == "active" for r in profile.roles])
+    moving = (profile.cell_nl[active].sum(axis=0) > 0) if active.any() else np.zeros(
+        profile.n_cells, dtype=bool)
+    if idle_after_s > 0 and moving.any():
+        # idle once k whole cells have passed since the last one with movement
+        k = max(1, int(round(idle_after_s / profile.dt_s)))
+        c = np.concatenate([[0], np.cumsum(moving)])
+        recent = c[1:] - c[np.maximum(np.arange(1, len(c)) - (k + 1), 0)]
+        return recent == 0
+    return ~moving
+
+
+def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAULT_BAND_BAR,
+         hours_per_year: float = DEFAULT_HOURS, sec_kwh_per_nm3: float = DEFAULT_SEC_KWH_NM3,
+         price_per_kwh: float = DEFAULT_PRICE, efficiency: float = 1.0,
+         idle_after_s: float = 0.0) -> Sizing:
+    if allowance < 0 or band_bar <= 0 or hours_per_year < 0 or sec_kwh_per_nm3 < 0 \
+            or efficiency <= 0:
+        raise ValueError("allowance, hours and specific energy must be >= 0, the pressure "
+                         "band and efficiency > 0")
+    total = profile.total_flow_l_min
+    mean = profile.mean_l_min
+    design = mean * (1.0 + allowance)
+    deficit, at_s, _ = receiver_deficit(total, profile.dt_s, design)
+    receiver_l = deficit * P0_PA / (band_bar * 1e5)
+    energy = mean * 60.0 / 1000.0 * sec_kwh_per_nm3 * hours_per_year / efficiency
+    split = profile.by_role_nl()
+    idle = idle_mask(profile, idle_after_s)
+    idle_nl = float(profile.cell_nl[:, idle].sum())
+    return Sizing(
+        mean_l_min=mean, peak_l_min=profile.peak_l_min(),
+        peak_1s_l_min=profile.peak_l_min(1.0), peak_1min_l_min=profile.peak_l_min(60.0),
+        p95_l_min=float(np.percentile(total, 95)), design_flow_l_min=design,
+        allowance=allowance, deficit_nl=deficit, deficit_at_s=at_s, band_bar=band_bar,
+        receiver_l=receiver_l, energy_kwh_per_year=energy,
+        cost_per_year=energy * price_per_kwh, hours_per_year=hours_per_year,
+        sec_kwh_per_nm3=sec_kwh_per_nm3, price_per_kwh=price_per_kwh,
+        total_nl=profile.total_nl, active_nl=split["active"], passive_nl=split["passive"],
+        leak_nl=split["leak"], idle_nl=idle_nl,
+        idle_share=idle_nl / profile.total_nl if profile.total_nl > 0 else 0.0,
+        horizon_s=profile.horizon_s, dt_s=profile.dt_s)

@@ -1,0 +1,118 @@
+"""Sizing formulas on profiles with known answers, and the CI gate's exit codes."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from plcpred.air import demand_profile
+from plcpred.air.demand import ConsumerModel
+from plcpred.air.sizing import receiver_deficit, size
+from plcpred.sequencer.timeline import Signal, Timeline
+
+SAMPLES = Path(__file__).resolve().parent.parent / "samples"
+RIG = SAMPLES / "prototype_rig" / "rig.toml"
+S = 10**9
+
+
+def square_wave(q_on=300.0, q_base=30.0, on_s=2.0, period_s=10.0, horizon_s=100.0):
+    """A blower of q_on NL/min on for on_s every period_s, and a leak of q_base."""
+    rows = [(0, 0, 0.0)]
+    t = 1.0
+    while t < horizon_s:
+        rows += [(round(t * S), 0, 1.0), (round((t + on_s) * S), 0, 0.0)]
+        t += period_s
+    tl = Timeline([Signal("b", "output", "bool")], [r[0] for r in rows], [r[1] for r in rows],
+                  [r[2] for r in rows], round(horizon_s * S))
+    models = [ConsumerModel("blower", "nozzle", ["b"], "passive", flow_l_min=q_on),
+              ConsumerModel("leak", "leak", [], "leak", flow_l_min=q_base)]
+    return demand_profile(tl, models, 0.1)
+
+
+def test_square_wave_design_flow_and_receiver_by_hand():
+    prof = square_wave()
+    s = size(prof, allowance=0.10, band_bar=0.5)
+    mean = 30 + 300 * 2 / 10
+    assert s.mean_l_min == pytest.approx(mean)
+    assert s.design_flow_l_min == pytest.approx(mean * 1.1)
+    # each blow drains (330 - 99) NL/min for 2 s; the 8 s between refill it completely
+    deficit = (330 - mean * 1.1) * 2 / 60
+    assert s.deficit_nl == pytest.approx(deficit)
+    assert s.receiver_l == pytest.approx(deficit * 1.0 / 0.5)    # V = deficit * P0 / dP
+    assert 1.0 <= s.deficit_at_s % 10 <= 3.0 + 1e-9
+    assert s.peak_l_min == pytest.approx(330) and s.p95_l_min == pytest.approx(330)
+    assert s.peak_1min_l_min == pytest.approx(mean, rel=0.02)
+
+
+def test_deficit_accumulates_when_refilling_is_too_slow():
+    # 60 s at 200 then 60 s at 0 against a supply of 150: deficit 50 NL/min for 1 min
+    flow = np.r_[np.full(600, 200.0), np.zeros(600)]
+    deficit, at_s, curve = receiver_deficit(flow, 0.1, 150.0)
+    assert deficit == pytest.approx(50.0) and at_s == pytest.approx(60.0)
+    assert curve[-1] == 0.0
+
+
+def test_energy_cost_and_idle_share():
+    prof = square_wave()
+    s = size(prof, hours_per_year=2000, sec_kwh_per_nm3=0.12, price_per_kwh=0.2)
+    energy = s.mean_l_min * 60 / 1000 * 0.12 * 2000
+    assert s.energy_kwh_per_year == pytest.approx(energy)
+    assert s.cost_per_year == pytest.approx(energy * 0.2)
+    # no cylinder at all: everything is idle air
+    assert s.idle_share == pytest.approx(1.0)
+    assert s.passive_nl + s.leak_nl == pytest.approx(s.total_nl)
+
+
+def test_idle_share_counts_air_while_no_cylinder_moves():
+    rows = [(0, 0, 0.0), (10 * S, 0, 1.0), (20 * S, 0, 0.0)]
+    tl = Timeline([Signal("y", "output", "bool")], [r[0] for r in rows], [r[1] for r in rows],
+                  [r[2] for r in rows], 40 * S)
+    models = [ConsumerModel("cyl", "double_acting", ["y"], "active", extend_nl=1.0,
+                            retract_nl=1.0, stroke_time_s=(1.0, 1.0)),
+              ConsumerModel("leak", "leak", [], "leak", flow_l_min=6.0)]
+    prof = demand_profile(tl, models, 0.1)
+    s = size(prof)
+    # leak 0.1 NL/s for 40 s = 4 NL, 0.2 NL of it while a stroke moves; strokes 2 NL
+    assert s.idle_nl == pytest.approx(3.8)
+    assert s.idle_share == pytest.approx(3.8 / 6.0)
+    # once the machine must have been still for 5 s, 2 x 5 s of leak are no longer idle
+    assert size(prof, idle_after_s=5.0).idle_nl == pytest.approx(2.8)
+
+
+def run(*args):
+    return subprocess.run([sys.executable, "-m", "plcpred.cli", *map(str, args)],
+                          capture_output=True, text=True)
+
+
+def test_size_writes_the_reports(tmp_path):
+    r = run("size", RIG, "--horizon", "20s", "--out", tmp_path, "--allowance", "15%")
+    assert r.returncode == 0, r.stderr
+    data = json.loads((tmp_path / "sizing.json").read_text())
+    for key in ("mean_l_min", "peak_l_min", "design_flow_l_min", "receiver_l",
+                "energy_kwh_per_year", "cost_per_year", "idle_share"):
+        assert key in data
+    assert data["design_flow_l_min"] == pytest.approx(data["mean_l_min"] * 1.15)
+    html = (tmp_path / "sizing.html").read_text()
+    assert "data:image/png;base64," in html and "<table>" in html
+    assert "receiver" in (tmp_path / "sizing.md").read_text()
+
+
+def test_compare_exit_codes(tmp_path):
+    same = run("compare", RIG, "--horizon", "20s", "--program-new",
+               SAMPLES / "prototype_rig" / "rig.seq")
+    assert same.returncode == 0, same.stderr
+    more = run("compare", RIG, SAMPLES / "prototype_rig" / "rig_seq2.toml", "--horizon", "30s",
+               "--max-increase", "2%")
+    assert more.returncode == 1 and "FAIL" in more.stdout
+    loose = run("compare", RIG, SAMPLES / "prototype_rig" / "rig_seq2.toml", "--horizon",
+                "30s", "--max-increase", "100NL", "--json")
+    assert loose.returncode == 0
+    data = json.loads(loose.stdout)
+    assert data["within_allowance"] and data["delta_nl"] > 0
+    assert sum(c["delta_nl"] for c in data["consumers"]) == pytest.approx(data["delta_nl"])
+    missing = run("compare", RIG, tmp_path / "nothere.toml", "--horizon", "10s")
+    assert missing.returncode == 2 and "Traceback" not in missing.stderr
+    bad = run("compare", RIG, "--horizon", "10s", "--max-increase", "lots")
+    assert bad.returncode == 2
