@@ -1,0 +1,229 @@
+"""What-if sweeps: predictions over the cartesian product of settings, run in parallel
+on local processes or on an existing Dask cluster.
+
+A setting is ``KEY=V1,V2,...``:
+
+* ``supply_bar_g``, ``scan_ms``, ``ambient_c``, ``atmosphere_kpa`` - the [machine] table;
+* ``CONSUMER.FIELD`` - a consumer's field, e.g. ``air knives.pressure_bar_g``,
+  ``A.stroke_time_s`` (one value for both directions or ``0.2/0.3``), ``knives.C``;
+* ``input.SIGNAL.FIELD`` - an input schedule, e.g. ``input.PB1.period_s``;
+* ``program.VAR`` - the initial value of a program variable or constant, as an ST literal,
+  e.g. ``program.BLOW_TIME=T#2s,T#5s`` (a timer preset).
+
+Each scenario is a plain function call (:func:`run_scenario`) on picklable arguments, so
+the local process pool and Dask give identical results.
+"""
+from __future__ import annotations
+
+import copy
+import itertools
+import os
+import sys
+from dataclasses import dataclass
+
+MACHINE_KEYS = ("supply_bar_g", "scan_ms", "ambient_c", "atmosphere_kpa")
+_FLOAT_FIELDS = {"bore_mm", "rod_mm", "stroke_mm", "tube_id_mm", "switch_delay_s",
+                 "pressure_bar_g", "C", "b", "m", "a", "orifice_mm", "Cd", "pulse_ms",
+                 "period_s", "offset_s", "jitter_s"}
+_PAIR_FIELDS = {"stroke_time_s", "tube_length_m"}
+
+
+class SweepError(ValueError):
+    pass
+
+
+@dataclass
+class Setting:
+    key: str
+    values: list[str]
+
+
+def parse_setting(text: str) -> Setting:
+    if "=" not in text:
+        raise SweepError(f"--set {text!r}: write KEY=V1,V2,...")
+    key, _, rest = text.partition("=")
+    values = [v.strip() for v in rest.split(",") if v.strip()]
+    if not key.strip() or not values:
+        raise SweepError(f"--set {text!r}: write KEY=V1,V2,...")
+    return Setting(key.strip(), values)
+
+
+def scenarios(settings: list[Setting]) -> list[dict]:
+    keys = [s.key for s in settings]
+    return [dict(zip(keys, combo)) for combo in itertools.product(*(s.values for s in settings))]
+
+
+def _number(key, text):
+    try:
+        return float(text)
+    except ValueError:
+        raise SweepError(f"{key}: {text!r} is not a number") from None
+
+
+def apply_settings(machine, program, scenario: dict):
+    """A copy of ``machine`` (and of ``program``'s IR) with the scenario's settings."""
+    from .machine import MachineError
+
+    m = copy.deepcopy(machine)
+    prog = program
+    for key, value in scenario.items():
+        if key in MACHINE_KEYS:
+            setattr(m, key, _number(key, value))
+            continue
+        head, _, field = key.rpartition(".")
+        if key.lower().startswith("program."):
+            prog = _set_program_value(prog if prog is not program else copy.deepcopy(program),
+                                      key.split(".", 1)[1], value, key)
+            continue
+        if head.lower().startswith("input."):
+            sig = head.split(".", 1)[1]
+            sched = next((s for s in m.inputs if s.signal.upper() == sig.upper()), None)
+            if sched is None:
+                raise SweepError(f"{key}: no [[input]] for signal '{sig}'")
+            if field not in _FLOAT_FIELDS:
+                raise SweepError(f"{key}: cannot sweep '{field}' of an input")
+            setattr(sched, field, _number(key, value))
+            continue
+        try:
+            c = m.consumer(head)
+        except KeyError:
+            names = ", ".join(c.name for c in m.consumers)
+            raise SweepError(f"{key}: no consumer named '{head}' (consumers: {names})") from None
+        if field in _PAIR_FIELDS:
+            parts = value.split("/")
+            nums = [_number(key, p) for p in parts]
+            setattr(c, field, (nums[0], nums[-1]))
+        elif field in _FLOAT_FIELDS:
+            setattr(c, field, _number(key, value))
+            if field == "orifice_mm" or field == "Cd":
+                c.C = None
+        elif field == "flow_model":
+            c.flow_model = value
+        else:
+            raise SweepError(f"{key}: cannot sweep '{field}' of a consumer")
+    if m.supply_bar_g < 0 or m.scan_ms <= 0:
+        raise MachineError(str(m.path), "[machine]", "swept values out of range")
+    return m, prog
+
+
+def _set_program_value(program, name: str, value: str, key: str):
+    from .parser import ProgramError, parse_st
+
+    try:
+        snippet = parse_st(f"PROGRAM _P VAR _v : INT := {value}; END_VAR END_PROGRAM",
+                           f"--set {key}")
+    except ProgramError as e:
+        raise SweepError(f"{key}: {value!r} is not an ST literal ({e.message})") from None
+    literal = snippet.pous[0].var_blocks[0].decls[0].init
+    found = False
+    blocks = [g.block for g in program.globals]
+    blocks += [b for c in program.configurations for b in c.var_blocks]
+    blocks += [b for p in program.pous for b in p.var_blocks]
+    for b in blocks:
+        for d in b.decls:
+            if d.name.upper() == name.upper():
+                d.init = literal
+                found = True
+    if not found:
+        raise SweepError(f"{key}: the program declares no variable '{name}'")
+    return program
+
+
+def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
+                 hours: float = 4000.0, sec: float = 0.1) -> dict:
+    """One prediction with the scenario applied: a row of totals."""
+    from .air import predict
+    from .air.sizing import size
+    from .machine import load_machine
+    from .parser import load_program
+
+    base = load_machine(machine_path)
+    program = load_program(base.program_path)
+    machine, program = apply_settings(base, program, scenario)
+    result = predict(machine, horizon_s, dt=dt_s, program=program)
+    s = size(result.profile, hours_per_year=hours, sec_kwh_per_nm3=sec)
+    row = dict(scenario)
+    row.update({"total_nl": s.total_nl, "mean_l_min": s.mean_l_min,
+                "peak_l_min": s.peak_l_min, "peak_1s_l_min": s.peak_1s_l_min,
+                "energy_kwh_per_year": s.energy_kwh_per_year})
+    for name, v in zip(result.profile.names, result.profile.consumer_nl):
+        row[f"{name}_nl"] = float(v)
+    return row
+
+
+class _Progress:
+    """A one-line progress bar on stderr, only when stderr is a terminal."""
+
+    def __init__(self, total: int, enabled: bool | None = None):
+        self.total, self.done = total, 0
+        self.enabled = sys.stderr.isatty() if enabled is None else enabled
+
+    def step(self):
+        self.done += 1
+        if self.enabled:
+            width = 30
+            filled = int(width * self.done / self.total)
+            sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] "
+                             f"{self.done}/{self.total} scenarios")
+            if self.done == self.total:
+                sys.stderr.write("\n")
+            sys.stderr.flush()
+
+
+def sweep(machine_path, settings: list[Setting], horizon_s: float, dt_s=None,
+          engine: str = "local", scheduler: str | None = None, workers: int | None = None,
+          progress: bool | None = None) -> list[dict]:
+    """Rows of :func:`run_scenario` for every scenario, in scenario order."""
+    machine_path = str(machine_path)
+    combos = scenarios(settings)
+    # fail fast, in this process, on settings that cannot apply
+    from .machine import load_machine
+    from .parser import load_program
+    base = load_machine(machine_path)
+    program = load_program(base.program_path)
+    for sc in combos:
+        apply_settings(base, program, sc)
+    bar = _Progress(len(combos), progress)
+    args = [(machine_path, sc, horizon_s, dt_s) for sc in combos]
+    if engine == "dask":
+        return _run_dask(args, scheduler, bar)
+    if engine != "local":
+        raise SweepError(f"unknown engine '{engine}' (local or dask)")
+    workers = workers or min(len(combos), os.cpu_count() or 1)
+    if workers <= 1:
+        rows = []
+        for a in args:
+            rows.append(run_scenario(*a))
+            bar.step()
+        return rows
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    rows = [None] * len(args)
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        futures = {pool.submit(run_scenario, *a): k for k, a in enumerate(args)}
+        for f in as_completed(futures):
+            rows[futures[f]] = f.result()
+            bar.step()
+    return rows
+
+
+def _run_dask(args, scheduler, bar):
+    try:
+        from dask.distributed import Client, as_completed
+    except ImportError:
+        raise SweepError("--engine dask needs dask.distributed: pip install "
+                         "'plcpred[dask]'") from None
+    if not scheduler:
+        raise SweepError("--engine dask needs --scheduler ADDRESS (tcp://host:8786) of a "
+                         "running Dask cluster")
+    client = scheduler if hasattr(scheduler, "submit") else Client(scheduler)
+    try:
+        futures = [client.submit(run_scenario, *a, pure=False) for a in args]
+        index = {f.key: k for k, f in enumerate(futures)}
+        rows = [None] * len(args)
+        for f in as_completed(futures):
+            rows[index[f.key]] = f.result()
+            bar.step()
+        return rows
+    finally:
+        if client is not scheduler:
+            client.close()

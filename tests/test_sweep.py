@@ -1,0 +1,78 @@
+"""What-if sweeps: results equal single predictions, and the Dask engine (on a real
+LocalCluster) equals the local one."""
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from plcpred import predict
+from plcpred.machine import load_machine
+from plcpred.parser import load_program
+from plcpred.sweep import SweepError, apply_settings, parse_setting, scenarios, sweep
+
+SAMPLES = Path(__file__).resolve().parent.parent / "samples"
+RIG = SAMPLES / "prototype_rig" / "rig.toml"
+SETTINGS = ["supply_bar_g=3,5", "air knives.pressure_bar_g=2,3.5", "program.BLOW_TIME=T#2s,T#3s",
+            "A.stroke_time_s=0.3/0.2"]
+
+
+def test_cartesian_product():
+    combos = scenarios([parse_setting(s) for s in SETTINGS])
+    assert len(combos) == 8
+    assert combos[0] == {"supply_bar_g": "3", "air knives.pressure_bar_g": "2",
+                         "program.BLOW_TIME": "T#2s", "A.stroke_time_s": "0.3/0.2"}
+
+
+def test_sweep_rows_equal_single_predictions():
+    rows = sweep(RIG, [parse_setting(s) for s in SETTINGS[:3]], 20.0, 0.05, workers=2)
+    assert len(rows) == 8
+    base = load_machine(RIG)
+    program = load_program(base.program_path)
+    for row in rows[::3]:
+        sc = {k: row[k] for k in ("supply_bar_g", "air knives.pressure_bar_g",
+                                  "program.BLOW_TIME")}
+        m, p = apply_settings(base, program, sc)
+        single = predict(m, 20.0, dt=0.05, program=p).profile
+        assert row["total_nl"] == single.total_nl
+        assert row["air knives_nl"] == pytest.approx(
+            single.consumer_nl[single.names.index("air knives")])
+    # the settings really act: a longer blow and a higher knife pressure use more air
+    by = {(r["air knives.pressure_bar_g"], r["program.BLOW_TIME"], r["supply_bar_g"]):
+          r["total_nl"] for r in rows}
+    assert by[("2", "T#3s", "3")] > by[("2", "T#2s", "3")]
+    assert by[("3.5", "T#2s", "3")] > by[("2", "T#2s", "3")]
+    assert by[("2", "T#2s", "5")] > by[("2", "T#2s", "3")]     # leak and cylinders
+
+
+def test_dask_engine_on_a_local_cluster_equals_the_local_engine():
+    distributed = pytest.importorskip("dask.distributed")
+    settings = [parse_setting(s) for s in SETTINGS[:2]]
+    local = sweep(RIG, settings, 15.0, 0.05, workers=1)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        remote = sweep(RIG, settings, 15.0, 0.05, engine="dask", scheduler=cluster.scheduler_address)
+    assert remote == local
+
+
+@pytest.mark.parametrize("bad,message", [("nobody.C=1", "no consumer"),
+                                         ("program.NOPE=T#1s", "no variable"),
+                                         ("supply_bar_g=lots", "not a number"),
+                                         ("A.colour=red", "cannot sweep")])
+def test_bad_settings_are_named(bad, message):
+    with pytest.raises(SweepError, match=message):
+        sweep(RIG, [parse_setting(bad)], 5.0)
+
+
+def test_cli_sweep_is_quiet_off_a_terminal_and_writes_csv(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "plcpred.cli", "sweep", str(RIG), "--set",
+                        "supply_bar_g=3,4", "--horizon", "10s", "--out", str(tmp_path)],
+                       capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert r.stderr == ""
+    lines = (tmp_path / "sweep.csv").read_text().splitlines()
+    assert len(lines) == 3 and lines[0].startswith("supply_bar_g,total_nl")
+    r = subprocess.run([sys.executable, "-m", "plcpred.cli", "sweep", str(RIG), "--set",
+                        "supply_bar_g=3", "--horizon", "10s", "--engine", "dask"],
+                       capture_output=True, text=True)
+    assert r.returncode == 2 and "--scheduler" in r.stderr
