@@ -39,7 +39,11 @@ def plot_demand(profile, path, title="Air demand") -> None:
     fig, ax = plt.subplots(figsize=(11, 5.5), dpi=110)
     order = np.argsort([-v for v in profile.consumer_nl])
     labels = [f"{profile.names[i]} ({profile.consumer_nl[i]:.1f} NL)" for i in order]
-    ax.stackplot(t * scale, flows[order], labels=labels, step="post", alpha=0.85)
+    if len(order):
+        ax.stackplot(t * scale, flows[order], labels=labels, step="post", alpha=0.85)
+    else:
+        ax.text(0.5, 0.5, "the machine file has no consumers", transform=ax.transAxes,
+                ha="center")
     ax.set_xlabel(f"time ({unit})")
     ax.set_ylabel("flow (NL/min)")
     ax.set_xlim(0, profile.horizon_s * scale)

@@ -116,3 +116,13 @@ def test_compare_exit_codes(tmp_path):
     assert missing.returncode == 2 and "Traceback" not in missing.stderr
     bad = run("compare", RIG, "--horizon", "10s", "--max-increase", "lots")
     assert bad.returncode == 2
+
+
+def test_a_machine_without_consumers_still_reports(tmp_path):
+    (tmp_path / "p.st").write_text("PROGRAM P VAR_OUTPUT y : BOOL; END_VAR y := TRUE; "
+                                   "END_PROGRAM")
+    (tmp_path / "m.toml").write_text('[machine]\nprogram = "p.st"\nsupply_bar_g = 6\n')
+    r = run("size", tmp_path / "m.toml", "--horizon", "5s", "--out", tmp_path / "o")
+    assert r.returncode == 0, r.stderr
+    data = json.loads((tmp_path / "o" / "sizing.json").read_text())
+    assert data["total_nl"] == 0 and data["receiver_l"] == 0 and data["idle_share"] == 0
