@@ -300,3 +300,25 @@ def test_signals_may_be_named_by_their_declared_address(tmp_path):
     by_name = unfold(SAMPLES / "prototype_rig" / "rig.toml", "20s")
     assert np.array_equal(by_address.edge_times_ns("Y_A")[0], by_name.edge_times_ns("Y_A")[0])
     assert "Y_A" in by_address.names and "A_RET" in by_address.names
+
+
+COUNTING = """PROGRAM P
+VAR_INPUT go, r0, r1 : BOOL; END_VAR
+VAR_OUTPUT y : BOOL; shown : INT; END_VAR
+VAR parts : CTU; total : UDINT; edge : R_TRIG; END_VAR
+y := go;
+edge(CLK := r1);
+parts(CU := edge.Q, PV := 1000);
+total := total + 1;
+{SHOW}
+END_PROGRAM"""
+
+
+@pytest.mark.parametrize("show,tiles", [("", True), ("shown := parts.CV;", False)])
+def test_write_only_counters_do_not_stop_tiling(show, tiles):
+    prog, m = machine_for(COUNTING.replace("{SHOW}", show),
+                          [cylinder("c", ["y"], "r0", "r1", (0.1, 0.1), 0.01)],
+                          [InputSchedule("go", period_s=1.0, offset_s=0.2, pulse_ms=400)])
+    tl = Sequencer(prog, m).run(parse_horizon("30s"))
+    assert (tl.info["period_s"] is not None) == tiles
+    assert tl == Sequencer(prog, m).run(parse_horizon("30s"), tiling=False)

@@ -308,14 +308,17 @@ class Compiler:
                 while isinstance(t, ArrayT):
                     t = t.elem
                 if not d.address and t.cat in ("bool", "int", "real", "time", "date",
-                                               "string", "struct"):
+                                               "string", "struct", "stdfb"):
                     cands.add(d.name.upper())
-        cands -= self._member_names
+        # a standard FB only changes its own outputs: its inputs flow into it, and it is a
+        # sink when nothing reads those outputs (a parts counter nobody looks at)
+        std = {k for k in cands if _base_t(scope.names[k][1]).cat == "stdfb"}
+        cands -= self._member_names - std
         if not cands:
             return set()
         flow = _Flow({k for k, f in self.functions.items()
                       if any(b.kind == "VAR_EXTERNAL" for b in f.var_blocks)
-                      or _member_names(f.body, ir.Name, "name") & set(self.globals)})
+                      or _member_names(f.body, ir.Name, "name") & set(self.globals)}, std)
         bodies = []
         if pou.is_sfc:
             for tr in pou.body.transitions:
@@ -1446,10 +1449,11 @@ class _Flow:
     ``used`` (names read by conditions, calls, indices and anything else that can steer
     the program)."""
 
-    def __init__(self, impure=frozenset()):
+    def __init__(self, impure=frozenset(), std_fbs=frozenset()):
         self.flows: list[tuple[str | None, set]] = []
         self.used: set = set()
         self.impure = impure  # user functions that reach globals (VAR_EXTERNAL)
+        self.std_fbs = std_fbs  # standard FB instances (pure: they only set their outputs)
 
     def reads(self, e) -> set:
         out = set()
@@ -1503,6 +1507,18 @@ class _Flow:
                     self.used.add(target)
             self.flows.append((target, reads))
         elif isinstance(s, ir.CallStmt):
+            callee = _root(s.call.func)
+            if callee in self.std_fbs and isinstance(s.call.func, (ir.Name, ir.Index)):
+                self.flows.append((callee, set().union(*(
+                    self.reads(a.value) for a in s.call.args
+                    if a.value is not None and not a.output))))
+                for a in s.call.args:
+                    if a.output and a.value is not None:
+                        self.flows.append((_root(a.value), {callee}))
+                if isinstance(s.call.func, ir.Index):
+                    for i in s.call.func.indices:
+                        self.use(i)
+                return
             self.use(s.call.func)
             for a in s.call.args:
                 if a.value is None:
@@ -1544,6 +1560,12 @@ def _children(e):
     if isinstance(e, ir.Call):
         return tuple(a.value for a in e.args if a.value is not None)
     return ()
+
+
+def _base_t(t):
+    while isinstance(t, ArrayT):
+        t = t.elem
+    return t
 
 
 def _is_object_t(t) -> bool:
