@@ -133,15 +133,16 @@ class Timeline:
         a half-written one)."""
         path = Path(path)
         names = self.names
-        kinds = [s.dtype for s in self.signals]
+        real = [s.dtype == "real" for s in self.signals]
+        times = {}
         lines = ["time_s,signal,value\n"]
+        append = lines.append
         for t, i, v in zip(self.time_ns.tolist(), self.signal_idx.tolist(),
                            self.values.tolist()):
-            if kinds[i] in ("real",):
-                vs = repr(v)
-            else:
-                vs = str(int(v))
-            lines.append(f"{format_seconds(t)},{names[i]},{vs}\n")
+            ts = times.get(t)
+            if ts is None:
+                ts = times[t] = format_seconds(t)
+            append(f"{ts},{names[i]},{v!r}\n" if real[i] else f"{ts},{names[i]},{int(v)}\n")
         atomic_write_text(path, "".join(lines))
 
 
