@@ -322,3 +322,23 @@ def test_write_only_counters_do_not_stop_tiling(show, tiles):
     tl = Sequencer(prog, m).run(parse_horizon("30s"))
     assert (tl.info["period_s"] is not None) == tiles
     assert tl == Sequencer(prog, m).run(parse_horizon("30s"), tiling=False)
+
+
+def test_a_timer_left_uncalled_does_not_force_scans():
+    # t runs while step = 1 and is then no longer called with IN still TRUE
+    prog = parse_st("""PROGRAM P
+VAR_INPUT go : BOOL; END_VAR
+VAR_OUTPUT y : BOOL; END_VAR
+VAR t : TON; step : INT; END_VAR
+IF step = 0 AND go THEN step := 1; END_IF
+IF step = 1 THEN
+    t(IN := TRUE, PT := T#200ms);
+    IF t.Q THEN step := 2; END_IF
+END_IF
+y := step = 2 AND go;
+END_PROGRAM""", "p.st")
+    m = Machine("m", Path("m.toml"), Path("p.st"), scan_ms=10)
+    m.inputs = [InputSchedule("go", period_s=5.0, offset_s=1.0, pulse_ms=1000)]
+    fast = Sequencer(prog, m).run(parse_horizon("60s"), tiling=False)
+    assert fast == Sequencer(prog, m).run(parse_horizon("60s"), scan_stepping=True)
+    assert fast.info["scans"] < 200

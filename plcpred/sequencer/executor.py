@@ -560,16 +560,19 @@ class Sequencer:
                 if next_input <= t:
                     next_input = drive_inputs(t)
                 nxt = next_input if next_input < 1 << 62 else None
+                # a timer whose PT lies in the past was not called since: it cannot
+                # change until some other event makes the program call it again
                 running = False
                 for tm in timers:
                     e = tm.next_event_ns()
-                    if e is not None:
+                    if e is not None and e > t:
                         running = True
                         if nxt is None or e < nxt:
                             nxt = e
                 for sfc in sfcs:
                     e = sfc.next_event_ns(t)
-                    if e is not None and (nxt is None or e < nxt):
+                    if e is not None and (e > t or e == t and sfc.spec.t_read) and (
+                            nxt is None or e < nxt):
                         nxt = e
                 if reads_et and running:
                     nxt = t + scan
