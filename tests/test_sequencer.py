@@ -342,3 +342,21 @@ END_PROGRAM""", "p.st")
     fast = Sequencer(prog, m).run(parse_horizon("60s"), tiling=False)
     assert fast == Sequencer(prog, m).run(parse_horizon("60s"), scan_stepping=True)
     assert fast.info["scans"] < 200
+
+
+@pytest.mark.parametrize("use,steps", [("hmi := TIME_TO_DINT(t.ET);", False),
+                                       ("y := go AND t.ET < T#150ms;", True)])
+def test_reading_et_steps_only_when_it_can_change_an_output(use, steps):
+    prog = parse_st(f"""PROGRAM P
+VAR_INPUT go : BOOL; END_VAR
+VAR_OUTPUT y : BOOL; END_VAR
+VAR t : TON; hmi : DINT; END_VAR
+t(IN := go, PT := T#2s);
+y := go;
+{use}
+END_PROGRAM""", "p.st")
+    m = Machine("m", Path("m.toml"), Path("p.st"), scan_ms=10)
+    m.inputs = [InputSchedule("go", period_s=5.0, offset_s=1.0, pulse_ms=3000)]
+    fast = Sequencer(prog, m).run(parse_horizon("20s"), tiling=False)
+    assert fast == Sequencer(prog, m).run(parse_horizon("20s"), scan_stepping=True)
+    assert (fast.info["scans"] > 500) == steps

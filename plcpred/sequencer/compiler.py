@@ -108,6 +108,7 @@ class Compiler:
         self._jump = None
         self._loop_depth = 0
         self.sinks: dict[str, set] = {}
+        self._et_classes: set = set()
         self._member_names = _member_names(program)
 
     # ================================================================== project
@@ -314,7 +315,7 @@ class Compiler:
         # sink when nothing reads those outputs (a parts counter nobody looks at)
         std = {k for k in cands if _base_t(scope.names[k][1]).cat == "stdfb"}
         cands -= self._member_names - std
-        if not cands:
+        if not cands and fb.name not in self._et_classes:
             return set()
         flow = _Flow({k for k, f in self.functions.items()
                       if any(b.kind == "VAR_EXTERNAL" for b in f.var_blocks)
@@ -344,6 +345,10 @@ class Compiler:
                     if reads & sinks:
                         sinks -= reads
                         changed = True
+        if any(t is None or t not in sinks for t in flow.et_targets):
+            # a running timer's ET reaches something that matters: the executor must
+            # step scan by scan while timers run
+            self.reads_et = True
         return sinks
 
     def _snap_code(self, code: str, t) -> str:
@@ -1057,7 +1062,12 @@ class Compiler:
             if key not in _STDFB_MEMBERS:
                 raise _err(x, f"{bt.name} has no member '{x.member}'")
             if key == "ET":
-                self.reads_et = True
+                # inside an FB or PROGRAM the data flow decides whether it matters
+                # (_sinks); elsewhere assume it does
+                if scope.fb is None:
+                    self.reads_et = True
+                else:
+                    self._et_classes.add(scope.fb.name)
             return f"{bcode}.{key}", _STDFB_MEMBERS[key]
         if isinstance(bt, StructT):
             if key not in bt.members:
@@ -1454,11 +1464,15 @@ class _Flow:
         self.used: set = set()
         self.impure = impure  # user functions that reach globals (VAR_EXTERNAL)
         self.std_fbs = std_fbs  # standard FB instances (pure: they only set their outputs)
+        self.et_targets: set = set()  # where timers' ET values go (None: steers the program)
+        self._et = False
 
     def reads(self, e) -> set:
         out = set()
 
         def walk(x):
+            if isinstance(x, ir.Member) and x.member.upper() == "ET":
+                self._et = True
             if isinstance(x, ir.Name):
                 out.add(x.name.upper())
             elif isinstance(x, ir.Index):
@@ -1489,7 +1503,10 @@ class _Flow:
         return out
 
     def use(self, e):
+        self._et = False
         self.used |= self.reads(e)
+        if self._et:
+            self.et_targets.add(None)
 
     def stmts(self, body):
         for s in body:
@@ -1498,7 +1515,10 @@ class _Flow:
     def stmt(self, s):
         if isinstance(s, ir.Assign):
             target = _root(s.target)
+            self._et = False
             reads = self.reads(s.value)
+            if self._et:
+                self.et_targets.add(target)
             if isinstance(s.target, (ir.Index, ir.Member, ir.BitAccess)):
                 reads |= self.reads(s.target) - {target}
             if s.op != ":=" or isinstance(s.target, ir.Deref) or target is None:
@@ -1509,12 +1529,17 @@ class _Flow:
         elif isinstance(s, ir.CallStmt):
             callee = _root(s.call.func)
             if callee in self.std_fbs and isinstance(s.call.func, (ir.Name, ir.Index)):
+                self._et = False
                 self.flows.append((callee, set().union(*(
                     self.reads(a.value) for a in s.call.args
                     if a.value is not None and not a.output))))
+                if self._et:
+                    self.et_targets.add(callee)
                 for a in s.call.args:
                     if a.output and a.value is not None:
                         self.flows.append((_root(a.value), {callee}))
+                        if (a.name or "").upper() == "ET":
+                            self.et_targets.add(_root(a.value))
                 if isinstance(s.call.func, ir.Index):
                     for i in s.call.func.indices:
                         self.use(i)
@@ -1525,6 +1550,8 @@ class _Flow:
                     continue
                 if a.output:
                     self.flows.append((_root(a.value), {_root(s.call.func) or ""}))
+                    if (a.name or "").upper() == "ET":
+                        self.et_targets.add(None)
                 else:
                     self.use(a.value)
         elif isinstance(s, ir.If):
