@@ -309,7 +309,7 @@ def cmd_sweep(args) -> int:
         dt_s = parse_horizon(args.dt) / 1e9 if args.dt else None
         settings = [parse_setting(t) for t in args.set]
         rows = sweep(args.machine, settings, horizon_s, dt_s, engine=args.engine,
-                     scheduler=args.scheduler, workers=args.workers)
+                     scheduler=args.scheduler, workers=args.workers, program=args.program)
     except SweepError as e:
         return _fail(str(e))
     except _model_errors() as e:
@@ -340,6 +340,23 @@ def cmd_sweep(args) -> int:
     return 0
 
 
+HORIZON_HELP = "how long to run: 60s, 1m30s, 8h, T#1m30s (m = minutes)"
+DT_HELP = ("grid step of the demand (default 10ms, coarser for long horizons so files stay "
+           "under a few tens of MB)")
+
+
+def _machine_args(p, out: str | None = "output directory", dt: bool = True) -> None:
+    """The arguments every machine-running command shares."""
+    p.add_argument("machine", metavar="MACHINE", help="machine file (.toml)")
+    p.add_argument("--horizon", required=True, help=HORIZON_HELP)
+    if out:
+        p.add_argument("--out", required=True, metavar="DIR", help=out)
+    if dt:
+        p.add_argument("--dt", help=DT_HELP)
+    p.add_argument("--program", metavar="PROGRAM",
+                   help="run this program instead of the one the machine file names")
+
+
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(
         prog="plcpred",
@@ -363,12 +380,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "model (cylinder end switches, input schedules) over a "
                                    "horizon and write DIR/timeline.csv: time_s,signal,value, "
                                    "one row per change, initial values at 0.")
-    p.add_argument("machine", metavar="MACHINE", help="machine file (.toml)")
-    p.add_argument("--horizon", required=True,
-                   help="how long to run: 60s, 1m30s, 8h, T#1m30s (m = minutes)")
-    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
-    p.add_argument("--program", metavar="PROGRAM",
-                   help="run this program instead of the one the machine file names")
+    _machine_args(p, dt=False)
     p.add_argument("--scan-stepping", action="store_true",
                    help="execute every scan instead of jumping between events (the slow "
                         "reference the event-driven mode must equal)")
@@ -381,14 +393,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "Writes DIR/timeline.csv, demand.csv (NL/min per consumer "
                                    "on a time grid), summary.json and demand.png, and prints "
                                    "a table of per-consumer totals.")
-    p.add_argument("machine", metavar="MACHINE", help="machine file (.toml)")
-    p.add_argument("--horizon", required=True,
-                   help="how long to run: 60s, 1m30s, 8h, T#1m30s (m = minutes)")
-    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
-    p.add_argument("--dt", help="grid step of demand.csv (default 10ms, coarser for long "
-                                "horizons so the file stays under a few tens of MB)")
-    p.add_argument("--program", metavar="PROGRAM",
-                   help="run this program instead of the one the machine file names")
+    _machine_args(p)
     p.add_argument("--no-plot", action="store_true", help="skip demand.png")
     p.set_defaults(func=cmd_predict)
 
@@ -400,10 +405,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "band, energy and cost per year, and the air used while "
                                    "idle. Writes DIR/sizing.json, sizing.md and sizing.html "
                                    "(self-contained, plots embedded).")
-    p.add_argument("machine", metavar="MACHINE")
-    p.add_argument("--horizon", required=True, help="e.g. 1h, 8h, T#30m")
-    p.add_argument("--out", required=True, metavar="DIR")
-    p.add_argument("--dt", help="grid step (default 10ms, coarser for long horizons)")
+    _machine_args(p)
     p.add_argument("--allowance", default="10%",
                    help="design flow above the mean (default 10%%)")
     p.add_argument("--band", default="1bar",
@@ -417,7 +419,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--idle-after", metavar="DURATION",
                    help="count air as idle only once no cylinder has moved for this long "
                         "(default: whenever no cylinder moves)")
-    p.add_argument("--program", metavar="PROGRAM")
     p.set_defaults(func=cmd_size)
 
     p = sub.add_parser("compare", help="compare two machines or programs (CI gate)",
@@ -428,13 +429,13 @@ def build_parser() -> argparse.ArgumentParser:
                                    "with --program-new.")
     p.add_argument("base", metavar="BASE", help="machine file (.toml)")
     p.add_argument("new", metavar="NEW", nargs="?", help="machine file (default: BASE)")
-    p.add_argument("--horizon", required=True)
+    p.add_argument("--horizon", required=True, help=HORIZON_HELP)
     p.add_argument("--max-increase", default="0%",
                    help="allowed increase: a percentage (2%%) or normal litres (0.5NL); "
                         "default 0%%")
     p.add_argument("--program-base", metavar="PROGRAM", help="program to run on BASE")
     p.add_argument("--program-new", metavar="PROGRAM", help="program to run on NEW")
-    p.add_argument("--dt", help="grid step")
+    p.add_argument("--dt", help=DT_HELP)
     p.add_argument("--json", action="store_true", help="print the comparison as JSON")
     p.set_defaults(func=cmd_compare)
 
@@ -448,11 +449,9 @@ def build_parser() -> argparse.ArgumentParser:
                                    "initial value as an ST literal (program.BLOW_TIME=T#2s). "
                                    "Scenarios run in parallel local processes, or on a Dask "
                                    "cluster with --engine dask --scheduler ADDRESS.")
-    p.add_argument("machine", metavar="MACHINE")
+    _machine_args(p, out=None)
     p.add_argument("--set", action="append", required=True, metavar="KEY=V1,V2,...",
                    help="values to sweep (repeat for a cartesian product)")
-    p.add_argument("--horizon", required=True)
-    p.add_argument("--dt", help="grid step (default 10ms, coarser for long horizons)")
     p.add_argument("--engine", choices=("local", "dask"), default="local")
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler (tcp://host:8786)")
     p.add_argument("--workers", type=int, help="local processes (default: one per core)")

@@ -130,7 +130,8 @@ def _set_program_value(program, name: str, value: str, key: str):
 
 
 def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
-                 hours: float = 4000.0, sec: float = 0.1) -> dict:
+                 program_path: str | None = None, hours: float = 4000.0,
+                 sec: float = 0.1) -> dict:
     """One prediction with the scenario applied: a row of totals."""
     from .air import predict
     from .air.sizing import size
@@ -138,7 +139,7 @@ def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
     from .parser import load_program
 
     base = load_machine(machine_path)
-    program = load_program(base.program_path)
+    program = load_program(program_path or base.program_path)
     machine, program = apply_settings(base, program, scenario)
     result = predict(machine, horizon_s, dt=dt_s, program=program)
     s = size(result.profile, hours_per_year=hours, sec_kwh_per_nm3=sec)
@@ -172,7 +173,7 @@ class _Progress:
 
 def sweep(machine_path, settings: list[Setting], horizon_s: float, dt_s=None,
           engine: str = "local", scheduler: str | None = None, workers: int | None = None,
-          progress: bool | None = None) -> list[dict]:
+          progress: bool | None = None, program=None) -> list[dict]:
     """Rows of :func:`run_scenario` for every scenario, in scenario order."""
     machine_path = str(machine_path)
     combos = scenarios(settings)
@@ -180,11 +181,12 @@ def sweep(machine_path, settings: list[Setting], horizon_s: float, dt_s=None,
     from .machine import load_machine
     from .parser import load_program
     base = load_machine(machine_path)
-    program = load_program(base.program_path)
+    program_path = str(program) if program is not None else None
+    prog = load_program(program_path or base.program_path)
     for sc in combos:
-        apply_settings(base, program, sc)
+        apply_settings(base, prog, sc)
     bar = _Progress(len(combos), progress)
-    args = [(machine_path, sc, horizon_s, dt_s) for sc in combos]
+    args = [(machine_path, sc, horizon_s, dt_s, program_path) for sc in combos]
     if engine == "dask":
         return _run_dask(args, scheduler, bar)
     if engine != "local":
