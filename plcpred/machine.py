@@ -374,6 +374,8 @@ def check_against_program(machine: Machine, program) -> list[str]:
 
     def require(where: str, key: str, signal: str) -> str:
         name = resolve(signal)
+        if name.upper() in used_addresses:
+            return name.upper()  # an address the code uses directly
         base, dot, bit = name.rpartition(".")
         if dot and bit.isdigit() and base.upper() in names:
             name = base  # one bit of a WORD/BYTE variable
@@ -382,6 +384,11 @@ def check_against_program(machine: Machine, program) -> list[str]:
                                             f"{program_file}")
         return name.upper()
 
+    from .sequencer.compiler import _member_names
+    from .parser import ir
+    used_addresses = {a.upper() for a in _member_names(program, ir.DirectAddress, "address")}
+    names |= used_addresses
+    read = set(read) | used_addresses
     driven = set()
     warnings = []
     for c in machine.consumers:

@@ -183,7 +183,8 @@ def test_bit_access_read_and_write():
 
 def test_unsupported_constructs_are_positioned_compile_errors():
     with pytest.raises(CompileError) as e:
-        ProgramInstance(parse_st(body("x : INT;", "x := 1;\n%QX0.0 := TRUE;"), "u.st"))
+        ProgramInstance(parse_st(body("x : INT; p : POINTER TO INT;",
+                                      "x := 1;\nx := __NEW(INT);"), "u.st"))
     assert (e.value.file, e.value.line) == ("u.st", 6)
 
 

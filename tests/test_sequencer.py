@@ -360,3 +360,38 @@ END_PROGRAM""", "p.st")
     fast = Sequencer(prog, m).run(parse_horizon("20s"), tiling=False)
     assert fast == Sequencer(prog, m).run(parse_horizon("20s"), scan_stepping=True)
     assert (fast.info["scans"] > 500) == steps
+
+
+def test_direct_addresses_in_code(tmp_path):
+    (tmp_path / "p.st").write_text("""PROGRAM Raw
+VAR_OUTPUT y AT %QX0.1 : BOOL; END_VAR
+VAR t : TON; END_VAR
+t(IN := %IX0.0, PT := T#300ms);
+%QX0.0 := t.Q;
+%QX0.1 := NOT %IX0.2;
+%QW2 := WORD#16#0008;
+END_PROGRAM""")
+    (tmp_path / "m.toml").write_text("""[machine]
+program = "p.st"
+supply_bar_g = 6
+[[input]]
+signal = "%IX0.0"
+pulses_s = [1.0]
+pulse_ms = 2000
+[[consumer]]
+name = "c"
+kind = "double_acting"
+bore_mm = 20
+rod_mm = 8
+stroke_mm = 50
+valve = "%QX0.0"
+stroke_time_s = [0.2, 0.2]
+switches = { extended = "%IX0.2" }
+""")
+    m = load_machine(tmp_path / "m.toml")
+    tl = unfold(m, "5s")
+    assert not [w for w in m.warnings if "never read" in w]
+    assert tl.edges("%QX0.0")["time_s"].tolist() == [0, 1.3, 3.0]
+    assert tl.edges("%IX0.2")["time_s"].tolist() == [0, 1.5, 3.01]
+    assert tl.edges("y")["time_s"].tolist() == [0, 1.5, 3.01]   # declared AT %QX0.1
+    assert tl.value_at("%QW2", 1) == 8                          # a hidden WORD output

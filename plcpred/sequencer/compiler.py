@@ -18,8 +18,11 @@ Mapping:
 * WHILE and REPEAT count iterations; a loop that runs away raises :class:`~.runtime.Watchdog`
   naming its line.
 
-Not supported (a positioned error at compile time): JMP/labels, pointer arithmetic,
-``__NEW``, direct addresses used in code, variable-length arrays. A UNION is treated as a
+Direct addresses in code (``%QX0.0 := TRUE``) stand for the variable declared AT them, or
+for a hidden global of the address's size. JMP works within one statement list.
+
+Not supported (a positioned error at compile time): jumps into or out of blocks, pointer
+arithmetic, ``__NEW``, variable-length arrays. A UNION is treated as a
 struct (its members do not overlap).
 """
 from __future__ import annotations
@@ -92,6 +95,7 @@ class Compiled:
     reads_et: bool = False                     # the program reads a timer's ET
     reads_clock: bool = False                  # TIME()/NOW: step every scan
     types: object = None
+    address_slots: dict = None                 # undeclared direct address -> global attr
 
 
 class Compiler:
@@ -108,6 +112,8 @@ class Compiler:
         self._jump = None
         self._loop_depth = 0
         self.sinks: dict[str, set] = {}
+        self.address_slots: dict[str, str] = {}  # undeclared direct address -> global
+        self.addr_names: dict[str, str] = {}
         self._et_classes: set = set()
         self._member_names = _member_names(program)
 
@@ -122,6 +128,7 @@ class Compiler:
             for r in c.resources:
                 gblocks += r.var_blocks
         gdecls = [d for b in gblocks if b.kind == "VAR_GLOBAL" for d in b.decls]
+        gdecls += self._address_slots(gblocks)
         for d in gdecls:
             self.globals[d.name.upper()] = (d.name, self.types.resolve(d.type, d.pos), d)
         fbs = [self.types.fb(p.name.upper()) for p in self.program.pous
@@ -147,7 +154,8 @@ class Compiler:
         for name, cls in programs:
             prog_types[name] = next(f for f in fbs if f.cls_name == cls)
         return Compiled("\n".join(self.src.lines) + "\n", self.src.pos, programs, prog_types,
-                        self.globals, self.reads_et, self.reads_clock, self.types)
+                        self.globals, self.reads_et, self.reads_clock, self.types,
+                        dict(self.address_slots))
 
     def _collect_constants(self):
         """Integer constants usable in array bounds (``ARRAY[1..N]``)."""
@@ -160,6 +168,38 @@ class Compiler:
                 if isinstance(d.init, ir.Literal) and isinstance(d.init.value, int) \
                         and not isinstance(d.init.value, bool):
                     self.types.constants[d.name.upper()] = int(d.init.value)
+
+    def _address_slots(self, gblocks) -> list:
+        """Direct addresses used in code (``%IX0.0 := ...``): those declared AT a variable
+        alias it; the others become hidden globals named ``AT_IX0_0``."""
+        declared = {}
+        for b in gblocks + [b for p in self.program.pous if p.kind == "PROGRAM"
+                            for b in p.var_blocks]:
+            for d in b.decls:
+                if d.address and "*" not in d.address:
+                    declared.setdefault(d.address.upper(), d.name)
+        self.addr_names = declared
+        used = sorted(_member_names(self.program, ir.DirectAddress, "address") - set(declared))
+        decls = []
+        for addr in used:
+            attr = "AT_" + re.sub(r"[^A-Z0-9]", "_", addr[1:])
+            size = addr[2:3] if len(addr) > 2 and addr[2].isalpha() else "X"
+            tname = {"X": "BOOL", "B": "BYTE", "W": "WORD", "D": "DWORD",
+                     "L": "LWORD"}.get(size, "BOOL")
+            decls.append(ir.VarDecl(attr, ir.NamedType(tname), None, addr))
+            self.address_slots[addr] = attr
+        return decls
+
+    def _direct(self, x: ir.DirectAddress, scope: Scope):
+        """The variable a direct address stands for, as a Name to compile."""
+        addr = x.address.upper()
+        name = self.addr_names.get(addr)
+        if name is not None and name.upper() in scope.names:
+            return ir.Name(name, pos=x.pos)
+        if addr in self.address_slots:
+            return ir.Name(self.address_slots[addr], pos=x.pos)
+        raise _err(x, f"direct address {x.address} belongs to a variable of another "
+                      "program; use that program's variable")
 
     def _program_instances(self):
         out = []
@@ -784,6 +824,8 @@ class Compiler:
     def _lvalue(self, target, scope: Scope):
         """('name', code) | ('attr', obj, ATTR) | ('item', list, index) | ('prop', obj, NAME)
         | ('deref', ref), with the target's type."""
+        if isinstance(target, ir.DirectAddress):
+            target = self._direct(target, scope)
         if isinstance(target, ir.Name):
             key = target.name.upper()
             if key not in scope.names:
@@ -990,8 +1032,7 @@ class Compiler:
         if isinstance(x, ir.Call):
             return self._call_expr(x, scope)
         if isinstance(x, ir.DirectAddress):
-            raise _err(x, f"direct address {x.address} used in code: declare a variable "
-                          f"AT {x.address} and use its name")
+            return self._name(self._direct(x, scope), scope, expect)
         raise _err(x, f"unsupported expression {type(x).__name__}")
 
     def _literal(self, x: ir.Literal, expect):

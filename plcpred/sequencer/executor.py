@@ -372,7 +372,9 @@ class Sequencer:
             lst.append((name, obj, attr, t))
 
         multi = len(inst.programs) > 1
+        hidden = {attr: addr for addr, attr in (c.address_slots or {}).items()}
         for gname, (n, t, d) in c.globals_types.items():
+            n = hidden.get(gname, n)
             if d.address and d.address.upper().startswith("%I"):
                 add(ins, n, (inst.g, gname, t))
             elif d.address and d.address.upper().startswith("%Q"):
@@ -407,6 +409,9 @@ class Sequencer:
     def _display(self, inst, signal, hit):
         obj, attr, t = hit
         if obj is inst.g:
+            for addr, slot in (inst.compiled.address_slots or {}).items():
+                if slot == attr:
+                    return addr
             return inst.compiled.globals_types[attr][0]
         return self._resolve(signal)
 
@@ -431,6 +436,9 @@ class Sequencer:
     def _locate(self, inst, signal):
         name = self._resolve(signal)
         hit = inst.locate(name)
+        slot = (self.compiled.address_slots or {}).get(name.upper())
+        if hit is None and slot is not None:
+            hit = (inst.g, slot, self.compiled.globals_types[slot][1])
         base, dot, bit = name.rpartition(".")
         if hit is None and dot and bit.isdigit():
             word = inst.locate(base)
