@@ -302,6 +302,7 @@ class Cylinder:
         self._until = -1                # switch values below are valid before this time
         self._from = 0
         self._values = (True, False)
+        self.driven = None              # the values last written to the program
 
     def command(self, t_ns: int) -> None:
         if not self.bistable:
@@ -500,7 +501,7 @@ class Sequencer:
                 if e is not None and (nxt is None or e < nxt):
                     nxt = e
             for cyl in cylinders:
-                r, e = cyl.read(t)
+                r, e = cyl.driven = cyl.read(t)
                 if "retracted" in cyl.switches:
                     drive.append((*cyl.switches["retracted"], r))
                 if "extended" in cyl.switches:
@@ -550,7 +551,12 @@ class Sequencer:
                 scans += 1
                 for cyl in cylinders:
                     if cyl.command(t):
-                        next_input = t
+                        # the switches change now (no switching delay) or at their next
+                        # edge; until then the inputs driven now stay valid
+                        if cyl.read(t) != cyl.driven:
+                            next_input = t
+                        elif cyl._until < next_input:
+                            next_input = cyl._until
                 values = values_now()
                 if values != prev_values:
                     record(t, values)
