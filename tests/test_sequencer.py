@@ -395,3 +395,33 @@ switches = { extended = "%IX0.2" }
     assert tl.edges("%IX0.2")["time_s"].tolist() == [0, 1.5, 3.01]
     assert tl.edges("y")["time_s"].tolist() == [0, 1.5, 3.01]   # declared AT %QX0.1
     assert tl.value_at("%QW2", 1) == 8                          # a hidden WORD output
+
+
+def test_programs_run_at_their_task_interval():
+    prog = parse_st("""PROGRAM Fast
+VAR_INPUT go : BOOL; END_VAR
+VAR_OUTPUT fast : BOOL; END_VAR
+fast := go;
+END_PROGRAM
+PROGRAM Slow
+VAR_EXTERNAL g : BOOL; END_VAR
+VAR_INPUT go2 : BOOL; END_VAR
+VAR_OUTPUT slow : BOOL; END_VAR
+slow := go2;
+END_PROGRAM
+CONFIGURATION C
+  VAR_GLOBAL g : BOOL; END_VAR
+  RESOURCE R ON PLC
+    TASK T1(INTERVAL := T#10ms, PRIORITY := 1);
+    TASK T2(INTERVAL := T#100ms, PRIORITY := 2);
+    PROGRAM pf WITH T1 : Fast;
+    PROGRAM ps WITH T2 : Slow;
+  END_RESOURCE
+END_CONFIGURATION""", "t.st")
+    m = Machine("m", Path("m.toml"), Path("t.st"), scan_ms=10)
+    m.inputs = [InputSchedule("pf.go", pulses_s=[0.23], pulse_ms=500),
+                InputSchedule("ps.go2", pulses_s=[0.23], pulse_ms=500)]
+    fast = Sequencer(prog, m).run(parse_horizon("3s"))
+    assert fast == Sequencer(prog, m).run(parse_horizon("3s"), scan_stepping=True)
+    assert fast.edges("pf.fast")["time_s"].tolist() == [0, 0.23, 0.73]
+    assert fast.edges("ps.slow")["time_s"].tolist() == [0, 0.3, 0.8]     # every 100 ms

@@ -96,6 +96,7 @@ class Compiled:
     reads_clock: bool = False                  # TIME()/NOW: step every scan
     types: object = None
     address_slots: dict = None                 # undeclared direct address -> global attr
+    intervals: dict = None                     # program instance -> task INTERVAL (ns)
 
 
 class Compiler:
@@ -155,7 +156,7 @@ class Compiler:
             prog_types[name] = next(f for f in fbs if f.cls_name == cls)
         return Compiled("\n".join(self.src.lines) + "\n", self.src.pos, programs, prog_types,
                         self.globals, self.reads_et, self.reads_clock, self.types,
-                        dict(self.address_slots))
+                        dict(self.address_slots), dict(self.intervals))
 
     def _collect_constants(self):
         """Integer constants usable in array bounds (``ARRAY[1..N]``)."""
@@ -203,9 +204,15 @@ class Compiler:
 
     def _program_instances(self):
         out = []
+        self.intervals = {}
         for c in self.program.configurations:
             for r in c.resources:
+                tasks = {t.name.upper(): t for t in r.tasks}
                 for pi in r.programs:
+                    task = tasks.get((pi.task or "").upper())
+                    iv = task.params.get("INTERVAL") if task else None
+                    if isinstance(iv, ir.Literal) and isinstance(iv.value, int) and iv.value > 0:
+                        self.intervals[pi.name] = int(iv.value)
                     key = pi.type_name.upper()
                     if key not in self.types.fbs or self.types.fbs[key].pou.kind != "PROGRAM":
                         raise _err(pi, f"PROGRAM instance {pi.name} names '{pi.type_name}', "

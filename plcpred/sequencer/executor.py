@@ -157,6 +157,7 @@ class ProgramInstance:
         self.g = self.ns["_g"]
         self.names = [n for n, _ in self.compiled.programs]
         self._bodies = [p._body for p in self.programs]
+        self.every = None
 
     @staticmethod
     def _file(program) -> str:
@@ -165,10 +166,38 @@ class ProgramInstance:
                 return p.pos.file
         return "program"
 
+    def set_scan(self, scan_ns: int) -> None:
+        """Run each PROGRAM every k-th scan, k = its task's INTERVAL / the scan time
+        (rounded, at least 1); programs without an interval run every scan."""
+        iv = self.compiled.intervals or {}
+        self.every = [max(1, round(iv[n] / scan_ns)) if n in iv else 1 for n in self.names]
+        self.scan_ns = scan_ns
+        self.ran_at = [-1] * len(self.names)
+        if all(k == 1 for k in self.every):
+            self.every = None
+
     def scan(self, now_ns: int) -> None:
         self.ns["_now"] = now_ns
-        for body in self._bodies:
-            body()
+        if self.every is None:
+            for body in self._bodies:
+                body()
+            return
+        k = now_ns // self.scan_ns
+        for i, body in enumerate(self._bodies):
+            if k % self.every[i] == 0:
+                body()
+                self.ran_at[i] = k
+
+    def all_ran_since(self, k_change: int) -> bool:
+        """Every program has run after scan ``k_change`` (a state change): only then can
+        an unchanged state be a fixed point."""
+        return self.every is None or all(r > k_change for r in self.ran_at)
+
+    def phase(self, now_ns: int):
+        if self.every is None:
+            return ()
+        k = now_ns // self.scan_ns
+        return tuple(k % e for e in self.every)
 
     def guard(self, fn, *args):
         """Run compiled code, turning Python exceptions into positioned errors."""
@@ -540,6 +569,8 @@ class Sequencer:
         scans = 0
         tiled_from = None
         next_input = 0
+        inst.set_scan(scan)
+        k_change = 0
         scan_fn = inst.scan
         try:
             while t <= horizon_ns:
@@ -565,7 +596,9 @@ class Sequencer:
                     t += scan
                     continue
                 snap = inst.snap()
-                if snap != prev_snap:
+                if snap != prev_snap or not inst.all_ran_since(k_change):
+                    if snap != prev_snap:
+                        k_change = t // scan
                     prev_snap = snap
                     t += scan
                     continue
@@ -628,7 +661,7 @@ class Sequencer:
         for cyl in cylinders:
             parts.append(cyl.plant.key(t))
             parts.append(tuple(cyl.prev))
-        return (inst.snap(t), tuple(parts))
+        return (inst.snap(t), tuple(parts), inst.phase(t))
 
 
 def _value_getter(slots):
