@@ -17,6 +17,7 @@ CYLINDER_KINDS = ("single_acting", "double_acting", "double_rod", "rodless", "se
 PASSIVE_KINDS = ("nozzle", "leak")
 KINDS = CYLINDER_KINDS + PASSIVE_KINDS
 FLOW_MODELS = ("iso6358", "choked")
+AUTO_SPEED_MM_S = 300.0  # stroke_time_s = "auto" until the plant model exists
 
 
 class MachineError(Exception):
@@ -67,6 +68,16 @@ class Consumer:
     @property
     def is_cylinder(self) -> bool:
         return self.kind in CYLINDER_KINDS
+
+    def stroke_times(self) -> tuple[float, float] | None:
+        """(extend, retract) stroke times in s. ``"auto"`` asks the plant model, which
+        does not exist yet: until it does, the stroke takes ``stroke_mm`` at
+        AUTO_SPEED_MM_S (a mid-range piston speed between metered-out and free-running
+        cylinders), and the machine warns about it."""
+        if self.stroke_time_s == "auto":
+            t = (self.stroke_mm or 0.0) / AUTO_SPEED_MM_S
+            return (t, t) if t > 0 else None
+        return self.stroke_time_s
 
     @property
     def bistable(self) -> bool:
@@ -156,7 +167,7 @@ class _Reader:
         return tuple(self._checked(key, x, positive, nonneg) for x in values)
 
 
-def _consumer(file: str, index: int, table: dict) -> Consumer:
+def _consumer(file: str, index: int, table: dict, warnings: list) -> Consumer:
     label = f'consumer "{table.get("name")}"' if isinstance(table, dict) and table.get(
         "name") else f"consumer #{index + 1}"
     r = _Reader(file, label, table, _CONSUMER_KEYS)
@@ -194,6 +205,8 @@ def _consumer(file: str, index: int, table: dict) -> Consumer:
         st = table.get("stroke_time_s")
         if st == "auto":
             c.stroke_time_s = "auto"
+            warnings.append(f"{file}: {label}: stroke_time_s = \"auto\" is estimated at "
+                            f"{AUTO_SPEED_MM_S:g} mm/s until the plant model exists")
         else:
             c.stroke_time_s = r.pair("stroke_time_s", None, positive=True)
         c.switch_delay_s = r.number("switch_delay_s", 0.0, nonneg=True)
@@ -309,7 +322,8 @@ def load_machine(path) -> Machine:
         if not isinstance(tables, list):
             raise MachineError(file, what, f"write it as {what} (an array of tables)")
         for i, t in enumerate(tables):
-            out.append(builder(file, i, t))
+            out.append(builder(file, i, t, machine.warnings) if key == "consumer"
+                       else builder(file, i, t))
     seen = set()
     for c in machine.consumers:
         if c.name in seen:

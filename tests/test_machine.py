@@ -129,3 +129,22 @@ def test_not_toml_is_a_clear_error(tmp_path):
     f = write(tmp_path, "[machine\nname=")
     with pytest.raises(MachineError, match="not valid TOML"):
         load_machine(f)
+
+
+def test_auto_stroke_time_is_estimated_with_a_warning(tmp_path):
+    (tmp_path / "p.st").write_text("PROGRAM P VAR_OUTPUT y : BOOL; END_VAR END_PROGRAM")
+    (tmp_path / "m.toml").write_text('''[machine]
+program = "p.st"
+supply_bar_g = 6
+[[consumer]]
+name = "c"
+kind = "double_acting"
+bore_mm = 20
+rod_mm = 8
+stroke_mm = 150
+valve = "y"
+stroke_time_s = "auto"
+''')
+    m = load_machine(tmp_path / "m.toml")
+    assert m.consumer("c").stroke_times() == (0.5, 0.5)
+    assert any("auto" in w and "300 mm/s" in w for w in m.warnings)

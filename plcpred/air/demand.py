@@ -63,7 +63,7 @@ def consumer_models(machine) -> list[ConsumerModel]:
         if c.kind in CYLINDER_KINDS:
             p_pa = bar_g_to_pa(machine.supply_bar_g, machine.atmosphere_kpa)
             v_ext, v_ret = consumer_stroke_volumes_nl(c, p_pa, t_supply_k)
-            st = c.stroke_time_s if isinstance(c.stroke_time_s, tuple) else None
+            st = c.stroke_times()
             out.append(ConsumerModel(c.name, c.kind, list(c.valve), "active", v_ext, v_ret,
                                      pressure_bar_g=machine.supply_bar_g,
                                      delay_s=c.switch_delay_s, stroke_time_s=st,

@@ -319,7 +319,7 @@ class Cylinder:
     """A cylinder of the machine file driving its end switches."""
 
     def __init__(self, consumer, valve_slots, switch_slots):
-        st = consumer.stroke_time_s
+        st = consumer.stroke_times()
         self.name = consumer.name
         self.plant = CylinderPlant(round(st[0] * NS), round(st[1] * NS),
                                    round(consumer.switch_delay_s * NS),
@@ -499,11 +499,10 @@ class Sequencer:
             for cons in machine.consumers:
                 if not cons.is_cylinder or not cons.switches:
                     continue
-                if not isinstance(cons.stroke_time_s, tuple):
+                if cons.stroke_times() is None:
                     raise SequencerError(
                         f"{machine.path}: consumer \"{cons.name}\": its switches need "
-                        "stroke_time_s = [extend, retract] (\"auto\" needs the plant model, "
-                        "which is not available yet)")
+                        "stroke_time_s = [extend, retract]")
                 valves = [self._locate(inst, v)[:2] for v in cons.valve]
                 sw = {role: self._locate(inst, s)[:2] for role, s in cons.switches.items()}
                 cylinders.append(Cylinder(cons, valves, sw))
