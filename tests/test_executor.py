@@ -199,3 +199,23 @@ def test_standard_fbs_in_programs_use_scan_time():
         q1.append(inst.programs[0].Q1)
     assert q1 == [False, False, False, False, True, True]
     assert inst.programs[0].C.CV == 1
+
+
+def test_instances_local_to_a_method_are_fresh_each_call_and_not_listed():
+    src = """FUNCTION_BLOCK Fb
+VAR_OUTPUT n : INT; END_VAR
+METHOD Tick : BOOL
+VAR t : TON; e : R_TRIG; END_VAR
+e(CLK := TRUE);
+t(IN := TRUE, PT := T#0s);
+Tick := e.Q AND t.Q;
+END_METHOD
+END_FUNCTION_BLOCK
+PROGRAM P VAR f : Fb; k : INT; END_VAR
+IF f.Tick() THEN k := k + 1; END_IF
+END_PROGRAM"""
+    inst = ProgramInstance(parse_st(src))
+    for i in range(5):
+        inst.scan(i * 10 * MS)
+    assert inst.programs[0].K == 5          # a fresh R_TRIG sees an edge every call
+    assert inst.timers == []

@@ -549,6 +549,9 @@ class Compiler:
         for kind, d, t in params:
             key = d.name.upper()
             init = self._init(t, d.init, sc, d)
+            if _has_fb(t):
+                # a call's own instances must not join the executor's list of live timers
+                init = f"_unlisted(lambda: {init})"
             if kind == "VAR_INPUT":
                 conv = f"_copy({key})" if t.cat in ("struct", "array") else key
                 e(ind + 1, f"{key} = {init} if {key} is _D else {conv}", d.pos)
@@ -1635,6 +1638,13 @@ def _children(e):
     if isinstance(e, ir.Call):
         return tuple(a.value for a in e.args if a.value is not None)
     return ()
+
+
+def _has_fb(t) -> bool:
+    t = _base_t(t)
+    if t.cat in ("fb", "stdfb"):
+        return True
+    return isinstance(t, StructT) and any(_has_fb(m) for m in t.members.values())
 
 
 def _base_t(t):

@@ -117,15 +117,27 @@ def _sizeof(v):
 
 
 def _namespace(timers: list, sfcs: list) -> dict:
+    listing = [True]
+
     def _stdfb(name):
         fb = make_standard_fb(name)
-        if isinstance(fb, _TIMERS):
+        if isinstance(fb, _TIMERS) and listing[0]:
             timers.append(fb)
         return fb
+
+    def _unlisted(make):
+        """Build a function's or method's local instances without listing their timers
+        (they live for one call, so they can schedule nothing)."""
+        listing[0] = False
+        try:
+            return make()
+        finally:
+            listing[0] = True
 
     return {
         "k_FbBase": FbBase, "_SfcRuntime": SfcRuntime, "_SfcSpec": SfcSpec,
         "_ActionSpec": ActionSpec, "_register": sfcs.append, "_stdfb": _stdfb,
+        "_unlisted": _unlisted,
         "_setattrs": _setattrs, "_nest": _nest, "_copy": _copy, "_snap_any": _snap_any,
         "_refkey": _refkey, "_for_range": _for_range, "_watchdog": _watchdog,
         "_chkidx": rtm.check_index, "_getbit": rtm.getbit, "_setbit": rtm.setbit,
