@@ -193,8 +193,13 @@ def generated_program(seed):
         lines.append(f"{name}(IN := {_bool_expr(rng, names)}, PT := T#{pt}ms{extra});")
     lines.append(f"m0 := {_bool_expr(rng, names)};")
     lines.append(f"m1 := s = {rng.randint(0, 2)} OR {_bool_expr(rng, names)};")
-    if rng.random() < 0.3:
-        lines.append("m1 := m1 AND t0.ET > T#20ms;")
+    if rng.random() < 0.5:
+        # ET against a constant (scheduled as an event) or in arithmetic (stepping)
+        k, op = rng.randrange(4), rng.choice([">", ">=", "<", "<=", "=", "<>"])
+        c = rng.choice([0, 20, 35, 100, 150, 500])
+        lines.append(f"m1 := m1 {rng.choice(['AND', 'OR', 'XOR'])} (t{k}.ET {op} T#{c}ms);")
+        if rng.random() < 0.3:
+            lines.append(f"m0 := m0 AND t{k}.ET * 2 > T#{c}ms;")
     lines.append(f"y0 := {_bool_expr(rng, names)};")
     lines.append(f"y1 := s = {rng.randint(0, 2)} AND {_bool_expr(rng, names)};")
     decls = "\n".join(f"  {n} : {k};" for n, k in timers)
@@ -345,8 +350,12 @@ END_PROGRAM""", "p.st")
 
 
 @pytest.mark.parametrize("use,steps", [("hmi := TIME_TO_DINT(t.ET);", False),
-                                       ("y := go AND t.ET < T#150ms;", True)])
+                                       ("y := go AND t.ET < T#150ms;", False),
+                                       ("y := go AND t.ET > T#155ms;", False),
+                                       ("y := go AND t.ET * 2 < T#300ms;", True)])
 def test_reading_et_steps_only_when_it_can_change_an_output(use, steps):
+    # ET copied to a display variable changes nothing; compared with a constant it flips
+    # at a time the sequencer can schedule; only other uses make it step scan by scan
     prog = parse_st(f"""PROGRAM P
 VAR_INPUT go : BOOL; END_VAR
 VAR_OUTPUT y : BOOL; END_VAR

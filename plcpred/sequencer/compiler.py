@@ -97,6 +97,7 @@ class Compiled:
     types: object = None
     address_slots: dict = None                 # undeclared direct address -> global attr
     intervals: dict = None                     # program instance -> task INTERVAL (ns)
+    et_thresholds: tuple = ()                  # constants ET is compared with (ns)
 
 
 class Compiler:
@@ -116,6 +117,9 @@ class Compiler:
         self.address_slots: dict[str, str] = {}  # undeclared direct address -> global
         self.addr_names: dict[str, str] = {}
         self._et_classes: set = set()
+        self.intervals: dict[str, int] = {}
+        self.et_thresholds: set = set()  # constants timers' ET is compared with (ns)
+        self._et_const = False
         self._member_names = _member_names(program)
 
     # ================================================================== project
@@ -156,10 +160,33 @@ class Compiler:
             prog_types[name] = next(f for f in fbs if f.cls_name == cls)
         return Compiled("\n".join(self.src.lines) + "\n", self.src.pos, programs, prog_types,
                         self.globals, self.reads_et, self.reads_clock, self.types,
-                        dict(self.address_slots), dict(self.intervals))
+                        dict(self.address_slots), dict(self.intervals),
+                        tuple(sorted(self.et_thresholds)))
+
+    def _et_compare(self, x: ir.Binary):
+        """The threshold (ns) of ``timer.ET <op> constant`` (either way round), or None."""
+        if x.op not in _CMP:
+            return None
+        for a, b in ((x.left, x.right), (x.right, x.left)):
+            if isinstance(a, ir.Member) and a.member.upper() == "ET":
+                c = self._const_time(b)
+                if c is None and isinstance(b, ir.Name):
+                    c = self.time_constants.get(b.name.upper())
+                return c
+        return None
 
     def _collect_constants(self):
-        """Integer constants usable in array bounds (``ARRAY[1..N]``)."""
+        """Integer constants usable in array bounds (``ARRAY[1..N]``), and TIME constants
+        (timer thresholds)."""
+        self.time_constants = {}
+        for b in [g.block for g in self.program.globals] + [
+                b for p in self.program.pous for b in p.var_blocks]:
+            if "CONSTANT" in [q.upper() for q in b.qualifiers]:
+                for d in b.decls:
+                    if (isinstance(d.init, ir.Literal) and d.init.type_name in ("TIME", "LTIME")
+                            and isinstance(d.type, ir.NamedType)
+                            and d.type.name.upper() in ("TIME", "LTIME")):
+                        self.time_constants[d.name.upper()] = int(d.init.value)
         blocks = [g.block for g in self.program.globals]
         blocks += [b for p in self.program.pous for b in p.var_blocks]
         for b in blocks:
@@ -366,7 +393,8 @@ class Compiler:
             return set()
         flow = _Flow({k for k, f in self.functions.items()
                       if any(b.kind == "VAR_EXTERNAL" for b in f.var_blocks)
-                      or _member_names(f.body, ir.Name, "name") & set(self.globals)}, std)
+                      or _member_names(f.body, ir.Name, "name") & set(self.globals)}, std,
+                     self._et_compare)
         bodies = []
         if pou.is_sfc:
             for tr in pou.body.transitions:
@@ -1112,7 +1140,7 @@ class Compiler:
         if isinstance(bt, StdFbT):
             if key not in _STDFB_MEMBERS:
                 raise _err(x, f"{bt.name} has no member '{x.member}'")
-            if key == "ET":
+            if key == "ET" and not self._et_const:
                 # inside an FB or PROGRAM the data flow decides whether it matters
                 # (_sinks); elsewhere assume it does
                 if scope.fb is None:
@@ -1139,9 +1167,17 @@ class Compiler:
 
     def _binary(self, x: ir.Binary, scope: Scope, expect):
         op = x.op
-        lc, lt = self._expr(x.left, scope, expect if op not in _CMP else None)
-        rc, rt = self._expr(x.right, scope, lt if isinstance(lt, EnumT) or lt.cat == "real"
-                            else expect if op not in _CMP else None)
+        threshold = self._et_compare(x)
+        if threshold is not None:
+            # the comparison can only flip when ET crosses the constant: an event
+            self.et_thresholds.add(threshold)
+            self._et_const = True
+        try:
+            lc, lt = self._expr(x.left, scope, expect if op not in _CMP else None)
+            rc, rt = self._expr(x.right, scope, lt if isinstance(lt, EnumT) or lt.cat == "real"
+                                else expect if op not in _CMP else None)
+        finally:
+            self._et_const = False
         if lt.cat == "int" and rt.cat == "real" and isinstance(x.left, ir.Literal):
             lc = repr(float(lc))
         if op in _CMP:
@@ -1510,11 +1546,12 @@ class _Flow:
     ``used`` (names read by conditions, calls, indices and anything else that can steer
     the program)."""
 
-    def __init__(self, impure=frozenset(), std_fbs=frozenset()):
+    def __init__(self, impure=frozenset(), std_fbs=frozenset(), et_compare=lambda x: None):
         self.flows: list[tuple[str | None, set]] = []
         self.used: set = set()
         self.impure = impure  # user functions that reach globals (VAR_EXTERNAL)
         self.std_fbs = std_fbs  # standard FB instances (pure: they only set their outputs)
+        self.et_compare = et_compare
         self.et_targets: set = set()  # where timers' ET values go (None: steers the program)
         self._et = False
 
@@ -1522,6 +1559,10 @@ class _Flow:
         out = set()
 
         def walk(x):
+            if isinstance(x, ir.Binary) and self.et_compare(x) is not None:
+                for side in (x.left, x.right):   # an event, not a value that drifts
+                    walk(side.base if isinstance(side, ir.Member) else side)
+                return
             if isinstance(x, ir.Member) and x.member.upper() == "ET":
                 self._et = True
             if isinstance(x, ir.Name):

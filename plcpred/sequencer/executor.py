@@ -570,6 +570,7 @@ class Sequencer:
         timers = inst.timers
         sfcs = inst.sfcs
         reads_et = self.compiled.reads_et
+        et_thresholds = self.compiled.et_thresholds or ()
         always_step = scan_stepping or self.compiled.reads_clock
         can_tile = tiling and not scan_stepping and not self.compiled.reads_clock \
             and not any(s.random for s, _, _ in schedules)
@@ -627,6 +628,15 @@ class Sequencer:
                         running = True
                         if nxt is None or e < nxt:
                             nxt = e
+                    if et_thresholds:
+                        # ET compared with constants: the comparisons flip at (or just
+                        # after, for strict ones) origin + constant
+                        o = tm.et_origin()
+                        if o is not None:
+                            for c in et_thresholds:
+                                e = o + c if o + c > t else o + c + 1
+                                if e > t and (nxt is None or e < nxt):
+                                    nxt = e
                 for sfc in sfcs:
                     e = sfc.next_event_ns(t)
                     if e is not None and (e > t or e == t and sfc.spec.t_read) and (

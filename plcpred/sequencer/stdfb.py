@@ -28,6 +28,11 @@ class StandardFB:
         """Everything that determines future behaviour (for detecting a repeating state)."""
         return tuple(getattr(self, s) for s in self.__slots__)
 
+    def et_origin(self) -> int | None:
+        """While ET grows with time: the instant it was 0 (so ET = now - origin), else
+        None. Lets the sequencer schedule the moment ET crosses a constant."""
+        return None
+
     def key(self, rel: int | None) -> tuple:
         """The state in a form that compares equal when the future behaves alike.
 
@@ -64,6 +69,9 @@ class TON(StandardFB):
             return self._start + max(self.PT, 0)
         return None
 
+    def et_origin(self):
+        return self._start if self.IN and not self.Q else None
+
     def key(self, rel):
         start = self._start
         if start is None:
@@ -96,6 +104,9 @@ class TOF(StandardFB):
         if not self.IN and self.Q and self._start is not None:
             return self._start + max(self.PT, 0)
         return None
+
+    def et_origin(self):
+        return self._start if not self.IN and self.Q else None
 
     def key(self, rel):
         start = self._start
@@ -135,6 +146,9 @@ class TP(StandardFB):
             return self._start + max(self.PT, 0)
         return None
 
+    def et_origin(self):
+        return self._start
+
     def key(self, rel):
         start = self._start
         if start is None:
@@ -169,6 +183,11 @@ class TONR(StandardFB):
     def next_event_ns(self):
         if self.IN and not self.RESET and not self.Q and self._last is not None:
             return self._last + max(self.PT, 0) - self.ET
+        return None
+
+    def et_origin(self):
+        if self._was_in and not self.Q and self._last is not None:
+            return self._last - self.ET
         return None
 
     def key(self, rel):
