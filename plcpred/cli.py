@@ -167,14 +167,12 @@ def _model_errors():
 
 
 def cmd_size(args) -> int:
-    import json
     from pathlib import Path
 
     from .air import predict
     from .air.sizing import size
-    from .report import plot_demand, plot_sizing, sizing_html, sizing_markdown
+    from .report import write_sizing_report
     from .sequencer import parse_horizon
-    from .sequencer.timeline import atomic_write_text
 
     try:
         horizon_s = parse_horizon(args.horizon) / 1e9
@@ -193,18 +191,8 @@ def cmd_size(args) -> int:
     except ValueError as e:
         return _fail(str(e))
     out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
     name = result.machine.name
-    data = {"machine": name, **s.to_dict(),
-            "consumers": result.profile.summary()["consumers"]}
-    atomic_write_text(out / "sizing.json", json.dumps(data, indent=2) + "\n")
-    plot_sizing(result.profile, s, out / "sizing.png",
-                title=f"{name}: demand and compressor design flow")
-    plot_demand(result.profile, out / "demand.png", title=f"{name}: air demand")
-    md = sizing_markdown(name, s, result.profile)
-    atomic_write_text(out / "sizing.md", md)
-    images = {p: (out / p).read_bytes() for p in ("sizing.png", "demand.png")}
-    atomic_write_text(out / "sizing.html", sizing_html(md, images))
+    files = write_sizing_report(result, s, out)
     print(f"{name}: mean {s.mean_l_min:.1f} NL/min, peak {s.peak_l_min:.1f} (grid) / "
           f"{s.peak_1s_l_min:.1f} (1 s) / {s.peak_1min_l_min:.1f} (1 min) NL/min")
     print(f"compressor design flow {s.design_flow_l_min:.1f} NL/min "
@@ -212,87 +200,34 @@ def cmd_size(args) -> int:
           f"{s.band_bar:g} bar band (deficit {s.deficit_nl:.2f} NL at {s.deficit_at_s:g} s)")
     print(f"energy {s.energy_kwh_per_year:,.0f} kWh/year, cost {s.cost_per_year:,.0f}/year; "
           f"idle air {100 * s.idle_share:.1f} %")
-    print(f"wrote {out / 'sizing.json'}, {out / 'sizing.md'}, {out / 'sizing.html'}")
+    print(f"wrote {', '.join(str(f) for f in files if f.suffix != '.png')}")
     return 0
-
-
-def _allowance(text: str):
-    """(kind, value): ``2%`` -> ("pct", 2.0); ``0.5NL`` -> ("nl", 0.5)."""
-    t = text.strip().upper().replace(" ", "")
-    if t.endswith("%"):
-        return "pct", float(t[:-1])
-    if t.endswith("NL"):
-        return "nl", float(t[:-2])
-    if t.endswith("L"):
-        return "nl", float(t[:-1])
-    raise ValueError(f"--max-increase takes a percentage (2%) or normal litres (0.5NL), "
-                     f"not {text!r}")
 
 
 def cmd_compare(args) -> int:
     import json
 
-    from .air import predict
+    from .air.compare import compare, parse_allowance
     from .sequencer import parse_horizon
 
     try:
         horizon_s = parse_horizon(args.horizon) / 1e9
         dt_s = parse_horizon(args.dt) / 1e9 if args.dt else None
-        kind, limit = _allowance(args.max_increase)
-        if limit < 0:
-            raise ValueError("--max-increase must not be negative")
+        parse_allowance(args.max_increase)
     except ValueError as e:
         print(f"plcpred: error: {e}", file=sys.stderr)
         return 2
     try:
-        base = predict(args.base, horizon_s, dt=dt_s, program=args.program_base)
-        new = predict(args.new or args.base, horizon_s, dt=dt_s, program=args.program_new)
+        result = compare(args.base, args.new, horizon_s, args.max_increase, dt=dt_s,
+                         program_base=args.program_base, program_new=args.program_new)
     except _model_errors() as e:
         print(e, file=sys.stderr)
         return 2
     except (ValueError, OSError) as e:
         print(f"plcpred: error: {e}", file=sys.stderr)
         return 2
-    b, n = base.profile, new.profile
-    names = list(dict.fromkeys(b.names + n.names))
-    bt = dict(zip(b.names, b.consumer_nl))
-    nt = dict(zip(n.names, n.consumer_nl))
-    rows = []
-    for name in names:
-        x, y = float(bt.get(name, 0.0)), float(nt.get(name, 0.0))
-        rows.append({"consumer": name, "base_nl": x, "new_nl": y, "delta_nl": y - x,
-                     "delta_pct": (y - x) / x * 100 if x else None,
-                     "only_in": "base" if name not in nt else "new" if name not in bt else None})
-    delta = n.total_nl - b.total_nl
-    delta_pct = delta / b.total_nl * 100 if b.total_nl else (0.0 if not delta else float("inf"))
-    allowed_nl = limit if kind == "nl" else b.total_nl * limit / 100
-    ok = delta <= allowed_nl + 1e-9
-    verdict = "ok" if ok else "FAIL"
-    result = {"base": {"machine": base.machine.name, "total_nl": b.total_nl,
-                       "mean_l_min": b.mean_l_min, "peak_l_min": b.peak_l_min()},
-              "new": {"machine": new.machine.name, "total_nl": n.total_nl,
-                      "mean_l_min": n.mean_l_min, "peak_l_min": n.peak_l_min()},
-              "horizon_s": horizon_s, "delta_nl": delta, "delta_pct": delta_pct,
-              "max_increase": args.max_increase, "allowed_increase_nl": allowed_nl,
-              "within_allowance": ok, "consumers": rows}
-    if args.json:
-        print(json.dumps(result, indent=2))
-        return 0 if ok else 1
-    w = max(8, max(len(r["consumer"]) for r in rows))
-    print(f"air use over {horizon_s:g} s: base {base.machine.name}, new {new.machine.name}")
-    print(f"{'consumer':<{w}}  {'base NL':>10}  {'new NL':>10}  {'delta NL':>10}  {'delta':>8}")
-    print("-" * (w + 46))
-    for r in rows:
-        pct = "" if r["delta_pct"] is None else f"{r['delta_pct']:+.1f} %"
-        note = f"  (only in {r['only_in']})" if r["only_in"] else ""
-        print(f"{r['consumer']:<{w}}  {r['base_nl']:>10.2f}  {r['new_nl']:>10.2f}  "
-              f"{r['delta_nl']:>+10.2f}  {pct:>8}{note}")
-    print("-" * (w + 46))
-    print(f"{'total':<{w}}  {b.total_nl:>10.2f}  {n.total_nl:>10.2f}  {delta:>+10.2f}  "
-          f"{delta_pct:>+7.1f} %")
-    print(f"{verdict}: new uses {delta:+.2f} NL ({delta_pct:+.1f} %); allowed "
-          f"+{allowed_nl:.2f} NL ({args.max_increase})")
-    return 0 if ok else 1
+    print(json.dumps(result.to_dict(), indent=2) if args.json else result.table())
+    return 0 if result.within_allowance else 1
 
 
 def cmd_sweep(args) -> int:

@@ -263,3 +263,28 @@ def sizing_html(markdown_text: str, images: dict) -> str:
     flush()
     out.append("</body></html>")
     return "\n".join(out)
+
+
+def write_sizing_report(result, sizing, out_dir) -> list[Path]:
+    """``sizing.json``, ``sizing.md``, ``sizing.html`` (plots embedded) and the two plots
+    they show, for a :class:`~plcpred.air.Prediction` and its
+    :class:`~plcpred.air.sizing.Sizing`."""
+    import json
+
+    from .sequencer.timeline import atomic_write_text
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    name = result.machine.name
+    data = {"machine": name, **sizing.to_dict(),
+            "consumers": result.profile.summary()["consumers"]}
+    atomic_write_text(out / "sizing.json", json.dumps(data, indent=2) + "\n")
+    plot_sizing(result.profile, sizing, out / "sizing.png",
+                title=f"{name}: demand and compressor design flow")
+    plot_demand(result.profile, out / "demand.png", title=f"{name}: air demand")
+    md = sizing_markdown(name, sizing, result.profile)
+    atomic_write_text(out / "sizing.md", md)
+    images = {p: (out / p).read_bytes() for p in ("sizing.png", "demand.png")}
+    atomic_write_text(out / "sizing.html", sizing_html(md, images))
+    return [out / "sizing.json", out / "sizing.md", out / "sizing.html", out / "sizing.png",
+            out / "demand.png"]

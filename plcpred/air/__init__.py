@@ -4,6 +4,8 @@
 * :mod:`~plcpred.air.volumes` - D1 free-air volumes per stroke
 * :mod:`~plcpred.air.demand` - edges to a :class:`DemandProfile` on a time grid
 * :func:`predict` - machine file to timeline, demand profile and files
+* :func:`~plcpred.air.sizing.size` - compressor and receiver sizing of a profile
+* :func:`~plcpred.air.compare.compare` - two predictions against an allowed increase
 """
 from .demand import (ConsumerModel, DemandProfile, activation_matrix, consumer_models,
                      demand_profile)
