@@ -432,8 +432,13 @@ class Compiler:
         if t.cat == "stdfb":
             return f"{code}.key(rel)"
         if t.cat == "array":
-            if isinstance(t.elem, (Elem, EnumT)) and len(t.dims) == 1:
-                return f"tuple({code})"
+            if len(t.dims) == 1:
+                if isinstance(t.elem, (Elem, EnumT)):
+                    return f"tuple({code})"
+                if t.elem.cat in ("fb", "struct"):
+                    return f"tuple([x._snap(rel) for x in {code}])"
+                if t.elem.cat == "stdfb":
+                    return f"tuple([x.key(rel) for x in {code}])"
             return f"_snap_any({code}, rel)"
         if t.cat in ("ptr", "itf"):
             return f"_refkey({code})"
@@ -924,7 +929,9 @@ class Compiler:
                     raise _err(ie, f"index {ie.value} outside [{lo}..{hi}]")
                 idx_codes.append(str(ie.value - lo))
             else:
-                idx_codes.append(f"_chkidx({ic}, {lo}, {hi}, {_describe(node.base)!r})")
+                ix = self.src.temp("ix")
+                idx_codes.append(f"(({ix} - {lo}) if {lo} <= ({ix} := {ic}) <= {hi} else "
+                                 f"_chkidx({ix}, {lo}, {hi}, {_describe(node.base)!r}))")
         for ic in idx_codes[:-1]:
             code = f"{code}[{ic}]"
         n = len(node.indices)

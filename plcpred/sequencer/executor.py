@@ -35,7 +35,7 @@ from .stdfb import TON, TOF, TP, TONR, make_standard_fb
 from .timeline import NS, Signal, Timeline
 
 _TIMERS = (TON, TOF, TP, TONR)
-MAX_KEYS = 200_000
+MAX_KEYS = 20_000   # fixed points remembered when looking for a repeating state
 
 
 class SequencerError(Exception):
@@ -65,7 +65,15 @@ class BitView:
         setattr(self.obj, self.attr, x | self.mask if on else x & ~self.mask)
 
 
+_SCALARS = (bool, int, float, str)
+
+
 def _copy(v):
+    """Value semantics for arrays, structs and FB instances on assignment."""
+    if isinstance(v, list):
+        if not v or isinstance(v[0], _SCALARS):
+            return v[:]
+        return [_copy(x) for x in v]
     import copy
     return copy.deepcopy(v)
 

@@ -11,6 +11,8 @@ ed.2 body it does not report a falling edge on its first call with CLK FALSE.
 """
 from __future__ import annotations
 
+from operator import attrgetter
+
 
 class StandardFB:
     INPUTS: tuple[str, ...] = ()
@@ -24,9 +26,15 @@ class StandardFB:
         """Absolute time at which an output changes on its own, or None."""
         return None
 
+    def __init_subclass__(cls, **kw):
+        super().__init_subclass__(**kw)
+        if cls.__slots__:
+            getter = attrgetter(*cls.__slots__)
+            cls._state = getter if len(cls.__slots__) > 1 else (lambda self: (getter(self),))
+
     def state(self) -> tuple:
         """Everything that determines future behaviour (for detecting a repeating state)."""
-        return tuple(getattr(self, s) for s in self.__slots__)
+        return self._state(self)
 
     def et_origin(self) -> int | None:
         """While ET grows with time: the instant it was 0 (so ET = now - origin), else
