@@ -13,7 +13,7 @@ import pytest
 from plcpred.air import activation_matrix, consumer_models, default_dt, demand_profile
 from plcpred.air.demand import ConsumerModel, valve_transitions
 from plcpred.air.flow import (P0_PA, P_ATM_PA, flow_nl_min, orifice_conductance, phi)
-from plcpred.air.volumes import consumer_stroke_volumes_nl, swept_areas_mm2
+from plcpred.air.volumes import consumer_stroke_volumes_nl
 from plcpred.machine import Consumer, load_machine
 from plcpred.sequencer.timeline import Signal, Timeline
 

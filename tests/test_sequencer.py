@@ -12,7 +12,7 @@ import pytest
 
 from plcpred import unfold
 from plcpred.machine import Consumer, InputSchedule, Machine, load_machine
-from plcpred.parser import load_program, parse_st
+from plcpred.parser import parse_st
 from plcpred.sequencer import Sequencer, parse_horizon
 
 SAMPLES = Path(__file__).resolve().parent.parent / "samples"

@@ -117,6 +117,7 @@ class Compiler:
         self.address_slots: dict[str, str] = {}  # undeclared direct address -> global
         self.addr_names: dict[str, str] = {}
         self._et_classes: set = set()
+        self._pending_sfc: list = []   # (line, pos) of SFC specs, emitted after the classes
         self.intervals: dict[str, int] = {}
         self.et_thresholds: set = set()  # constants timers' ET is compared with (ns)
         self._et_const = False
@@ -138,8 +139,6 @@ class Compiler:
             self.globals[d.name.upper()] = (d.name, self.types.resolve(d.type, d.pos), d)
         fbs = [self.types.fb(p.name.upper()) for p in self.program.pous
                if p.kind in ("FUNCTION_BLOCK", "PROGRAM")]
-        for s in list(self.types.structs):
-            pass
         # structs first (FB classes may instantiate them), then FBs base-first
         gscope = Scope(names={k: (f"_g.{k}", t) for k, (n, t, d) in self.globals.items()})
         self._globals_class(gdecls, gscope)
@@ -150,6 +149,9 @@ class Compiler:
             self._struct_class(s)
         for f in self.functions.values():
             self._function(f)
+        # SFC specs name methods of the classes above, so they come after them
+        for text, pos in self._pending_sfc:
+            e(0, text, pos)
         programs = self._program_instances()
         e(0, "def _build():")
         e(1, "global _g")
@@ -501,7 +503,6 @@ class Compiler:
                 else:
                     tfn = "None"
                 assocs[key].append(f"({si}, {q!r}, {tfn})")
-        self._pending_sfc = getattr(self, "_pending_sfc", [])
         lines = [(l, p) for l, p in out]
         lines.append((f"{name} = _SfcSpec({[s.name for s in sfc.steps]!r}, "
                       f"{next(i for i, s in enumerate(sfc.steps) if s.initial)}, "
@@ -510,7 +511,7 @@ class Compiler:
             lines.append((f"_a = {spec}", None))
             lines.append((f"_a.assocs.extend([{', '.join(assocs[key])}])", None))
             lines.append((f"{name}.actions.append(_a)", None))
-        self._pending_sfc.append(lines)
+        self._pending_sfc.extend(lines)
         return name
 
     def _collect_step_t(self, e, scope, thresholds, t_read):
@@ -669,8 +670,6 @@ class Compiler:
         if isinstance(t, StructT):
             return f"{t.cls_name}()"
         if isinstance(t, FbT):
-            if t.pou.kind == "PROGRAM" and decl is not None:
-                pass
             return f"{t.cls_name}()"
         if isinstance(t, StdFbT):
             return f"_stdfb({t.name!r})"
@@ -964,8 +963,6 @@ class Compiler:
         if isinstance(f, ir.Name) and f.name.upper() in scope.pylocals and \
                 scope.names[f.name.upper()][1].cat not in ("fb", "stdfb", "ptr", "itf"):
             return None
-        if isinstance(f, ir.Member) and not isinstance(f.base, ir.Name):
-            pass
         try:
             code, t = self._expr(f, scope, callee=True)
         except CompileError:
@@ -1763,20 +1760,4 @@ def _describe(e) -> str:
 def compile_program(program: ir.Program) -> Compiled:
     """Compile a parsed project. Raises :class:`CompileError` (positioned) for constructs
     the executor cannot run."""
-    c = Compiler(program)
-    compiled = c.compile()
-    # SFC specs refer to methods of the classes, so they go after them
-    extra = []
-    for lines in getattr(c, "_pending_sfc", []):
-        for text, pos in lines:
-            extra.append((text, pos))
-    if extra:
-        build = compiled.source.rstrip("\n").split("\n")
-        # insert before _build
-        idx = next(i for i, l in enumerate(build) if l.startswith("def _build():"))
-        pos_list = list(compiled.line_pos)
-        build[idx:idx] = [t for t, _ in extra]
-        pos_list[idx:idx] = [p for _, p in extra]
-        compiled.source = "\n".join(build) + "\n"
-        compiled.line_pos = pos_list
-    return compiled
+    return Compiler(program).compile()

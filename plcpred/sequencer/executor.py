@@ -19,13 +19,11 @@ that never repeat simply keep the executor running scan by scan to the horizon.
 """
 from __future__ import annotations
 
-import sys
 import time as _time
 
 import numpy as np
 
 from ..parser import ir
-from ..parser.errors import ProgramError
 from . import runtime as rtm
 from . import types
 from .compiler import Compiled, compile_program
@@ -500,8 +498,8 @@ class Sequencer:
         return hit
 
     # ------------------------------------------------------------------ run
-    def run(self, horizon_ns: int, scan_stepping: bool = False, tiling: bool = True,
-            progress=None) -> Timeline:
+    def run(self, horizon_ns: int, scan_stepping: bool = False,
+            tiling: bool = True) -> Timeline:
         """Unfold the program over ``[0, horizon_ns]`` and return the timeline."""
         wall0 = _time.perf_counter()
         inst = ProgramInstance(self.program, self.compiled)
@@ -509,13 +507,11 @@ class Sequencer:
         machine = self.machine
         scan = self.scan_ns
         schedules, cylinders = [], []
-        scheduled = {}
         if machine is not None:
             for spec in machine.inputs:
                 obj, attr, t = self._locate(inst, spec.signal)
                 sch = Schedule(spec, horizon_ns)
                 schedules.append((sch, obj, attr))
-                scheduled[(id(obj), attr)] = sch
             for cons in machine.consumers:
                 if not cons.is_cylinder or not cons.switches:
                     continue
