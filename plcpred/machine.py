@@ -398,9 +398,9 @@ def check_against_program(machine: Machine, program) -> list[str]:
                                             f"{program_file}")
         return name.upper()
 
-    from .sequencer.compiler import _member_names
+    from .sequencer.compiler import names_in
     from .parser import ir
-    used_addresses = {a.upper() for a in _member_names(program, ir.DirectAddress, "address")}
+    used_addresses = {a.upper() for a in names_in(program, ir.DirectAddress, "address")}
     names |= used_addresses
     read = set(read) | used_addresses
     driven = set()

@@ -104,7 +104,6 @@ class Compiler:
     def __init__(self, program: ir.Program):
         self.program = program
         self.types = ty.TypeTable(program)
-        self.types.constants = {}
         self.src = Source()
         self.reads_et = False
         self.reads_clock = False
@@ -121,7 +120,7 @@ class Compiler:
         self.intervals: dict[str, int] = {}
         self.et_thresholds: set = set()  # constants timers' ET is compared with (ns)
         self._et_const = False
-        self._member_names = _member_names(program)
+        self._member_names = names_in(program)
 
     # ================================================================== project
     def compile(self) -> Compiled:
@@ -209,7 +208,7 @@ class Compiler:
                 if d.address and "*" not in d.address:
                     declared.setdefault(d.address.upper(), d.name)
         self.addr_names = declared
-        used = sorted(_member_names(self.program, ir.DirectAddress, "address") - set(declared))
+        used = sorted(names_in(self.program, ir.DirectAddress, "address") - set(declared))
         decls = []
         for addr in used:
             attr = "AT_" + re.sub(r"[^A-Z0-9]", "_", addr[1:])
@@ -395,7 +394,7 @@ class Compiler:
             return set()
         flow = _Flow({k for k, f in self.functions.items()
                       if any(b.kind == "VAR_EXTERNAL" for b in f.var_blocks)
-                      or _member_names(f.body, ir.Name, "name") & set(self.globals)}, std,
+                      or names_in(f.body, ir.Name, "name") & set(self.globals)}, std,
                      self._et_compare)
         bodies = []
         if pou.is_sfc:
@@ -1516,8 +1515,9 @@ class Compiler:
 
 # ---------------------------------------------------------------------- helpers
 
-def _member_names(program, cls=ir.Member, attr="member") -> set:
-    """Every ``x.member`` name used in the project (or, with ``cls=ir.Name``, every name)."""
+def names_in(program, cls=ir.Member, attr="member") -> set:
+    """Every ``x.member`` name used in a project or IR subtree, upper case (with ``cls``
+    and ``attr``: every ``Name.name``, every ``DirectAddress.address``, ...)."""
     names = set()
 
     def walk(x):

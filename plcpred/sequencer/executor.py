@@ -265,7 +265,7 @@ class ProgramInstance:
                 if d is not None:
                     return prog, sub, self.compiled.types.resolve(d.type, d.pos)
             d = fbt.var(key)
-            if d is not None and not any(b.kind == "VAR_EXTERNAL" and d in b.decls
+            if d is not None and not any(b.kind == "VAR_EXTERNAL" and any(d is x for x in b.decls)
                                          for t in fbt.chain() for b in t.pou.var_blocks):
                 hits.append((prog, key, self.compiled.types.resolve(d.type, d.pos)))
         if key in self.compiled.globals_types:

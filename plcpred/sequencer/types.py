@@ -200,6 +200,7 @@ class TypeTable:
         self.structs: list[StructT] = []
         self.fbs: dict[str, FbT] = {}
         self.enum_values: dict[str, list[tuple[EnumT, int]]] = {}
+        self.constants: dict[str, int] = {}  # integer constants for array bounds
 
     def named(self, name: str, pos=None):
         up = name.upper()
@@ -271,7 +272,7 @@ class TypeTable:
             a, b = self.const_int(e.left), self.const_int(e.right)
             return a + b if e.op == "+" else a - b if e.op == "-" else a * b
         if isinstance(e, ir.Name):
-            c = self.constants.get(e.name.upper()) if hasattr(self, "constants") else None
+            c = self.constants.get(e.name.upper())
             if c is not None:
                 return c
         raise at(getattr(e, "pos", None), "expected a constant integer here")
