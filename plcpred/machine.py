@@ -28,6 +28,9 @@ class MachineError(Exception):
     def __str__(self) -> str:
         return f"{self.file}: {self.where + ': ' if self.where else ''}{self.message}"
 
+    def __reduce__(self):  # survives the trip back from a sweep's worker process
+        return (type(self), (self.file, self.where, self.message))
+
 
 @dataclass
 class InputSchedule:

@@ -76,3 +76,16 @@ def test_cli_sweep_is_quiet_off_a_terminal_and_writes_csv(tmp_path):
                         "supply_bar_g=3", "--horizon", "10s", "--engine", "dask"],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "--scheduler" in r.stderr
+
+
+def test_errors_survive_the_trip_from_a_worker_process():
+    import pickle
+
+    from plcpred.machine import MachineError
+    from plcpred.parser import ProgramError
+    from plcpred.sequencer import CompileError, ExecutionError, Watchdog
+    for e in (MachineError("m.toml", 'consumer "c"', "bad"), ProgramError("x", "p.st", 3, 4),
+              CompileError("y", "p.st", 5, 6), ExecutionError("z", "p.st", 7, 8),
+              Watchdog("w", "p.st", 9, 1)):
+        back = pickle.loads(pickle.dumps(e))
+        assert type(back) is type(e) and str(back) == str(e)

@@ -15,6 +15,9 @@ class ProgramError(Exception):
     def __str__(self) -> str:
         return f"{self.file}:{self.line}:{self.col}: {self.message}"
 
+    def __reduce__(self):  # survives the trip back from a sweep's worker process
+        return (type(self), (self.message, self.file, self.line, self.col))
+
 
 class ProgramWarning(ProgramError):
     """Not fatal: reported with ``warning:`` in front of the message."""

@@ -24,6 +24,9 @@ class ExecutionError(Exception):
         where = f"{self.file}:{self.line}:{self.col}: " if self.file else ""
         return f"{where}{self.message}"
 
+    def __reduce__(self):  # survives the trip back from a sweep's worker process
+        return (type(self), (self.message, self.file, self.line, self.col))
+
 
 class Watchdog(ExecutionError):
     pass
