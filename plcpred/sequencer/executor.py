@@ -289,7 +289,8 @@ class Schedule:
             n = int((horizon_ns - spec.offset_s * NS) // period_ns) + 2
             starts = spec.offset_s * NS + np.arange(max(n, 0)) * period_ns
             if spec.jitter_s > 0:
-                rng = np.random.default_rng(spec.seed)
+                # uniform in +-jitter_s; without a seed, seed 0, so runs repeat exactly
+                rng = np.random.default_rng(spec.seed if spec.seed is not None else 0)
                 starts = starts + rng.uniform(-spec.jitter_s, spec.jitter_s, len(starts)) * NS
             starts = np.maximum(np.round(starts), 0).astype(np.int64)
             self.period_ns = period_ns
