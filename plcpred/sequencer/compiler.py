@@ -43,6 +43,21 @@ _STDFB_MEMBERS = {"IN": ty.BOOL, "PT": ty.TIME, "Q": ty.BOOL, "ET": ty.TIME, "CL
                   "CU": ty.BOOL, "CD": ty.BOOL, "LD": ty.BOOL, "PV": ty.DINT, "CV": ty.DINT,
                   "QU": ty.BOOL, "QD": ty.BOOL, "RESET": ty.BOOL}
 _CMP = {"=": "==", "<>": "!=", "<": "<", ">": ">", "<=": "<=", ">=": ">="}
+# (target category, value category) -> how to store the value (assignment conversions)
+_CONVERSIONS = {
+    ("bool", "bool"): "{code}", ("bool", "int"): "({code} != 0)",
+    ("bool", "real"): "({code} != 0)",
+    ("int", "bool"): "int({code})",
+    ("int", "real"): "_to_int({code}, {bits}, {signed}, 'real')",
+    ("int", "time"): "_to_int({code}, {bits}, {signed}, 'time')",
+    ("int", "date"): "_to_int({code}, {bits}, {signed}, 'time')",
+    ("real", "real"): "{code}", ("real", "int"): "float({code})",
+    ("real", "bool"): "float({code})", ("real", "time"): "_to_real({code}, 'time')",
+    ("time", "time"): "{code}", ("time", "date"): "{code}",
+    ("date", "time"): "{code}", ("date", "date"): "{code}",
+    ("time", "int"): "_to_time({code}, 'int')", ("date", "int"): "_to_time({code}, 'int')",
+    ("time", "real"): "_to_time({code}, 'real')", ("date", "real"): "_to_time({code}, 'real')",
+}
 _PLAIN = re.compile(r"[A-Za-z_][\w.]*")  # a variable read: already in range, no wrap
 _CONV = re.compile(r"^(?:([A-Z_]+?)_)?TO_([A-Z_]+)$")
 
@@ -1463,54 +1478,26 @@ class Compiler:
             return code
         if _is_object_t(tt):
             return f"_copy({code})" if copy and _is_object_t(vt) else code
-        if tt.cat == "ptr":
+        if tt.cat == "ptr" or isinstance(tt, EnumT):
             return code
         vc = vt.cat
-        if tt.cat == "bool":
-            if vc == "bool":
+        if tt.cat == "int" and vc == "int":
+            if (isinstance(vt, Elem) and vt.name == tt.name and _PLAIN.fullmatch(code)) \
+                    or _literal_fits(code, tt):
                 return code
-            if vc in ("int", "real"):
-                return f"({code} != 0)"
-            raise _err(node, f"cannot use a {getattr(vt, 'name', vc)} value as BOOL")
-        if tt.cat == "int":
-            if isinstance(tt, EnumT):
-                return code
-            if vc == "int":
-                if (isinstance(vt, Elem) and vt.name == tt.name and _PLAIN.fullmatch(code)) \
-                        or _literal_fits(code, tt):
-                    return code
-                return _wrap_code(code, tt)
-            if vc == "bool":
-                return f"int({code})"
-            if vc == "real":
-                return f"_to_int({code}, {tt.bits}, {tt.signed}, 'real')"
-            if vc in ("time", "date"):
-                return f"_to_int({code}, {tt.bits}, {tt.signed}, 'time')"
-            raise _err(node, f"cannot store a {getattr(vt, 'name', vc)} value in "
-                             f"{tt.name}")
-        if tt.cat == "real":
-            if vc == "real":
-                return code
-            if vc in ("int", "bool"):
-                return f"float({code})"
-            if vc == "time":
-                return f"_to_real({code}, 'time')"
-            raise _err(node, f"cannot store a {getattr(vt, 'name', vc)} value in "
-                             f"{tt.name}")
-        if tt.cat in ("time", "date"):
-            if vc in ("time", "date"):
-                return code
-            if vc == "int":
-                return f"_to_time({code}, 'int')"
-            if vc == "real":
-                return f"_to_time({code}, 'real')"
-            raise _err(node, f"cannot store a {getattr(vt, 'name', vc)} value in "
-                             f"{tt.name}")
+            return _wrap_code(code, tt)
         if tt.cat == "string":
-            if vc == "string":
-                return code
-            return f"_to_string({code}, {vc!r})"
-        return code
+            return code if vc == "string" else f"_to_string({code}, {vc!r})"
+        if tt.cat not in ("bool", "int", "real", "time", "date"):
+            return code
+        template = _CONVERSIONS.get((tt.cat, vc))
+        if template is None:
+            name = getattr(vt, "name", vc)
+            if tt.cat == "bool":
+                raise _err(node, f"cannot use a {name} value as BOOL")
+            raise _err(node, f"cannot store a {name} value in {tt.name}")
+        return template.format(code=code, bits=getattr(tt, "bits", 0),
+                               signed=getattr(tt, "signed", True))
 
 
 # ---------------------------------------------------------------------- helpers
