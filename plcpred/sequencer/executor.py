@@ -33,6 +33,7 @@ from .stdfb import TON, TOF, TP, TONR, make_standard_fb
 from .timeline import NS, Signal, Timeline
 
 _TIMERS = (TON, TOF, TP, TONR)
+NEVER = 1 << 62      # "no event" in integer nanoseconds
 MAX_KEYS = 20_000   # fixed points remembered when looking for a repeating state
 
 
@@ -379,12 +380,12 @@ class Cylinder:
         self._values = plant.switches(t_ns)
         self._from = t_ns
         nxt = plant.next_event_ns(t_ns)
-        self._until = nxt if nxt is not None else 1 << 62
+        self._until = nxt if nxt is not None else NEVER
         return self._values
 
     def next_event_ns(self, t_ns: int):
         self.read(t_ns)
-        return self._until if self._until < 1 << 62 else None
+        return self._until if self._until < NEVER else None
 
 
 # ---------------------------------------------------------------------- the executor
@@ -539,11 +540,11 @@ class Sequencer:
         def drive_inputs(t):
             """Input values at ``t`` and the first time any of them can change."""
             drive.clear()
-            nxt = None
+            nxt = NEVER
             for sch, obj, attr in schedules:
                 drive.append((obj, attr, sch.advance(t)))
                 e = sch.next_ns()
-                if e is not None and (nxt is None or e < nxt):
+                if e is not None and e < nxt:
                     nxt = e
             for cyl in cylinders:
                 r, e = cyl.driven = cyl.read(t)
@@ -551,9 +552,8 @@ class Sequencer:
                     drive.append((*cyl.switches["retracted"], r))
                 if "extended" in cyl.switches:
                     drive.append((*cyl.switches["extended"], e))
-                if cyl._until < (nxt if nxt is not None else 1 << 62):
-                    nxt = cyl._until
-            return nxt if nxt is not None else 1 << 62
+                nxt = min(nxt, cyl._until)
+            return nxt
 
         signals = ([Signal(n, "input", t.cat) for n, _, _, t in ins]
                    + [Signal(n, "step", "bool") for n, _, _ in steps]
@@ -561,16 +561,15 @@ class Sequencer:
         values_now = _value_getter([(o, a) for _, o, a, _ in ins]
                                    + [(sfc, i) for _, sfc, i in steps]
                                    + [(o, a) for _, o, a, _ in outs])
-        last = [None] * len(signals)
         tt, ss, vv = [], [], []
 
-        def record(t, values):
-            for k, (v, was) in enumerate(zip(values, last)):
-                if v != was or was is None:
+        def record(t, values, before):
+            """The signals that changed since ``before`` (all of them at the first scan)."""
+            for k, v in enumerate(values):
+                if before is None or v != before[k]:
                     tt.append(t)
                     ss.append(k)
                     vv.append(v)
-            last[:] = values
 
         timers = inst.timers
         sfcs = inst.sfcs
@@ -607,7 +606,7 @@ class Sequencer:
                             next_input = cyl._until
                 values = values_now()
                 if values != prev_values:
-                    record(t, values)
+                    record(t, values, prev_values)
                     prev_values = values
                 if always_step:
                     t += scan
@@ -623,7 +622,7 @@ class Sequencer:
                 # edge (schedules, switches), a timer, a step time threshold
                 if next_input <= t:
                     next_input = drive_inputs(t)
-                nxt = next_input if next_input < 1 << 62 else None
+                nxt = next_input if next_input < NEVER else None
                 # a timer whose PT lies in the past was not called since: it cannot
                 # change until some other event makes the program call it again
                 running = False
