@@ -81,15 +81,17 @@ def consumer_models(machine) -> list[ConsumerModel]:
 
 # ---------------------------------------------------------------------- edges
 
-def _signal(timeline, name: str, signal_map: dict):
-    key = signal_map.get(name, name)
-    return timeline.edge_times_ns(key)
+def _signal(timeline, name: str, signal_map: dict | None):
+    """Edges of a machine file's signal: the timeline may know it by another name (an
+    address resolved to its variable), recorded in ``timeline.info``."""
+    if signal_map is None:
+        signal_map = timeline.info.get("machine_signals", {})
+    return timeline.edge_times_ns(signal_map.get(name, name))
 
 
 def valve_transitions(timeline, model: ConsumerModel, signal_map=None):
     """(times_ns, extend) of the changes of a valve's effective command: ``extend`` is
     True for a change to extend. Starts from the cylinder's initial position."""
-    signal_map = signal_map or timeline.info.get("machine_signals", {})
     init = model.initial_extended
     if len(model.valve) == 1:
         t, v = _signal(timeline, model.valve[0], signal_map)
@@ -117,7 +119,6 @@ def valve_transitions(timeline, model: ConsumerModel, signal_map=None):
 def passive_intervals(timeline, model: ConsumerModel, signal_map=None):
     """(start_ns, end_ns) arrays of the periods a passive consumer's output is on (the
     last may end at the horizon)."""
-    signal_map = signal_map or timeline.info.get("machine_signals", {})
     t, v = _signal(timeline, model.valve[0], signal_map)
     on = v != 0
     prev = np.concatenate([[False], on[:-1]])
@@ -346,8 +347,7 @@ def activation_matrix(timeline, models: list[ConsumerModel], dt_s: float, signal
             states = np.concatenate([[m.initial_extended], ext]).astype(float)
             A0[i] = float(m.initial_extended)
         else:
-            s = signal_map or timeline.info.get("machine_signals", {})
-            t, v = _signal(timeline, m.valve[0], s)
+            t, v = _signal(timeline, m.valve[0], signal_map)
             states = np.concatenate([[0.0], (v != 0).astype(float)])
         k = np.searchsorted(t, ends_ns, side="left")   # edges strictly before the cell end
         A[i] = states[k]
