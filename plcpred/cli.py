@@ -66,6 +66,20 @@ def cmd_check(args) -> int:
     return 1 if failed else 0
 
 
+def _durations(args) -> tuple[float, float | None]:
+    """(horizon in s, grid step in s or None) from --horizon and --dt."""
+    from .sequencer import parse_horizon
+
+    horizon_s = parse_horizon(args.horizon) / 1e9
+    dt = getattr(args, "dt", None)
+    if not dt:
+        return horizon_s, None
+    try:
+        return horizon_s, parse_horizon(dt) / 1e9
+    except ValueError:
+        raise ValueError(f"--dt: cannot read {dt!r}: write e.g. 10ms, 0.5s or 1s") from None
+
+
 def _fail(message: str) -> int:
     print(f"plcpred: error: {message}", file=sys.stderr)
     return 2
@@ -74,20 +88,18 @@ def _fail(message: str) -> int:
 def cmd_timeline(args) -> int:
     from pathlib import Path
 
-    from .machine import MachineError, load_machine
-    from .parser import ProgramError
-    from .sequencer import (CompileError, ExecutionError, SequencerError, parse_horizon,
-                            unfold)
+    from .machine import load_machine
+    from .sequencer import unfold
 
     try:
-        horizon_ns = parse_horizon(args.horizon)
+        horizon_s, _ = _durations(args)
     except ValueError as e:
         return _fail(str(e))
     try:
         machine = load_machine(args.machine)
-        tl = unfold(machine, horizon_ns / 1e9, scan_stepping=args.scan_stepping,
+        tl = unfold(machine, horizon_s, scan_stepping=args.scan_stepping,
                     program=args.program)
-    except (MachineError, SequencerError, ProgramError, CompileError, ExecutionError) as e:
+    except _model_errors() as e:
         print(e, file=sys.stderr)
         return 1
     for w in machine.warnings:
@@ -109,21 +121,18 @@ def cmd_timeline(args) -> int:
 
 def cmd_predict(args) -> int:
     from .air import predict
-    from .machine import MachineError, load_machine
-    from .parser import ProgramError
+    from .machine import load_machine
     from .report import consumer_table
-    from .sequencer import (CompileError, ExecutionError, SequencerError, parse_horizon)
 
     try:
-        horizon_ns = parse_horizon(args.horizon)
-        dt_s = parse_horizon(args.dt) / 1e9 if args.dt else None
+        horizon_s, dt_s = _durations(args)
     except ValueError as e:
-        return _fail(str(e).replace("horizon", "duration") if args.dt else str(e))
+        return _fail(str(e))
     try:
         machine = load_machine(args.machine)
-        result = predict(machine, horizon_ns / 1e9, dt=dt_s, program=args.program)
+        result = predict(machine, horizon_s, dt=dt_s, program=args.program)
         result.write(args.out, plot=not args.no_plot)
-    except (MachineError, SequencerError, ProgramError, CompileError, ExecutionError) as e:
+    except _model_errors() as e:
         print(e, file=sys.stderr)
         return 1
     for w in machine.warnings:
@@ -175,8 +184,7 @@ def cmd_size(args) -> int:
     from .sequencer import parse_horizon
 
     try:
-        horizon_s = parse_horizon(args.horizon) / 1e9
-        dt_s = parse_horizon(args.dt) / 1e9 if args.dt else None
+        horizon_s, dt_s = _durations(args)
         allowance, band = _fraction(args.allowance), _bar(args.band)
         idle_after = parse_horizon(args.idle_after) / 1e9 if args.idle_after else 0.0
     except ValueError as e:
@@ -208,11 +216,9 @@ def cmd_compare(args) -> int:
     import json
 
     from .air.compare import compare, parse_allowance
-    from .sequencer import parse_horizon
 
     try:
-        horizon_s = parse_horizon(args.horizon) / 1e9
-        dt_s = parse_horizon(args.dt) / 1e9 if args.dt else None
+        horizon_s, dt_s = _durations(args)
         parse_allowance(args.max_increase)
     except ValueError as e:
         print(f"plcpred: error: {e}", file=sys.stderr)
@@ -235,13 +241,11 @@ def cmd_sweep(args) -> int:
     import io
     from pathlib import Path
 
-    from .sequencer import parse_horizon
     from .sequencer.timeline import atomic_write_text
     from .sweep import SweepError, parse_setting, sweep
 
     try:
-        horizon_s = parse_horizon(args.horizon) / 1e9
-        dt_s = parse_horizon(args.dt) / 1e9 if args.dt else None
+        horizon_s, dt_s = _durations(args)
         settings = [parse_setting(t) for t in args.set]
         rows = sweep(args.machine, settings, horizon_s, dt_s, engine=args.engine,
                      scheduler=args.scheduler, workers=args.workers, program=args.program)
