@@ -11,19 +11,34 @@ import numpy as np
 MAX_POINTS = 3000
 
 
-def _binned(profile, max_points=MAX_POINTS):
-    """Per-consumer flows averaged into at most ``max_points`` bins (a day at 10 ms would
-    otherwise be 8.6 million points per layer)."""
-    flows = profile.flow_l_min
-    n = flows.shape[1]
-    k = max(1, int(np.ceil(n / max_points)))
+def _bin_width(n: int) -> int:
+    """Cells per plotted point, so a plot has at most MAX_POINTS of them (a day at 10 ms
+    would otherwise be 8.6 million points per layer)."""
+    return max(1, int(np.ceil(n / MAX_POINTS)))
+
+
+def _bins(values, k: int, reduce=np.mean):
+    """``values`` reduced over groups of ``k`` cells along the last axis (the last group
+    may be shorter)."""
+    values = np.asarray(values)
+    n = values.shape[-1]
     m = n // k * k
-    if k > 1 and m:
-        head = flows[:, :m].reshape(flows.shape[0], -1, k).mean(axis=2)
-        tail = flows[:, m:].mean(axis=1, keepdims=True) if m < n else None
-        flows = head if tail is None else np.concatenate([head, tail], axis=1)
-    t = np.arange(flows.shape[1]) * profile.dt_s * k
-    return t, flows, k
+    if k == 1 or not m:
+        return values
+    head = reduce(values[..., :m].reshape(*values.shape[:-1], -1, k), axis=-1)
+    if m == n:
+        return head
+    tail = reduce(values[..., m:], axis=-1)[..., None]
+    return np.concatenate([head, tail], axis=-1)
+
+
+def _time_axis(horizon_s: float) -> tuple[float, str]:
+    """(factor from seconds, unit) for a time axis over ``horizon_s``."""
+    if horizon_s >= 7200:
+        return 1 / 3600, "h"
+    if horizon_s >= 600:
+        return 1 / 60, "min"
+    return 1.0, "s"
 
 
 def plot_demand(profile, path, title="Air demand") -> None:
@@ -33,9 +48,10 @@ def plot_demand(profile, path, title="Air demand") -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    t, flows, k = _binned(profile)
-    scale, unit = (1 / 3600, "h") if profile.horizon_s >= 7200 else (
-        (1 / 60, "min") if profile.horizon_s >= 600 else (1, "s"))
+    k = _bin_width(profile.n_cells)
+    flows = _bins(profile.flow_l_min, k)
+    t = np.arange(flows.shape[1]) * profile.dt_s * k
+    scale, unit = _time_axis(profile.horizon_s)
     fig, ax = plt.subplots(figsize=(11, 5.5), dpi=110)
     order = np.argsort([-v for v in profile.consumer_nl])
     labels = [f"{profile.names[i]} ({profile.consumer_nl[i]:.1f} NL)" for i in order]
@@ -120,19 +136,11 @@ def plot_sizing(profile, sizing, path, title="Sizing") -> None:
 
     total = profile.total_flow_l_min
     _, _, deficit = receiver_deficit(total, profile.dt_s, sizing.design_flow_l_min)
-    n = len(total)
-    k = max(1, int(np.ceil(n / MAX_POINTS)))
-    m = n // k * k
-    t = np.arange(n) * profile.dt_s
-    if k > 1 and m:
-        tb = t[:m:k]
-        mean_b = total[:m].reshape(-1, k).mean(axis=1)
-        max_b = total[:m].reshape(-1, k).max(axis=1)
-        def_b = deficit[:m].reshape(-1, k).max(axis=1)
-    else:
-        tb, mean_b, max_b, def_b = t, total, total, deficit
-    scale, unit = (1 / 3600, "h") if profile.horizon_s >= 7200 else (
-        (1 / 60, "min") if profile.horizon_s >= 600 else (1, "s"))
+    k = _bin_width(len(total))
+    mean_b, max_b = _bins(total, k), _bins(total, k, np.max)
+    def_b = _bins(deficit, k, np.max)
+    tb = np.arange(len(mean_b)) * profile.dt_s * k
+    scale, unit = _time_axis(profile.horizon_s)
     fig, (ax, ax2) = plt.subplots(2, 1, figsize=(11, 7), dpi=100, sharex=True,
                                   gridspec_kw={"height_ratios": [3, 2]})
     if k > 1:
