@@ -13,6 +13,7 @@ from xml.parsers import expat
 from . import ir
 from .build import make_action_assoc
 from .errors import ProgramError, at
+from .names import validate_names
 from .st import parse_st
 
 ELEMENTARY = {"BOOL", "BYTE", "WORD", "DWORD", "LWORD", "SINT", "INT", "DINT", "LINT",
@@ -476,4 +477,4 @@ class _Importer:
 
 def parse_plcopen(text: str, filename: str = "<input>") -> ir.Program:
     """Import a PLCopen TC6 XML project into the IR."""
-    return _Importer(filename).project(_parse_xml(text, filename))
+    return validate_names(_Importer(filename).project(_parse_xml(text, filename)))

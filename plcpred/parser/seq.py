@@ -55,6 +55,7 @@ from .errors import at
 from .grammar import COMMON, TERMINALS
 from .lexer import KEPT_KEYWORDS, KEYWORDS, Token, Tokenizer
 from .literals import NS_PER_UNIT
+from .names import MAX_NAME_LENGTH, is_identifier, validate_names
 
 SEQ_KEYWORDS = KEYWORDS | {"SEQUENCE", "INPUT", "OUTPUT", "INITIAL", "STEP", "WHEN", "AFTER",
                            "GOTO", "JOIN", "ACTION"}
@@ -217,9 +218,12 @@ def parse_seq(text: str, filename: str = "<input>") -> ir.Program:
     program = ir.Program(pous=[pou])
     program.pragmas = []
     program.source = filename
-    return program
+    return validate_names(program)
 
 
 def _identifier(stem: str) -> str:
-    text = "".join(c if c.isalnum() or c == "_" else "_" for c in stem)
-    return text if text and not text[0].isdigit() else "_" + text
+    text = "".join(c if c.isascii() and (c.isalnum() or c == "_") else "_" for c in stem)
+    text = text[:MAX_NAME_LENGTH - 4]
+    if not is_identifier(text):
+        text = "SEQ_" + text
+    return text

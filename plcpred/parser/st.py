@@ -5,6 +5,7 @@ from . import ir
 from .build import GrammarRunner
 from .grammar import ST_GRAMMAR
 from .lexer import Tokenizer
+from .names import validate_names
 
 _RUNNER = GrammarRunner(ST_GRAMMAR)
 
@@ -17,4 +18,4 @@ def parse_st(text: str, filename: str = "<input>") -> ir.Program:
     program = _RUNNER.parse(tokenizer, filename)
     program.pragmas = [(p, ir.Pos(filename, line, col)) for p, line, col in tokenizer.pragmas]
     program.source = filename
-    return program
+    return validate_names(program)

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 from ..parser import ir
 from ..parser.errors import ProgramError, at
+from ..parser.names import ident, validate_names
 from ..parser.stdlib import STANDARD_FBS, is_standard_function
 from . import types as ty
 from .types import BOOL, STRING, TIME, ArrayT, Elem, EnumT, FbT, ItfT, PtrT, StdFbT, StructT
@@ -117,14 +118,16 @@ class Compiled:
 
 class Compiler:
     def __init__(self, program: ir.Program):
-        self.program = program
+        # the gate to code generation: whatever built this IR (a front end or a library
+        # caller), no name reaches the generated source unless it is an identifier
+        self.program = validate_names(program)
         self.types = ty.TypeTable(program)
         self.src = Source()
         self.reads_et = False
         self.reads_clock = False
         self.globals: dict = {}
-        self.functions = {p.name.upper(): p for p in program.pous if p.kind == "FUNCTION"}
-        self.gvl_names = {g.name.upper() for g in program.globals if g.name}
+        self.functions = {ident(p.name): p for p in program.pous if p.kind == "FUNCTION"}
+        self.gvl_names = {ident(g.name) for g in program.globals if g.name}
         self._jump = None
         self._loop_depth = 0
         self.sinks: dict[str, set] = {}
@@ -150,8 +153,8 @@ class Compiler:
         gdecls = [d for b in gblocks if b.kind == "VAR_GLOBAL" for d in b.decls]
         gdecls += self._address_slots(gblocks)
         for d in gdecls:
-            self.globals[d.name.upper()] = (d.name, self.types.resolve(d.type, d.pos), d)
-        fbs = [self.types.fb(p.name.upper()) for p in self.program.pous
+            self.globals[ident(d.name)] = (d.name, self.types.resolve(d.type, d.pos), d)
+        fbs = [self.types.fb(ident(p.name)) for p in self.program.pous
                if p.kind in ("FUNCTION_BLOCK", "PROGRAM")]
         # structs first (FB classes may instantiate them), then FBs base-first
         gscope = Scope(names={k: (f"_g.{k}", t) for k, (n, t, d) in self.globals.items()})
@@ -184,10 +187,10 @@ class Compiler:
         if x.op not in _CMP:
             return None
         for a, b in ((x.left, x.right), (x.right, x.left)):
-            if isinstance(a, ir.Member) and a.member.upper() == "ET":
+            if isinstance(a, ir.Member) and ident(a.member) == "ET":
                 c = self._const_time(b)
                 if c is None and isinstance(b, ir.Name):
-                    c = self.time_constants.get(b.name.upper())
+                    c = self.time_constants.get(ident(b.name))
                 return c
         return None
 
@@ -201,8 +204,8 @@ class Compiler:
                 for d in b.decls:
                     if (isinstance(d.init, ir.Literal) and d.init.type_name in ("TIME", "LTIME")
                             and isinstance(d.type, ir.NamedType)
-                            and d.type.name.upper() in ("TIME", "LTIME")):
-                        self.time_constants[d.name.upper()] = int(d.init.value)
+                            and ident(d.type.name) in ("TIME", "LTIME")):
+                        self.time_constants[ident(d.name)] = int(d.init.value)
         blocks = [g.block for g in self.program.globals]
         blocks += [b for p in self.program.pous for b in p.var_blocks]
         for b in blocks:
@@ -211,7 +214,7 @@ class Compiler:
             for d in b.decls:
                 if isinstance(d.init, ir.Literal) and isinstance(d.init.value, int) \
                         and not isinstance(d.init.value, bool):
-                    self.types.constants[d.name.upper()] = int(d.init.value)
+                    self.types.constants[ident(d.name)] = int(d.init.value)
 
     def _address_slots(self, gblocks) -> list:
         """Direct addresses used in code (``%IX0.0 := ...``): those declared AT a variable
@@ -224,9 +227,14 @@ class Compiler:
                     declared.setdefault(d.address.upper(), d.name)
         self.addr_names = declared
         used = sorted(names_in(self.program, ir.DirectAddress, "address") - set(declared))
+        taken = names_in([self.program.pous, self.program.configurations,
+                          self.program.globals], ir.VarDecl, "name")
         decls = []
         for addr in used:
-            attr = "AT_" + re.sub(r"[^A-Z0-9]", "_", addr[1:])
+            attr = "AT_" + re.sub(r"[^A-Z0-9]", "_", addr[1:].upper())
+            while attr in taken:  # a user variable already has the name
+                attr = "X" + attr
+            taken.add(attr)
             size = addr[2:3] if len(addr) > 2 and addr[2].isalpha() else "X"
             tname = {"X": "BOOL", "B": "BYTE", "W": "WORD", "D": "DWORD",
                      "L": "LWORD"}.get(size, "BOOL")
@@ -250,13 +258,13 @@ class Compiler:
         self.intervals = {}
         for c in self.program.configurations:
             for r in c.resources:
-                tasks = {t.name.upper(): t for t in r.tasks}
+                tasks = {ident(t.name): t for t in r.tasks}
                 for pi in r.programs:
                     task = tasks.get((pi.task or "").upper())
                     iv = task.params.get("INTERVAL") if task else None
                     if isinstance(iv, ir.Literal) and isinstance(iv.value, int) and iv.value > 0:
                         self.intervals[pi.name] = int(iv.value)
-                    key = pi.type_name.upper()
+                    key = ident(pi.type_name)
                     if key not in self.types.fbs or self.types.fbs[key].pou.kind != "PROGRAM":
                         raise _err(pi, f"PROGRAM instance {pi.name} names '{pi.type_name}', "
                                        "which is not a PROGRAM")
@@ -270,7 +278,7 @@ class Compiler:
         if len(progs) > 1:
             raise _err(progs[1], "several PROGRAMs and no CONFIGURATION saying which to run "
                                  f"({', '.join(p.name for p in progs)})")
-        return [(progs[0].name, self.types.fbs[progs[0].name.upper()].cls_name)]
+        return [(progs[0].name, self.types.fbs[ident(progs[0].name)].cls_name)]
 
     def _file(self) -> str:
         for p in self.program.pous:
@@ -282,15 +290,15 @@ class Compiler:
     def _globals_class(self, decls, scope):
         e = self.src.emit
         e(0, "class k_GLOBALS:")
-        e(1, "__slots__ = (" + "".join(f"'{d.name.upper()}', " for d in decls) + ")")
+        e(1, "__slots__ = (" + "".join(f"'{ident(d.name)}', " for d in decls) + ")")
         e(1, "def __init__(self):")
         e(2, "global _g")
         e(2, "_g = self")
         for d in decls:
-            t = self.globals[d.name.upper()][1]
-            e(2, f"self.{d.name.upper()} = {self._init(t, d.init, scope, d)}", d.pos)
+            t = self.globals[ident(d.name)][1]
+            e(2, f"self.{ident(d.name)} = {self._init(t, d.init, scope, d)}", d.pos)
         e(1, "def _snap(self, rel):")
-        e(2, "return (" + "".join(f"{self._snap_code('self.' + d.name.upper(), self.globals[d.name.upper()][1])}, " for d in decls) + ")")
+        e(2, "return (" + "".join(f"{self._snap_code('self.' + ident(d.name), self.globals[ident(d.name)][1])}, " for d in decls) + ")")
 
     def _struct_class(self, s: StructT):
         e = self.src.emit
@@ -300,8 +308,8 @@ class Compiler:
         e(1, "__slots__ = (" + "".join(f"'{k}', " for k in keys) + ")")
         e(1, "def __init__(self):")
         for d in s.decls:
-            e(2, f"self.{d.name.upper()} = "
-                 f"{self._init(s.members[d.name.upper()], d.init, scope, d)}", d.pos)
+            e(2, f"self.{ident(d.name)} = "
+                 f"{self._init(s.members[ident(d.name)], d.init, scope, d)}", d.pos)
         if not s.decls:
             e(2, "pass")
         e(1, "def _snap(self, rel):")
@@ -313,7 +321,7 @@ class Compiler:
         for t in reversed(list(fb.chain())):
             for b in t.pou.var_blocks:
                 for d in b.decls:
-                    key = d.name.upper()
+                    key = ident(d.name)
                     if b.kind == "VAR_EXTERNAL":
                         if key not in self.globals:
                             raise _err(d, f"VAR_EXTERNAL {d.name} has no VAR_GLOBAL")
@@ -321,7 +329,7 @@ class Compiler:
                     names[key] = (f"self.{key}", self.types.resolve(d.type, d.pos))
         sc = Scope(names=names, fb=fb, cls=fb.cls_name)
         if fb.pou.is_sfc:
-            sc.steps = {s.name.upper(): i for i, s in enumerate(fb.pou.body.steps)}
+            sc.steps = {ident(s.name): i for i, s in enumerate(fb.pou.body.steps)}
         return sc
 
     def _fb_class(self, fb: FbT, done: set):
@@ -336,14 +344,14 @@ class Compiler:
         own = [d for b in pou.var_blocks if b.kind != "VAR_EXTERNAL" for d in b.decls]
         base = fb.base.cls_name if fb.base else "k_FbBase"
         e(0, f"class {fb.cls_name}({base}):", pou.pos)
-        slots = [d.name.upper() for d in own] + (["_sfc"] if pou.is_sfc else [])
+        slots = [ident(d.name) for d in own] + (["_sfc"] if pou.is_sfc else [])
         e(1, "__slots__ = (" + "".join(f"'{k}', " for k in slots) + ")")
         e(1, "def __init__(self):")
         if fb.base:
             e(2, f"{fb.base.cls_name}.__init__(self)")
         for d in own:
-            t = scope.names[d.name.upper()][1]
-            e(2, f"self.{d.name.upper()} = {self._init(t, d.init, scope, d)}", d.pos)
+            t = scope.names[ident(d.name)][1]
+            e(2, f"self.{ident(d.name)} = {self._init(t, d.init, scope, d)}", d.pos)
         if pou.is_sfc:
             e(2, f"self._sfc = _SfcRuntime({self._sfc_spec(fb, scope)}, self)")
             e(2, "_register(self._sfc)")
@@ -352,8 +360,8 @@ class Compiler:
         e(1, "def _body(self):")
         temps = [d for b in pou.var_blocks if b.kind == "VAR_TEMP" for d in b.decls]
         for d in temps:
-            t = scope.names[d.name.upper()][1]
-            e(2, f"self.{d.name.upper()} = {self._init(t, d.init, scope, d)}", d.pos)
+            t = scope.names[ident(d.name)][1]
+            e(2, f"self.{ident(d.name)} = {self._init(t, d.init, scope, d)}", d.pos)
         if pou.is_sfc:
             e(2, "self._sfc.run(_now)")
         else:
@@ -364,19 +372,19 @@ class Compiler:
         for p in pou.properties:
             self._property(p, fb, scope)
         for a in pou.actions:
-            e(1, f"def a_{a.name.upper()}(self):", a.pos)
+            e(1, f"def a_{ident(a.name)}(self):", a.pos)
             self._stmts(a.body, scope, 2)
             e(2, "pass")
         if pou.is_sfc:
             for a in pou.body.actions:
-                e(1, f"def a_{a.name.upper()}(self):", a.pos)
+                e(1, f"def a_{ident(a.name)}(self):", a.pos)
                 self._stmts(a.body, scope, 2)
                 e(2, "pass")
         e(1, "def _snap(self, rel):")
         sinks = self._sinks(fb, scope)
         self.sinks[fb.name] = sinks
-        parts = [self._snap_code(f"self.{d.name.upper()}", scope.names[d.name.upper()][1])
-                 for d in own if d not in temps and d.name.upper() not in sinks]
+        parts = [self._snap_code(f"self.{ident(d.name)}", scope.names[ident(d.name)][1])
+                 for d in own if d not in temps and ident(d.name) not in sinks]
         if pou.is_sfc:
             parts.append("self._sfc.key(rel)")
         if fb.base:
@@ -395,12 +403,12 @@ class Compiler:
             if b.kind not in ("VAR", "VAR_TEMP"):
                 continue
             for d in b.decls:
-                t = scope.names[d.name.upper()][1]
+                t = scope.names[ident(d.name)][1]
                 while isinstance(t, ArrayT):
                     t = t.elem
                 if not d.address and t.cat in ("bool", "int", "real", "time", "date",
                                                "string", "struct", "stdfb"):
-                    cands.add(d.name.upper())
+                    cands.add(ident(d.name))
         # a standard FB only changes its own outputs: its inputs flow into it, and it is a
         # sink when nothing reads those outputs (a parts counter nobody looks at)
         std = {k for k in cands if _base_t(scope.names[k][1]).cat == "stdfb"}
@@ -417,7 +425,7 @@ class Compiler:
                 flow.use(tr.condition)
             for st in pou.body.steps:
                 for a in st.actions:
-                    flow.used.add(a.action.upper())
+                    flow.used.add(ident(a.action))
                     if a.time is not None:
                         flow.use(a.time)
             bodies += [a.body for a in pou.body.actions]
@@ -485,13 +493,13 @@ class Compiler:
             srcs = tuple(idx[s.upper()] for s in tr.sources)
             tgts = tuple(idx[s.upper()] for s in tr.targets)
             trans.append(f"({srcs!r}, {tgts!r}, {fn}, {tr.priority})")
-        body_actions = {a.name.upper(): a for a in sfc.actions}
-        body_actions.update({a.name.upper(): a for a in fb.pou.actions})
+        body_actions = {ident(a.name): a for a in sfc.actions}
+        body_actions.update({ident(a.name): a for a in fb.pou.actions})
         actions: dict[str, str] = {}
         assocs: dict[str, list[str]] = {}
         for si, step in enumerate(sfc.steps):
             for assoc in step.actions:
-                key = assoc.action.upper()
+                key = ident(assoc.action)
                 if key not in actions:
                     if key in body_actions:
                         actions[key] = (f"_ActionSpec({assoc.action!r}, "
@@ -553,9 +561,9 @@ class Compiler:
             self._collect_step_t(child, scope, thresholds, t_read)
 
     def _step_member(self, e, scope, member):
-        if (isinstance(e, ir.Member) and e.member.upper() == member
-                and isinstance(e.base, ir.Name) and e.base.name.upper() in scope.steps):
-            return scope.steps[e.base.name.upper()]
+        if (isinstance(e, ir.Member) and ident(e.member) == member
+                and isinstance(e.base, ir.Name) and ident(e.base.name) in scope.steps):
+            return scope.steps[ident(e.base.name)]
         return None
 
     def _const_time(self, e):
@@ -570,7 +578,7 @@ class Compiler:
         params = []
         for b in var_blocks:
             for d in b.decls:
-                key = d.name.upper()
+                key = ident(d.name)
                 t = self.types.resolve(d.type, d.pos)
                 sc.names[key] = (key, t)
                 sc.pylocals.add(key)
@@ -588,21 +596,21 @@ class Compiler:
         sc, params = self._local_scope(scope, var_blocks, extra)
         args = []
         for kind, d, t in params:
-            key = d.name.upper()
+            key = ident(d.name)
             if kind == "VAR_INPUT":
-                args.append(f"{key}=_D")
+                args.append(f"{key}=_dflt")
             elif kind in ("VAR_OUTPUT", "VAR_IN_OUT"):
                 args.append(f"_r_{key}=None")
         e(ind, header.replace("ARGS", ", ".join(args)), pos)
         for kind, d, t in params:
-            key = d.name.upper()
+            key = ident(d.name)
             init = self._init(t, d.init, sc, d)
             if _has_fb(t):
                 # a call's own instances must not join the executor's list of live timers
                 init = f"_unlisted(lambda: {init})"
             if kind == "VAR_INPUT":
                 conv = f"_copy({key})" if t.cat in ("struct", "array") else key
-                e(ind + 1, f"{key} = {init} if {key} is _D else {conv}", d.pos)
+                e(ind + 1, f"{key} = {init} if {key} is _dflt else {conv}", d.pos)
             elif kind == "VAR_IN_OUT":
                 e(ind + 1, f"{key} = _r_{key}.get() if _r_{key} is not None else {init}",
                   d.pos)
@@ -610,7 +618,7 @@ class Compiler:
                 e(ind + 1, f"{key} = {init}", d.pos)
         if ret_t is not None:
             e(ind + 1, f"{ret_name} = {self._init(ret_t, None, sc, None)}")
-        outs = [(d.name.upper()) for kind, d, t in params if kind in ("VAR_OUTPUT",
+        outs = [(ident(d.name)) for kind, d, t in params if kind in ("VAR_OUTPUT",
                                                                       "VAR_IN_OUT")]
         sc.ret = f"return {ret_name}" if ret_t is not None else "return"
         if outs:
@@ -628,25 +636,25 @@ class Compiler:
         ret_t = self.types.resolve(f.return_type, f.pos) if f.return_type else None
         scope = Scope(names={k: (f"_g.{k}", t) for k, (n, t, d) in self.globals.items()})
         blocks = [b for b in f.var_blocks if b.kind != "VAR_EXTERNAL"]
-        self._callable(f"def _fn_{f.name.upper()}(ARGS):", scope, blocks, f.body,
-                       f.name.upper(), ret_t, 0, f.pos)
+        self._callable(f"def _fn_{ident(f.name)}(ARGS):", scope, blocks, f.body,
+                       ident(f.name), ret_t, 0, f.pos)
 
     def _method(self, m: ir.Method, fb: FbT, scope: Scope):
         ret_t = self.types.resolve(m.return_type, m.pos) if m.return_type else None
-        self._callable(f"def m_{m.name.upper()}(self, ARGS):", scope, m.var_blocks, m.body,
-                       m.name.upper(), ret_t, 1, m.pos)
+        self._callable(f"def m_{ident(m.name)}(self, ARGS):", scope, m.var_blocks, m.body,
+                       ident(m.name), ret_t, 1, m.pos)
 
     def _property(self, p: ir.Property, fb: FbT, scope: Scope):
         t = self.types.resolve(p.type, p.pos)
         for acc in p.accessors:
             if acc.kind == "GET":
-                self._callable(f"def p_get_{p.name.upper()}(self, ARGS):", scope,
-                               acc.var_blocks, acc.body, p.name.upper(), t, 1, acc.pos)
+                self._callable(f"def p_get_{ident(p.name)}(self, ARGS):", scope,
+                               acc.var_blocks, acc.body, ident(p.name), t, 1, acc.pos)
             else:
                 blocks = [ir.VarBlock("VAR_INPUT", [ir.VarDecl(p.name, p.type)])]
                 blocks += acc.var_blocks
-                self._callable(f"def p_set_{p.name.upper()}(self, ARGS):", scope, blocks,
-                               acc.body, p.name.upper() + "_RET", None, 1, acc.pos)
+                self._callable(f"def p_set_{ident(p.name)}(self, ARGS):", scope, blocks,
+                               acc.body, "p_ret", None, 1, acc.pos)
 
     # ================================================================== initial values
     def _init(self, t, init, scope, decl) -> str:
@@ -667,7 +675,7 @@ class Compiler:
             members = t.members if isinstance(t, StructT) else None
             parts = []
             for fname, finit in init.fields:
-                key = fname.upper()
+                key = ident(fname)
                 mt = members.get(key) if members is not None else self._fb_member_type(
                     t, key, init)
                 if mt is None:
@@ -716,7 +724,7 @@ class Compiler:
         blocks, labels = [[]], {}
         for s in stmts:
             if isinstance(s, ir.Label):
-                labels[s.name.upper()] = len(blocks)
+                labels[ident(s.name)] = len(blocks)
                 blocks.append([])
             else:
                 blocks[-1].append(s)
@@ -845,12 +853,12 @@ class Compiler:
             pass
         elif isinstance(s, ir.Jmp):
             labels, jl, depth = self._jump or ({}, None, 0)
-            if s.label.upper() not in labels:
+            if ident(s.label) not in labels:
                 raise _err(s, f"JMP {s.label}: no label {s.label} in the same statement list "
                               "(jumps into or out of IF, CASE and loops are not supported)")
             if depth != self._loop_depth:
                 raise _err(s, "JMP out of a FOR, WHILE or REPEAT loop is not supported")
-            e(ind, f"{jl} = {labels[s.label.upper()]}", pos)
+            e(ind, f"{jl} = {labels[ident(s.label)]}", pos)
             e(ind, "continue", pos)
         else:  # pragma: no cover - the parser produces no other statements
             raise _err(s, f"unsupported statement {type(s).__name__}")
@@ -883,7 +891,7 @@ class Compiler:
         if isinstance(target, ir.DirectAddress):
             target = self._direct(target, scope)
         if isinstance(target, ir.Name):
-            key = target.name.upper()
+            key = ident(target.name)
             if key not in scope.names:
                 raise _err(target, f"'{target.name}' is not a variable here")
             code, t = scope.names[key]
@@ -894,11 +902,11 @@ class Compiler:
                 return "attr", obj, attr, t
             return "name", code, None, t
         if isinstance(target, ir.Member):
-            if isinstance(target.base, ir.Name) and target.base.name.upper() in self.gvl_names:
+            if isinstance(target.base, ir.Name) and ident(target.base.name) in self.gvl_names:
                 return self._lvalue(ir.Name(target.member, pos=target.pos), scope)
             bcode, bt = self._expr(target.base, scope)
             bt = _deref_t(bt)
-            key = target.member.upper()
+            key = ident(target.member)
             if isinstance(bt, (FbT, ItfT)):
                 if isinstance(bt, FbT) and bt.var(key) is not None:
                     d = bt.var(key)
@@ -957,7 +965,7 @@ class Compiler:
         f = call.func
         pos = call.pos
         if isinstance(f, ir.Deref) and isinstance(f.base, ir.Name) \
-                and f.base.name.upper() == "SUPER":
+                and ident(f.base.name) == "SUPER":
             if scope.fb is None or scope.fb.base is None:
                 raise _err(call, "SUPER^() outside a function block that EXTENDS another")
             e(ind, f"{scope.fb.base.cls_name}._body(self)", pos)
@@ -972,10 +980,10 @@ class Compiler:
 
     def _fb_instance(self, f, scope):
         """(code, type) when ``f`` names a function block instance, else None."""
-        if isinstance(f, ir.Name) and f.name.upper() not in scope.names:
+        if isinstance(f, ir.Name) and ident(f.name) not in scope.names:
             return None
-        if isinstance(f, ir.Name) and f.name.upper() in scope.pylocals and \
-                scope.names[f.name.upper()][1].cat not in ("fb", "stdfb", "ptr", "itf"):
+        if isinstance(f, ir.Name) and ident(f.name) in scope.pylocals and \
+                scope.names[ident(f.name)][1].cat not in ("fb", "stdfb", "ptr", "itf"):
             return None
         try:
             code, t = self._expr(f, scope, callee=True)
@@ -996,11 +1004,11 @@ class Compiler:
             inouts = ()
             mtype = lambda k: _STDFB_MEMBERS[k]  # noqa: E731
         else:
-            ins = [d.name.upper() for x in reversed(list(t.chain()))
+            ins = [ident(d.name) for x in reversed(list(t.chain()))
                    for d in x.pou.decls("VAR_INPUT")]
-            inouts = [d.name.upper() for x in reversed(list(t.chain()))
+            inouts = [ident(d.name) for x in reversed(list(t.chain()))
                       for d in x.pou.decls("VAR_IN_OUT")]
-            outs = [d.name.upper() for x in reversed(list(t.chain()))
+            outs = [ident(d.name) for x in reversed(list(t.chain()))
                     for d in x.pou.decls("VAR_OUTPUT")]
 
             def mtype(k):
@@ -1014,7 +1022,7 @@ class Compiler:
                     raise _err(arg, "too many arguments")
                 name = positional[k]
             else:
-                name = arg.name.upper()
+                name = ident(arg.name)
             if arg.output:
                 if name not in outs and name not in ins:
                     raise _err(arg, f"'{arg.name}' is not an output of {t.name}")
@@ -1062,7 +1070,7 @@ class Compiler:
             code, t = self._expr(x.base, scope)
             return f"_getbit({code}, {x.bit})", BOOL
         if isinstance(x, ir.Deref):
-            if isinstance(x.base, ir.Name) and x.base.name.upper() == "THIS":
+            if isinstance(x.base, ir.Name) and ident(x.base.name) == "THIS":
                 if scope.fb is None:
                     raise _err(x, "THIS^ outside a function block")
                 return "self", scope.fb
@@ -1092,7 +1100,7 @@ class Compiler:
         raise _err(x, f"unsupported expression {type(x).__name__}")
 
     def _literal(self, x: ir.Literal, expect):
-        v, tn = x.value, x.type_name.upper()
+        v, tn = x.value, ident(x.type_name)
         if tn == "BOOL":
             return ("True" if v else "False"), BOOL
         if tn == "ANY_INT":
@@ -1111,7 +1119,7 @@ class Compiler:
         return repr(int(v) if not isinstance(v, bool) else bool(v)), t
 
     def _name(self, x: ir.Name, scope: Scope, expect=None):
-        key = x.name.upper()
+        key = ident(x.name)
         if key in scope.names:
             code, t = scope.names[key]
             if isinstance(t, PtrT) and t.reference:
@@ -1131,10 +1139,10 @@ class Compiler:
         raise _err(x, f"'{x.name}' is not declared here")
 
     def _member(self, x: ir.Member, scope: Scope):
-        key = x.member.upper()
+        key = ident(x.member)
         base = x.base
         if isinstance(base, ir.Name):
-            bkey = base.name.upper()
+            bkey = ident(base.name)
             if bkey in scope.steps and bkey not in scope.names:
                 i = scope.steps[bkey]
                 if key == "X":
@@ -1250,7 +1258,7 @@ class Compiler:
     def _call_expr(self, call: ir.Call, scope: Scope):
         f = call.func
         if isinstance(f, ir.Name):
-            key = f.name.upper()
+            key = ident(f.name)
             if key in self.functions and key not in scope.names:
                 return self._user_function(self.functions[key], call, scope)
             if scope.fb is not None and scope.fb.action(key) is not None \
@@ -1263,9 +1271,9 @@ class Compiler:
                                  "statement, then read its outputs")
             raise _err(call, f"unknown function '{f.name}'")
         if isinstance(f, ir.Member):
-            key = f.member.upper()
+            key = ident(f.member)
             if isinstance(f.base, ir.Deref) and isinstance(f.base.base, ir.Name) and \
-                    f.base.base.name.upper() == "SUPER":
+                    ident(f.base.base.name) == "SUPER":
                 if scope.fb is None or scope.fb.base is None:
                     raise _err(call, "SUPER^ outside a function block that EXTENDS another")
                 m = scope.fb.base.method(key)
@@ -1299,8 +1307,8 @@ class Compiler:
                 elif b.kind in ("VAR_IN_OUT", "VAR_OUTPUT"):
                     ios.append((b.kind, d))
         positional = ins + [d for k, d in ios if k == "VAR_IN_OUT"]
-        by_name = {d.name.upper(): d for d in ins}
-        io_names = {d.name.upper(): d for k, d in ios}
+        by_name = {ident(d.name): d for d in ins}
+        io_names = {ident(d.name): d for k, d in ios}
         parts = []
         for k, arg in enumerate(call.args):
             if arg.name is None:
@@ -1308,10 +1316,10 @@ class Compiler:
                     raise _err(arg, f"too many arguments for {what}")
                 d = positional[k]
             else:
-                d = by_name.get(arg.name.upper()) or io_names.get(arg.name.upper())
+                d = by_name.get(ident(arg.name)) or io_names.get(ident(arg.name))
                 if d is None:
                     raise _err(arg, f"{what} has no parameter '{arg.name}'")
-            key = d.name.upper()
+            key = ident(d.name)
             if key in by_name and not arg.output:
                 vcode, vt = self._expr(arg.value, scope)
                 t = self.types.resolve(d.type, d.pos)
@@ -1325,7 +1333,7 @@ class Compiler:
 
     def _user_function(self, fn: ir.Pou, call: ir.Call, scope: Scope):
         rt = self.types.resolve(fn.return_type, fn.pos) if fn.return_type else ty.VOID
-        code = self._boxed(lambda: f"_fn_{fn.name.upper()}("
+        code = self._boxed(lambda: f"_fn_{ident(fn.name)}("
                            f"{self._named_args(fn.var_blocks, call, scope, fn.name)})")
         return code, rt
 
@@ -1347,8 +1355,8 @@ class Compiler:
 
     def _ref_of(self, x, scope: Scope, for_call=False):
         """Code for a reference to ``x`` (ADR, REF=, VAR_IN_OUT and outputs of calls)."""
-        if isinstance(x, ir.Name) and x.name.upper() in scope.pylocals:
-            key = x.name.upper()
+        if isinstance(x, ir.Name) and ident(x.name) in scope.pylocals:
+            key = ident(x.name)
             t = scope.names[key][1]
             if _is_object_t(t):
                 return key, PtrT(t)
@@ -1506,30 +1514,24 @@ def names_in(program, cls=ir.Member, attr="member") -> set:
     """Every ``x.member`` name used in a project or IR subtree, upper case (with ``cls``
     and ``attr``: every ``Name.name``, every ``DirectAddress.address``, ...)."""
     names = set()
-
-    def walk(x):
+    # iterative: statement nesting in a program file is unbounded
+    stack = [program.pous, program.configurations] if isinstance(program, ir.Program) \
+        else [program]
+    while stack:
+        x = stack.pop()
         if isinstance(x, cls):
             names.add(getattr(x, attr).upper())
-        if isinstance(x, list):
-            for y in x:
-                walk(y)
+        if isinstance(x, (list, tuple)):
+            stack.extend(x)
         elif hasattr(x, "__dataclass_fields__"):
-            for f in x.__dataclass_fields__:
-                if f != "pos":
-                    walk(getattr(x, f))
-        elif isinstance(x, tuple):
-            for y in x:
-                walk(y)
-    walk(program.pous if isinstance(program, ir.Program) else program)
-    if isinstance(program, ir.Program):
-        walk(program.configurations)
+            stack.extend(getattr(x, f) for f in x.__dataclass_fields__ if f != "pos")
     return names
 
 
 def _root(e):
     while isinstance(e, (ir.Member, ir.Index, ir.BitAccess)):
         e = e.base
-    return e.name.upper() if isinstance(e, ir.Name) else None
+    return ident(e.name) if isinstance(e, ir.Name) else None
 
 
 class _Flow:
@@ -1554,10 +1556,10 @@ class _Flow:
                 for side in (x.left, x.right):   # an event, not a value that drifts
                     walk(side.base if isinstance(side, ir.Member) else side)
                 return
-            if isinstance(x, ir.Member) and x.member.upper() == "ET":
+            if isinstance(x, ir.Member) and ident(x.member) == "ET":
                 self._et = True
             if isinstance(x, ir.Name):
-                out.add(x.name.upper())
+                out.add(ident(x.name))
             elif isinstance(x, ir.Index):
                 walk(x.base)
                 for i in x.indices:
@@ -1566,12 +1568,12 @@ class _Flow:
                 self.use(x.base)
             elif isinstance(x, ir.Call):
                 if isinstance(x.func, ir.Member) or (
-                        isinstance(x.func, ir.Name) and x.func.name.upper() in self.impure):
+                        isinstance(x.func, ir.Name) and ident(x.func.name) in self.impure):
                     # methods change their instance; some functions write globals
                     for a in x.args:
                         if a.value is not None:
                             self.use(a.value)
-                elif isinstance(x.func, ir.Name) and x.func.name.upper() in ("ADR", "REF"):
+                elif isinstance(x.func, ir.Name) and ident(x.func.name) in ("ADR", "REF"):
                     for a in x.args:
                         if a.value is not None:
                             self.use(a.value)
@@ -1648,7 +1650,7 @@ class _Flow:
                 self.stmts(br.body)
             self.stmts(s.else_body or [])
         elif isinstance(s, ir.For):
-            self.used.add(s.var.upper())
+            self.used.add(ident(s.var))
             for e in (s.start, s.end, s.step):
                 if e is not None:
                     self.use(e)

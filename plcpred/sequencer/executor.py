@@ -19,6 +19,8 @@ that never repeat simply keep the executor running scan by scan to the horizon.
 """
 from __future__ import annotations
 
+import builtins
+import re
 import time as _time
 
 import numpy as np
@@ -123,6 +125,14 @@ def _sizeof(v):
     return 1 if isinstance(v, bool) else 8
 
 
+# The only builtins generated code may use: what the compiler emits (conversions, MIN/MAX,
+# ABS, LEN, array construction, snapshots) and what a class statement needs. No import,
+# open, eval, getattr or exec: a name in a program file that somehow reached the source
+# could not reach the host through them.
+_BUILTINS = {name: getattr(builtins, name) for name in (
+    "__build_class__", "abs", "float", "int", "len", "max", "min", "range", "set", "tuple")}
+
+
 def _namespace(timers: list, sfcs: list) -> dict:
     listing = [True]
 
@@ -142,6 +152,7 @@ def _namespace(timers: list, sfcs: list) -> dict:
             listing[0] = True
 
     return {
+        "__builtins__": _BUILTINS, "__name__": "plcpred_program",
         "k_FbBase": FbBase, "_SfcRuntime": SfcRuntime, "_SfcSpec": SfcSpec,
         "_ActionSpec": ActionSpec, "_register": sfcs.append, "_stdfb": _stdfb,
         "_unlisted": _unlisted,
@@ -156,7 +167,7 @@ def _namespace(timers: list, sfcs: list) -> dict:
         "_to_time": rtm.to_time, "_to_bool": rtm.to_bool, "_to_string": rtm.to_string,
         "_left": rtm.left, "_right": rtm.right, "_mid": rtm.mid, "_insert": rtm.insert,
         "_delete": rtm.delete, "_replace": rtm.replace, "_find": rtm.find,
-        "_Ref": rtm.Ref, "_ItemRef": rtm.ItemRef, "_Box": rtm.Box, "_D": object(),
+        "_Ref": rtm.Ref, "_ItemRef": rtm.ItemRef, "_Box": rtm.Box, "_dflt": object(),
         "_sizeof": _sizeof, "_now": 0, "_g": None,
     }
 
@@ -689,11 +700,16 @@ class Sequencer:
         return (inst.snap(t), tuple(parts), inst.phase(t))
 
 
+_ATTR = re.compile(r"[A-Za-z_][A-Za-z0-9_]*", re.ASCII)
+
+
 def _value_getter(slots):
     """A function returning the current values of ``(object, attribute)`` slots (an SFC
     runtime with a step index reads that step's flag) as one tuple, built in one go."""
     names, parts = {}, []
     for k, (obj, attr) in enumerate(slots):
+        if not (isinstance(attr, int) or _ATTR.fullmatch(attr)):
+            raise ValueError(f"internal: slot {attr!r} is not a generated attribute name")
         names[f"o{k}"] = obj
         parts.append(f"o{k}.x[{attr}]" if isinstance(obj, SfcRuntime) else f"o{k}.{attr}")
     src = "def values():\n    return (" + "".join(p + ", " for p in parts) + ")\n"

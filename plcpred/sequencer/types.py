@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from ..parser import ir
 from ..parser.errors import at
 from ..parser.literals import INT_TYPES
+from ..parser.names import ident
 from ..parser.stdlib import STANDARD_FBS
 
 SIGNED = {"SINT", "INT", "DINT", "LINT"}
@@ -112,28 +113,28 @@ class FbT:
     def var(self, key: str):
         for t in self.chain():
             for d in t.pou.decls():
-                if d.name.upper() == key:
+                if ident(d.name) == key:
                     return d
         return None
 
     def method(self, key: str):
         for t in self.chain():
             for m in t.pou.methods:
-                if m.name.upper() == key:
+                if ident(m.name) == key:
                     return m, t
         return None
 
     def prop(self, key: str):
         for t in self.chain():
             for p in t.pou.properties:
-                if p.name.upper() == key:
+                if ident(p.name) == key:
                     return p, t
         return None
 
     def action(self, key: str):
         for t in self.chain():
             for a in t.pou.actions:
-                if a.name.upper() == key:
+                if ident(a.name) == key:
                     return a, t
         return None
 
@@ -160,13 +161,13 @@ class ItfT:
 
     def method(self, key):
         for m in self.itf.methods:
-            if m.name.upper() == key:
+            if ident(m.name) == key:
                 return m, None
         return None
 
     def prop(self, key):
         for p in self.itf.properties:
-            if p.name.upper() == key:
+            if ident(p.name) == key:
                 return p, None
         return None
 
@@ -193,9 +194,9 @@ class TypeTable:
 
     def __init__(self, program: ir.Program):
         self.program = program
-        self.decls = {t.name.upper(): t for t in program.types}
-        self.pous = {p.name.upper(): p for p in program.pous}
-        self.interfaces = {i.name.upper(): i for i in program.interfaces}
+        self.decls = {ident(t.name): t for t in program.types}
+        self.pous = {ident(p.name): p for p in program.pous}
+        self.interfaces = {ident(i.name): i for i in program.interfaces}
         self.resolved: dict[str, object] = {}
         self.structs: list[StructT] = []
         self.fbs: dict[str, FbT] = {}
@@ -214,7 +215,7 @@ class TypeTable:
         if up in self.decls:
             decl = self.decls[up]
             if isinstance(decl.type, ir.StructType):
-                t = StructT(decl.name, union=decl.type.union, cls_name=f"S_{up}")
+                t = StructT(decl.name, union=decl.type.union, cls_name=f"st_{ident(decl.name)}")
                 self.resolved[up] = t
                 self.structs.append(t)
                 base = self.named(decl.type.extends, decl.pos) if decl.type.extends else None
@@ -222,7 +223,7 @@ class TypeTable:
                     t.members.update(base.members)
                     t.decls.extend(base.decls)
                 for d in decl.type.members:
-                    t.members[d.name.upper()] = self.resolve(d.type)
+                    t.members[ident(d.name)] = self.resolve(d.type)
                     t.decls.append(d)
                 return t
             if isinstance(decl.type, ir.EnumType):
@@ -241,7 +242,7 @@ class TypeTable:
     def fb(self, up: str) -> FbT:
         if up not in self.fbs:
             pou = self.pous[up]
-            t = FbT(pou.name, pou, cls_name=f"FB_{up}")
+            t = FbT(pou.name, pou, cls_name=f"fb_{ident(pou.name)}")
             self.fbs[up] = t
             if pou.extends:
                 base = self.named(pou.extends, pou.pos)
@@ -272,7 +273,7 @@ class TypeTable:
             a, b = self.const_int(e.left), self.const_int(e.right)
             return a + b if e.op == "+" else a - b if e.op == "-" else a * b
         if isinstance(e, ir.Name):
-            c = self.constants.get(e.name.upper())
+            c = self.constants.get(ident(e.name))
             if c is not None:
                 return c
         raise at(getattr(e, "pos", None), "expected a constant integer here")
@@ -297,10 +298,10 @@ class TypeTable:
         if isinstance(tr, ir.EnumType):
             return self._enum("<anonymous>", tr)
         if isinstance(tr, ir.StructType):
-            t = StructT("<anonymous>", cls_name=f"S_ANON{len(self.structs)}",
+            t = StructT("<anonymous>", cls_name=f"st_anon{len(self.structs)}",
                         union=tr.union)
             for d in tr.members:
-                t.members[d.name.upper()] = self.resolve(d.type)
+                t.members[ident(d.name)] = self.resolve(d.type)
                 t.decls.append(d)
             self.structs.append(t)
             return t

@@ -1,0 +1,189 @@
+"""The one gate every program name passes before anything is generated from it.
+
+Program files are untrusted: plcpred runs them in CI on pull requests anyone may write.
+The compiler turns names into Python source, so a name must never be anything but an IEC
+61131-3 identifier. :func:`validate_names` walks a whole :class:`~.ir.Program` (iteratively,
+so deep nesting cannot exhaust the stack) and rejects, with the file, line and column, any
+string in the IR that is not what its field allows:
+
+* every name field (variables, types, POUs, members, steps, actions, labels, tasks, ...)
+  must be an identifier as IEC 61131-3 (ed.3, 6.1.2) defines it, restricted to ASCII
+  letters, digits and underscores and starting with a letter or an underscore; as CODESYS,
+  TwinCAT and Beremiz accept, consecutive and trailing underscores are allowed (the vendor
+  extension ``__NEW``-style names need), but a name must contain a letter or digit;
+* operators, assignment kinds, block kinds and action qualifiers must be ones the IR
+  defines; direct addresses must have the form ``%IX0.0`` / ``%Q*``;
+* literal values must be plain numbers, booleans or strings (the compiler emits them
+  through ``repr``).
+
+Text that never reaches generated code (pragmas, file names, the source path) is listed
+in :data:`_FREE_TEXT` and left alone. Any other string field added to the IR later is
+checked as a name by default: a new field cannot open a hole by being forgotten here.
+
+The compiler repeats the check on the names it emits (:func:`ident`), so a Program built
+by hand through the library API cannot bypass it either.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+
+from . import ir
+from .errors import ProgramError, at
+
+MAX_NAME_LENGTH = 255
+
+_IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*", re.ASCII)
+_HAS_ALNUM = re.compile(r"[A-Za-z0-9]", re.ASCII)
+_ADDRESS = re.compile(r"%[IQM](?:\*|[XBWDL]?(?:\d{1,10}(?:\.\d{1,10}){0,7}|\*))", re.ASCII)
+
+_UNARY_OPS = frozenset({"-", "+", "NOT"})
+_BINARY_OPS = frozenset({"**", "*", "/", "MOD", "+", "-", "<", ">", "<=", ">=", "=", "<>",
+                         "AND", "&", "AND_THEN", "XOR", "OR", "OR_ELSE"})
+_ASSIGN_OPS = frozenset({":=", "REF=", "?=", "S=", "R="})
+_POU_KINDS = frozenset({"PROGRAM", "FUNCTION_BLOCK", "FUNCTION"})
+
+# (class, field) -> the set of values allowed, or a checker
+_ENUM_FIELDS = {
+    (ir.Unary, "op"): _UNARY_OPS,
+    (ir.Binary, "op"): _BINARY_OPS,
+    (ir.Assign, "op"): _ASSIGN_OPS,
+    (ir.VarBlock, "kind"): frozenset(ir.VAR_KINDS),
+    (ir.ActionAssoc, "qualifier"): frozenset(ir.ACTION_QUALIFIERS),
+    (ir.PropertyAccessor, "kind"): frozenset({"GET", "SET"}),
+    (ir.Pou, "kind"): _POU_KINDS,
+}
+# type and interface references may be qualified with a library namespace (``Lib.T``)
+_QUALIFIED = {(ir.NamedType, "name"), (ir.Pou, "extends"), (ir.Pou, "implements"),
+              (ir.Interface, "extends"), (ir.StructType, "extends"),
+              (ir.ProgramInstance, "type_name"), (ir.EnumLiteral, "type_name")}
+_PATH = ("path",)
+_QUALIFIED.add(_PATH)
+_ADDRESS_FIELDS = {(ir.DirectAddress, "address"), (ir.VarDecl, "address")}
+# fields whose text never reaches generated code
+_FREE_TEXT = {
+    (ir.Pou, "pragmas"), (ir.Method, "pragmas"), (ir.TypeDecl, "pragmas"),
+    (ir.Program, "pragmas"), (ir.Program, "source"),
+}
+
+
+def is_identifier(name) -> bool:
+    """True for an IEC identifier as plcpred accepts it (see the module docstring)."""
+    return (isinstance(name, str) and len(name) <= MAX_NAME_LENGTH
+            and _IDENT.fullmatch(name) is not None and _HAS_ALNUM.search(name) is not None)
+
+
+def _bad_name(name, pos, what: str) -> ProgramError:
+    shown = repr(name) if isinstance(name, str) else type(name).__name__
+    if isinstance(name, str) and len(name) > 60:
+        shown = repr(name[:60]) + "..."
+    if isinstance(name, str) and len(name) > MAX_NAME_LENGTH and _IDENT.fullmatch(name):
+        return at(pos, f"{what} is {len(name)} characters long; names are limited to "
+                       f"{MAX_NAME_LENGTH}")
+    return at(pos, f"{what} {shown} is not an IEC 61131-3 identifier (ASCII letters, digits "
+                   "and '_', not starting with a digit)")
+
+
+def _literal_ok(value) -> bool:
+    if isinstance(value, float):
+        return math.isfinite(value)
+    return isinstance(value, (bool, int, str))
+
+
+def is_qualified_name(name) -> bool:
+    """``Namespace.Type`` (a library-qualified type or interface reference)."""
+    return isinstance(name, str) and len(name) <= MAX_NAME_LENGTH and all(
+        is_identifier(part) for part in name.split("."))
+
+
+def _name_ok(name, ctx) -> bool:
+    return is_qualified_name(name) if ctx in _QUALIFIED else is_identifier(name)
+
+
+def validate_names(program: ir.Program) -> ir.Program:
+    """Check every string of ``program`` against what its field allows (module docstring).
+    Returns the program; raises :class:`ProgramError` at the offending node's position (or
+    the nearest enclosing node that has one)."""
+    stack = [(program, None, None)]
+    while stack:
+        node, pos, ctx = stack.pop()
+        if isinstance(node, ir.Pos):
+            continue
+        if isinstance(node, (list, tuple)):
+            for item in node:
+                if isinstance(item, str):
+                    if not _name_ok(item, ctx):
+                        raise _bad_name(item, pos, _what(*ctx) if ctx else "name")
+                elif item is not None and not isinstance(item, (int, float)):
+                    stack.append((item, pos, ctx))
+            continue
+        if isinstance(node, dict):
+            for k, v in node.items():
+                if not is_identifier(k):
+                    raise _bad_name(k, pos, "name")
+                stack.append((v, pos, ctx))
+            continue
+        if not dataclasses.is_dataclass(node):
+            raise at(pos, f"unexpected {type(node).__name__} in the program structure")
+        cls = type(node)
+        pos = getattr(node, "pos", None) or pos
+        paths = cls is ir.VarBlock and node.kind in ("VAR_CONFIG", "VAR_ACCESS")
+        for f in dataclasses.fields(node):
+            key = (cls, f.name)
+            if f.name == "pos" or key in _FREE_TEXT:
+                continue
+            value = getattr(node, f.name)
+            if value is None or isinstance(value, bool):
+                continue
+            allowed = _ENUM_FIELDS.get(key)
+            if allowed is not None:
+                if value not in allowed:
+                    raise at(pos, f"invalid {f.name} {str(value)[:60]!r}")
+                continue
+            if key == (ir.Literal, "value"):
+                if not _literal_ok(value):
+                    raise at(pos, f"invalid literal value of type {type(value).__name__}")
+                continue
+            if key in _ADDRESS_FIELDS:
+                if not (isinstance(value, str) and _ADDRESS.fullmatch(value)):
+                    raise at(pos, f"invalid direct address {str(value)[:60]!r}")
+                continue
+            if isinstance(value, str):
+                if key == (ir.VarDecl, "name") and ctx == _PATH:
+                    key = _PATH  # VAR_CONFIG / VAR_ACCESS: an instance path, never emitted
+                if not _name_ok(value, key):
+                    raise _bad_name(value, pos, _what(cls, f.name))
+            elif isinstance(value, (int, float)):
+                if key == (ir.BitAccess, "bit") and not (
+                        isinstance(value, int) and 0 <= value < 64):
+                    raise at(pos, f"bit number {value} is outside 0..63")
+            elif paths and f.name == "decls":
+                stack.extend((d, pos, _PATH) for d in value)
+            else:
+                stack.append((value, pos, key))
+    return program
+
+
+def _what(cls, field_name: str) -> str:
+    kind = cls.__name__
+    label = {"Name": "name", "Member": "member name", "NamedType": "type name",
+             "VarDecl": "variable name", "Pou": "POU name", "Method": "method name",
+             "Property": "property name", "Step": "step name", "SfcAction": "action name",
+             "ActionAssoc": "action name", "Label": "label", "Jmp": "label",
+             "TypeDecl": "type name", "Task": "task name", "Arg": "parameter name"}
+    return label.get(kind, f"{kind} {field_name}")
+
+
+def ident(name: str) -> str:
+    """The one way a program's name becomes a Python name in generated code.
+
+    IEC identifiers are case-insensitive, so the compiler upper-cases them; every name
+    the compiler itself generates contains a lower-case letter (``_now``, ``fb_MOTOR``,
+    ``m_START``), and an upper-cased ASCII identifier is never a Python keyword or
+    builtin, so the two namespaces cannot meet. A name that is not an identifier here is
+    a bug in a front end (they all pass :func:`validate_names`), reported as such."""
+    if not is_identifier(name):
+        raise ProgramError(f"internal: name {str(name)[:60]!r} reached the compiler "
+                           "unvalidated")
+    return name.upper()
