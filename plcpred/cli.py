@@ -80,20 +80,25 @@ def _durations(args) -> tuple[float, float | None]:
         raise ValueError(f"--dt: cannot read {dt!r}: write e.g. 10ms, 0.5s or 1s") from None
 
 
+def _command_line(args) -> str:
+    """What the manifest records as the command that wrote a directory."""
+    return " ".join(["plcpred"] + [str(a) for a in getattr(args, "argv", [])])
+
+
 def _fail(message: str) -> int:
     print(f"plcpred: error: {message}", file=sys.stderr)
     return 2
 
 
 def cmd_timeline(args) -> int:
-    from pathlib import Path
-
     from .machine import load_machine
+    from .output import OutputError, check_out_dir, output_dir
     from .sequencer import unfold
 
     try:
         horizon_s, _ = _durations(args)
-    except ValueError as e:
+        out = check_out_dir(args.out)
+    except (ValueError, OutputError) as e:
         return _fail(str(e))
     try:
         machine = load_machine(args.machine)
@@ -104,8 +109,8 @@ def cmd_timeline(args) -> int:
         return 1
     for w in machine.warnings:
         print(f"warning: {w}", file=sys.stderr)
-    out = Path(args.out)
-    tl.to_csv(out / "timeline.csv")
+    with output_dir(out, _command_line(args)) as staging:
+        tl.to_csv(staging / "timeline.csv")
     info = tl.info
     mode = info["mode"]
     if info.get("period_s"):
@@ -122,19 +127,22 @@ def cmd_timeline(args) -> int:
 def cmd_predict(args) -> int:
     from .air import predict
     from .machine import load_machine
+    from .output import OutputError, check_out_dir, output_dir
     from .report import consumer_table
 
     try:
         horizon_s, dt_s = _durations(args)
-    except ValueError as e:
+        out = check_out_dir(args.out)
+    except (ValueError, OutputError) as e:
         return _fail(str(e))
     try:
         machine = load_machine(args.machine)
         result = predict(machine, horizon_s, dt=dt_s, program=args.program)
-        result.write(args.out, plot=not args.no_plot)
     except _model_errors() as e:
         print(e, file=sys.stderr)
         return 1
+    with output_dir(out, _command_line(args)) as staging:
+        written = [out / f.name for f in result.write(staging, plot=not args.no_plot)]
     for w in machine.warnings:
         print(f"warning: {w}", file=sys.stderr)
     prof = result.profile
@@ -151,7 +159,7 @@ def cmd_predict(args) -> int:
     print(f"mean {prof.mean_l_min:.1f} NL/min, peak {prof.peak_l_min():.1f} NL/min "
           f"(grid), {prof.peak_l_min(1.0):.1f} NL/min (1 s), "
           f"{prof.peak_l_min(60.0):.1f} NL/min (1 min)")
-    print(f"wrote {', '.join(str(p) for p in result.write_files)}")
+    print(f"wrote {', '.join(str(p) for p in written)}")
     return 0
 
 
@@ -169,17 +177,16 @@ def _bar(text: str) -> float:
 
 
 def _model_errors():
-    from .machine import MachineError
-    from .parser import ProgramError
-    from .sequencer import CompileError, ExecutionError, SequencerError
-    return (MachineError, SequencerError, ProgramError, CompileError, ExecutionError)
+    """What a model run reports as a finding about the user's files: every
+    :class:`~plcpred.errors.PlcpredError` (program, machine, execution)."""
+    from .errors import PlcpredError
+    return PlcpredError
 
 
 def cmd_size(args) -> int:
-    from pathlib import Path
-
     from .air import predict
     from .air.sizing import size
+    from .output import OutputError, check_out_dir, output_dir
     from .report import write_sizing_report
     from .sequencer import parse_horizon
 
@@ -187,7 +194,8 @@ def cmd_size(args) -> int:
         horizon_s, dt_s = _durations(args)
         allowance, band = _fraction(args.allowance), _bar(args.band)
         idle_after = parse_horizon(args.idle_after) / 1e9 if args.idle_after else 0.0
-    except ValueError as e:
+        out = check_out_dir(args.out)
+    except (ValueError, OutputError) as e:
         return _fail(f"{e}")
     try:
         result = predict(args.machine, horizon_s, dt=dt_s, program=args.program)
@@ -198,9 +206,9 @@ def cmd_size(args) -> int:
         return 1
     except ValueError as e:
         return _fail(str(e))
-    out = Path(args.out)
     name = result.machine.name
-    files = write_sizing_report(result, s, out)
+    with output_dir(out, _command_line(args)) as staging:
+        files = [out / f.name for f in write_sizing_report(result, s, staging)]
     print(f"{name}: mean {s.mean_l_min:.1f} NL/min, peak {s.peak_l_min:.1f} (grid) / "
           f"{s.peak_1s_l_min:.1f} (1 s) / {s.peak_1min_l_min:.1f} (1 min) NL/min")
     print(f"compressor design flow {s.design_flow_l_min:.1f} NL/min "
@@ -239,17 +247,17 @@ def cmd_compare(args) -> int:
 def cmd_sweep(args) -> int:
     import csv
     import io
-    from pathlib import Path
 
-    from .sequencer.timeline import atomic_write_text
+    from .output import OutputError, atomic_write_text, check_out_dir, output_dir
     from .sweep import SweepError, parse_setting, sweep
 
     try:
         horizon_s, dt_s = _durations(args)
+        out = check_out_dir(args.out) if args.out else None
         settings = [parse_setting(t) for t in args.set]
         rows = sweep(args.machine, settings, horizon_s, dt_s, engine=args.engine,
                      scheduler=args.scheduler, workers=args.workers, program=args.program)
-    except SweepError as e:
+    except (SweepError, OutputError) as e:
         return _fail(str(e))
     except _model_errors() as e:
         print(e, file=sys.stderr)
@@ -266,15 +274,14 @@ def cmd_sweep(args) -> int:
                         for c, (cell, w) in enumerate(zip(row, widths))).rstrip())
         if k == 0:
             print("  ".join("-" * w for w in widths))
-    if args.out:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
+    if out is not None:
         buf = io.StringIO()
         fields = list(dict.fromkeys(k for r in rows for k in r))
         w = csv.DictWriter(buf, fieldnames=fields, lineterminator="\n")
         w.writeheader()
         w.writerows(rows)
-        atomic_write_text(out / "sweep.csv", buf.getvalue())
+        with output_dir(out, _command_line(args)) as staging:
+            atomic_write_text(staging / "sweep.csv", buf.getvalue())
         print(f"wrote {out / 'sweep.csv'}")
     return 0
 
@@ -301,6 +308,8 @@ def build_parser() -> argparse.ArgumentParser:
         prog="plcpred",
         description="Predict the compressed-air demand of a machine from its PLC program.")
     ap.add_argument("--version", action="version", version=f"plcpred {__version__}")
+    ap.add_argument("--debug", action="store_true",
+                    help="show the Python traceback of an internal error (any position)")
     sub = ap.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
@@ -399,12 +408,67 @@ def build_parser() -> argparse.ArgumentParser:
     return ap
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the program is so that temporary files are cleaned up."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated()
+
+
 def main(argv=None) -> int:
+    """Run one command. Exit codes: 0 ok, 1 a finding (invalid program, gate failed), 2 a
+    usage or input error, 3 an internal error (a bug: one line; ``--debug`` shows the
+    traceback), 130/143 interrupted by SIGINT/SIGTERM."""
+    import os
+    import signal
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    argv = [a for a in argv if a != "--debug"]
     args = build_parser().parse_args(argv)
+    args.argv = argv
     try:
-        return args.func(args)
+        previous = signal.signal(signal.SIGTERM, _on_sigterm)
+    except ValueError:  # not the main thread (a library caller): leave signals alone
+        previous = None
+    try:
+        code = args.func(args)
+        sys.stdout.flush()
+        return code
+    except BrokenPipeError:
+        # the reader went away (plcpred ... | head): not an error of ours; stop quietly
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        return 0
+    except Terminated:
+        print("plcpred: terminated; temporary files removed, nothing half-written left",
+              file=sys.stderr)
+        return 143
     except KeyboardInterrupt:
+        print("plcpred: interrupted; temporary files removed, nothing half-written left",
+              file=sys.stderr)
         return 130
+    except Exception as e:
+        from .errors import PlcpredError
+
+        if isinstance(e, PlcpredError):
+            print(f"plcpred: error: {e}", file=sys.stderr)
+            return 2
+        if isinstance(e, MemoryError):
+            print("plcpred: error: out of memory (a shorter --horizon or a coarser --dt "
+                  "needs less)", file=sys.stderr)
+            return 2
+        if debug:
+            raise
+        message = str(e).splitlines()[0][:300] if str(e) else ""
+        print(f"plcpred: internal error: {type(e).__name__}"
+              f"{': ' + message if message else ''} (please report it; run again with "
+              "--debug for the traceback)", file=sys.stderr)
+        return 3
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
 
 
 if __name__ == "__main__":

@@ -11,6 +11,7 @@ import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
+from .errors import PlcpredError
 
 CYLINDER_KINDS = ("single_acting", "double_acting", "double_rod", "rodless", "semi_rotary",
                   "gripper")
@@ -20,7 +21,7 @@ FLOW_MODELS = ("iso6358", "choked")
 AUTO_SPEED_MM_S = 300.0  # stroke_time_s = "auto" until the plant model exists
 
 
-class MachineError(Exception):
+class MachineError(PlcpredError):
     def __init__(self, file: str, where: str, message: str):
         super().__init__(message)
         self.file, self.where, self.message = file, where, message

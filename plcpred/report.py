@@ -277,16 +277,14 @@ def write_sizing_report(result, sizing, out_dir) -> list[Path]:
     """``sizing.json``, ``sizing.md``, ``sizing.html`` (plots embedded) and the two plots
     they show, for a :class:`~plcpred.air.Prediction` and its
     :class:`~plcpred.air.sizing.Sizing`."""
-    import json
-
-    from .sequencer.timeline import atomic_write_text
+    from .output import atomic_write_text, write_json
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     name = result.machine.name
     data = {"machine": name, **sizing.to_dict(),
             "consumers": result.profile.summary()["consumers"]}
-    atomic_write_text(out / "sizing.json", json.dumps(data, indent=2) + "\n")
+    write_json(out / "sizing.json", data)
     plot_sizing(result.profile, sizing, out / "sizing.png",
                 title=f"{name}: demand and compressor design flow")
     plot_demand(result.profile, out / "demand.png", title=f"{name}: air demand")

@@ -21,6 +21,8 @@ import os
 import sys
 from dataclasses import dataclass
 
+from .errors import PlcpredError
+
 MACHINE_KEYS = ("supply_bar_g", "scan_ms", "ambient_c", "atmosphere_kpa")
 _FLOAT_FIELDS = {"bore_mm", "rod_mm", "stroke_mm", "tube_id_mm", "switch_delay_s",
                  "pressure_bar_g", "C", "b", "m", "a", "orifice_mm", "Cd", "pulse_ms",
@@ -28,7 +30,7 @@ _FLOAT_FIELDS = {"bore_mm", "rod_mm", "stroke_mm", "tube_id_mm", "switch_delay_s
 _PAIR_FIELDS = {"stroke_time_s", "tube_length_m"}
 
 
-class SweepError(ValueError):
+class SweepError(PlcpredError, ValueError):
     pass
 
 

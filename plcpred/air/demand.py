@@ -25,14 +25,14 @@ falling parts; active air per cell ``Zx^T q_extend + Zr^T q_retract``, passive
 """
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..machine import CYLINDER_KINDS
-from ..sequencer.timeline import NS, atomic_write_text
+from ..output import atomic_write_text, write_json
+from ..sequencer.timeline import NS
 from .flow import bar_g_to_pa, celsius_to_k, flow_nl_min, orifice_conductance
 from .volumes import consumer_stroke_volumes_nl
 
@@ -283,7 +283,7 @@ class DemandProfile:
         data = self.summary()
         if extra:
             data.update(extra)
-        atomic_write_text(path, json.dumps(data, indent=2) + "\n")
+        write_json(path, data)
 
 
 def _csv_name(name: str) -> str:

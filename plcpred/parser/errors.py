@@ -1,8 +1,10 @@
 """Errors that point at a place in a program file."""
 from __future__ import annotations
 
+from ..errors import PlcpredError
 
-class ProgramError(Exception):
+
+class ProgramError(PlcpredError):
     """A problem at ``file:line:col``. ``str()`` gives the one-line form the CLI prints."""
 
     def __init__(self, message: str, file: str = "<input>", line: int = 0, col: int = 0):

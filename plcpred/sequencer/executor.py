@@ -25,6 +25,7 @@ import time as _time
 
 import numpy as np
 
+from ..errors import PlcpredError
 from ..parser import ir
 from . import runtime as rtm
 from . import types
@@ -39,7 +40,7 @@ NEVER = 1 << 62      # "no event" in integer nanoseconds
 MAX_KEYS = 20_000   # fixed points remembered when looking for a repeating state
 
 
-class SequencerError(Exception):
+class SequencerError(PlcpredError):
     """A problem running a machine (not a program syntax error)."""
 
 

@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import math
 
+from ..errors import PlcpredError
 
-class ExecutionError(Exception):
+
+class ExecutionError(PlcpredError):
     """A run-time failure of the PLC program (division by zero, index out of range, a scan
     that does not finish), positioned at the source line when known."""
 

@@ -6,14 +6,14 @@ them, then step flags, then outputs). BOOL values are written 1/0.
 """
 from __future__ import annotations
 
-import os
 import re
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+
+from ..output import atomic_write_text
 
 if TYPE_CHECKING:  # pandas is imported where a DataFrame is built
     import pandas as pd
@@ -158,25 +158,6 @@ def format_seconds(t_ns: int) -> str:
     if not frac:
         return f"{sign}{whole}"
     return f"{sign}{whole}.{frac:09d}".rstrip("0")
-
-
-def atomic_write_text(path, text: str) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-            f.write(text)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
 
 
 _PLAIN = re.compile(r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*(d|h|min|m|s|ms|us|ns)?\s*$", re.I)
