@@ -281,3 +281,59 @@ def test_payload_files_are_refused_by_every_command(path, tmp_path):
         assert "Traceback" not in r.stderr, (cmd, r.stderr)
         assert f"{path}:" in r.stderr and "identifier" in r.stderr, (cmd, r.stderr)
         assert not marker.exists(), cmd
+
+
+# ------------------------------------------------------------------ literals and nesting
+
+def _st_expr(expr, decl="w : WORD; x : LREAL; i : INT; b : BOOL; a : ARRAY[0..3] OF INT;"):
+    return f"PROGRAM P\nVAR {decl} END_VAR\nx := {expr};\nEND_PROGRAM\n"
+
+
+@pytest.mark.parametrize("literal, message", [
+    ("2#2", "not base-2 digits"), ("8#9", "not base-8 digits"), ("3#12", "base 3"),
+    ("16#FFFFFFFFFFFFFFFFFFFFFFFFFFFFFFFF", "larger than any integer"),
+    ("1" * 5000, "larger than any integer"),
+    ("TOD#25:99:99", "does not exist"), ("D#2026-02-30", "does not exist"),
+    ("INT#99999999999", "out of the range of INT"), ("SINT#-129", "out of the range"),
+    ("WORD#-1", "out of the range of WORD"), ("1e999", "out of the range of LREAL"),
+    ("REAL#1e39", "out of the range of REAL"), ("T#99999999999999999999d", "longer than"),
+    ("w.2#1", "bit number"), ("w.64", "bit number"),
+])
+def test_bad_literals_are_positioned_errors(literal, message):
+    with pytest.raises(ProgramError, match=message) as e:
+        parse_st(_st_expr(literal), "t.st")
+    assert (e.value.line, e.value.col) >= (3, 1)
+
+
+@pytest.mark.parametrize("literal, value", [
+    ("INT#16#FFFF", -1), ("TOD#23:59:59.5", 86_399_500_000_000), ("16#FF", 255),
+    ("LINT#-9223372036854775808", -(1 << 63)), ("ULINT#18446744073709551615", (1 << 64) - 1),
+    ("T#1d2h", 26 * 3600 * 10**9)])
+def test_edge_literals_are_read(literal, value):
+    assert parse_st(_st_expr(literal), "t.st").pous[0].body[0].value.value == value
+
+
+@pytest.mark.parametrize("body, message", [
+    ("x := " + " + ".join(["i"] * 150) + ";", "expression nested more than"),
+    ("b := " + "NOT " * 3000 + "b;", "expression nested more than"),
+    ("i := " + "a[" * 40 + "0" + "]" * 40 + ";", "expression nested more than"),
+    ("IF b THEN " * 60 + "i := 1;" + " END_IF;" * 60, "statements nested more than"),
+    ("FOR i := 0 TO 1 DO " * 13 + "b := TRUE;" + " END_FOR;" * 13, "loops nested more"),
+])
+def test_nesting_beyond_the_limits_is_a_positioned_error(body, message):
+    src = _st_expr("0").replace("x := 0;", body)
+    with pytest.raises(ProgramError, match=message) as e:
+        parse_st(src, "t.st")
+    assert e.value.line == 3
+
+
+@pytest.mark.parametrize("body", [
+    "x := " + "(" * 5000 + "1" + ")" * 5000 + ";",  # parentheses leave no trace in the IR
+    "i := " + " + ".join(["i"] * 99) + ";",
+    "i := " + "a[" * 33 + "0" + "]" * 33 + ";",
+    "IF b THEN " * 40 + "i := 1;" + " END_IF;" * 40,
+    "FOR i := 0 TO 1 DO " * 12 + "b := TRUE;" + " END_FOR;" * 12,
+])
+def test_nesting_within_the_limits_compiles_and_runs(body):
+    src = _st_expr("0").replace("x := 0;", body)
+    _run(parse_st(src, "t.st"), scans=1)

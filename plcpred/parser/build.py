@@ -11,7 +11,8 @@ from lark.lexer import Lexer
 from . import ir
 from .errors import ProgramError
 from .lexer import Token
-from .literals import (parse_int, parse_time_literal, parse_typed_literal, unquote_string)
+from .literals import (parse_int, parse_real, parse_time_literal, parse_typed_literal,
+                       unquote_string)
 
 # IEC 61131-3 precedence, larger binds tighter (see grammar.py).
 PRECEDENCE = {
@@ -96,7 +97,11 @@ class IRBuilder:
         return ir.Member(base, str(name), pos=base.pos)
 
     def bit_access(self, base, bit):
-        return ir.BitAccess(base, int(bit.value), pos=base.pos)
+        text = bit.value.replace("_", "")
+        if not text.isdigit() or int(text) > 63:
+            raise self._err(f"bit access .{bit.value}: a bit number 0..63 in decimal",
+                            self._pos(bit))
+        return ir.BitAccess(base, int(text), pos=base.pos)
 
     def index(self, base, *indices):
         return ir.Index(base, list(indices), pos=base.pos)
@@ -115,11 +120,18 @@ class IRBuilder:
 
     def int_lit(self, tok):
         text = tok.value
-        value = int(text) if text.isdigit() else parse_int(text)
+        try:
+            value = int(text) if text.isdigit() and len(text) < 19 else parse_int(text)
+        except ValueError as e:
+            raise self._err(str(e), self._pos(tok)) from None
         return ir.Literal(value, "ANY_INT", pos=ir.Pos(self.file, tok.line, tok.column))
 
     def real_lit(self, tok):
-        return ir.Literal(float(tok.value.replace("_", "")), "ANY_REAL", pos=self._pos(tok))
+        try:
+            value = parse_real(tok.value)
+        except ValueError as e:
+            raise self._err(str(e), self._pos(tok)) from None
+        return ir.Literal(value, "ANY_REAL", pos=self._pos(tok))
 
     def typed_lit(self, tok):
         try:
@@ -303,7 +315,11 @@ class IRBuilder:
         return (1, value)
 
     def repeated_item(self, count, value):
-        return (parse_int(count.value), value)
+        try:
+            n = parse_int(count.value)
+        except ValueError as e:
+            raise self._err(str(e), self._pos(count)) from None
+        return (n, value)
 
     def struct_init(self, *fields):
         return ir.StructInit(list(fields))
@@ -464,7 +480,10 @@ class IRBuilder:
     def transition_priority(self, key, value):
         if str(key).upper() != "PRIORITY":
             raise self._err(f"expected PRIORITY := n, found '{key}'", self._pos(key))
-        return parse_int(value.value)
+        try:
+            return parse_int(value.value)
+        except ValueError as e:
+            raise self._err(str(e), self._pos(value)) from None
 
     def step_set(self, *names):
         return [str(n) for n in names]
@@ -779,20 +798,29 @@ def _compile_rule(rule, builder):
         if simple:
             filtered = children if everything else [children[i] for i in keep]
         else:
-            filtered = []
+            filtered = None
             for i, splice, n in plan:
+                if filtered is None:
+                    if splice and not n and isinstance(children[i], _Splice):
+                        # a left-recursive list (``_stmts: _stmts stmt``) grows in place:
+                        # copying it at every reduction made long lists quadratic
+                        filtered = children[i]
+                        continue
+                    filtered = _Splice()
                 if n:
                     filtered.extend([None] * n)
                 if splice:
                     filtered.extend(children[i])
                 else:
                     filtered.append(children[i])
+            if filtered is None:
+                filtered = _Splice()
             if trailing:
                 filtered.extend([None] * trailing)
         if expand1 and len(filtered) == 1:
             return filtered[0]
         if func is None:
-            return _Splice(filtered)
+            return filtered if isinstance(filtered, _Splice) else _Splice(filtered)
         return func(*filtered)
 
     return callback

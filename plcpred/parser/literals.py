@@ -17,19 +17,57 @@ _TIME_PART = re.compile(r"(\d[\d_]*(?:\.\d+)?)(d|h|ms|m|s|us|ns)_?", re.I)
 INT_TYPES = {"SINT": 8, "INT": 16, "DINT": 32, "LINT": 64, "USINT": 8, "UINT": 16,
              "UDINT": 32, "ULINT": 64, "BYTE": 8, "WORD": 16, "DWORD": 32, "LWORD": 64}
 REAL_TYPES = {"REAL", "LREAL"}
+SIGNED_INT_TYPES = {"SINT", "INT", "DINT", "LINT"}
+REAL_MAX = {"REAL": 3.4028234663852886e38, "LREAL": 1.7976931348623157e308}
+# the widest integer any IEC type holds (ULINT, LINT): larger literals are errors, which
+# also keeps Python from converting thousands of digits
+INT_LITERAL_MAX = (1 << 64) - 1
+# durations are held as integer nanoseconds; LTIME's 64-bit range bounds them
+DURATION_MAX_NS = (1 << 63) - 1
+_DIGITS = {2: "01", 8: "01234567", 10: "0123456789", 16: "0123456789abcdefABCDEF"}
+
+
+def int_range(type_name: str) -> tuple[int, int]:
+    """(lowest, highest) value of an IEC integer type."""
+    bits = INT_TYPES[type_name]
+    if type_name in SIGNED_INT_TYPES:
+        return -(1 << (bits - 1)), (1 << (bits - 1)) - 1
+    return 0, (1 << bits) - 1
 
 
 def parse_int(text: str) -> int:
-    """``1_000``, ``16#FF``, ``2#1010_0101``, ``8#17``, with an optional sign."""
+    """``1_000``, ``16#FF``, ``2#1010_0101``, ``8#17``, with an optional sign. Bases are
+    2, 8 and 16 (IEC 61131-3 6.3.2); the digits must belong to the base, and the value
+    must fit the widest integer type (64 bits)."""
+    raw = text
     text = text.replace("_", "")
     sign = 1
     if text and text[0] in "+-":
         sign = -1 if text[0] == "-" else 1
         text = text[1:]
+    base, digits = 10, text
     if "#" in text:
-        base, digits = text.split("#", 1)
-        return sign * int(digits, int(base))
-    return sign * int(text)
+        base_text, digits = text.split("#", 1)
+        if base_text not in ("2", "8", "16"):
+            raise ValueError(f"integer literal {raw!r}: base {base_text} (IEC bases are 2, "
+                             "8 and 16)")
+        base = int(base_text)
+    if not digits or any(c not in _DIGITS[base] for c in digits):
+        raise ValueError(f"integer literal {raw!r}: {digits!r} are not base-{base} digits")
+    if len(digits) > 70:
+        raise ValueError(f"integer literal {raw[:30]!r}...: larger than any integer type")
+    value = sign * int(digits, base)
+    if abs(value) > INT_LITERAL_MAX:
+        raise ValueError(f"integer literal {raw!r} is larger than any integer type (64 bits)")
+    return value
+
+
+def parse_real(text: str, type_name: str = "LREAL") -> float:
+    """``1.5``, ``1.5e3``, ``1_000.0``; an error if it overflows the type."""
+    value = float(text.replace("_", ""))
+    if not abs(value) <= REAL_MAX[type_name]:
+        raise ValueError(f"real literal {text!r} is out of the range of {type_name}")
+    return value
 
 
 def parse_duration_ns(text: str) -> int:
@@ -47,18 +85,42 @@ def parse_duration_ns(text: str) -> int:
         pos = m.end()
     if pos != len(text) or pos == 0:
         raise ValueError(f"malformed duration {text!r}")
-    return sign * round(total)
+    ns = sign * round(total)
+    if abs(ns) > DURATION_MAX_NS:
+        raise ValueError(f"duration {text!r} is longer than LTIME holds (about 292 years)")
+    return ns
+
+
+_TOD = re.compile(r"(\d{1,2}):(\d{1,2})(?::(\d{1,2}(?:\.\d{1,9})?))?")
+_DATE = re.compile(r"(\d{4})-(\d{1,2})-(\d{1,2})")
 
 
 def parse_tod_ns(text: str) -> int:
-    parts = text.split(":")
-    h, m = int(parts[0]), int(parts[1])
-    s = Fraction(parts[2]) if len(parts) > 2 else Fraction(0)
-    return round(((h * 60 + m) * 60 + s) * 10**9)
+    """``12:30:15.25`` -> nanoseconds since midnight; hours 0..23, minutes and seconds
+    0..59."""
+    m = _TOD.fullmatch(text.replace("_", ""))
+    if m is None:
+        raise ValueError(f"time of day {text!r}: write hh:mm:ss")
+    h, mi = int(m.group(1)), int(m.group(2))
+    s = Fraction(m.group(3)) if m.group(3) else Fraction(0)
+    if h > 23 or mi > 59 or s >= 60:
+        raise ValueError(f"time of day {text!r} does not exist (hours 0..23, minutes and "
+                         "seconds 0..59)")
+    return round(((h * 60 + mi) * 60 + s) * 10**9)
 
 
 def parse_date_ns(text: str) -> int:
-    y, mo, d = (int(p) for p in text.split("-")[:3])
+    """``2024-01-02`` -> nanoseconds since 1970-01-01 (a date that exists)."""
+    import datetime
+
+    m = _DATE.fullmatch(text)
+    if m is None:
+        raise ValueError(f"date {text!r}: write yyyy-mm-dd")
+    y, mo, d = (int(g) for g in m.groups())
+    try:
+        datetime.date(y, mo, d)
+    except ValueError as e:
+        raise ValueError(f"date {text!r} does not exist ({e})") from None
     return calendar.timegm((y, mo, d, 0, 0, 0)) * 10**9
 
 
@@ -72,6 +134,8 @@ def parse_time_literal(text: str) -> tuple[int, str]:
         return parse_tod_ns(value), kind
     if kind in ("DATE", "LDATE"):
         return parse_date_ns(value), kind
+    if value.count("-") < 3:
+        raise ValueError(f"date and time {value!r}: write yyyy-mm-dd-hh:mm:ss")
     date, tod = value.rsplit("-", 1)
     return parse_date_ns(date) + parse_tod_ns(tod), kind
 
@@ -190,9 +254,18 @@ def parse_typed_literal(text: str):
             return False, type_name
         raise ValueError(f"{value!r} is not a BOOL")
     if type_name in INT_TYPES:
-        return parse_int(value), type_name
+        v = parse_int(value)
+        lo, hi = int_range(type_name)
+        bits = INT_TYPES[type_name]
+        if "#" in value and lo < 0 and hi < v < (1 << bits):
+            v -= 1 << bits  # INT#16#FFFF: a bit pattern, read as two's complement
+        if not lo <= v <= hi:
+            raise ValueError(f"{text} is out of the range of {type_name} ({lo}..{hi})")
+        return v, type_name
     if type_name in REAL_TYPES:
-        return (float(parse_int(value)) if "#" in value else float(value.replace("_", ""))), type_name
+        if "#" in value:
+            return float(parse_int(value)), type_name
+        return parse_real(value, type_name), type_name
     if type_name in ("STRING", "WSTRING", "CHAR", "WCHAR"):
         if value[:1] not in ("'", '"'):
             raise ValueError(f"{type_name} literal needs a quoted string")

@@ -33,6 +33,17 @@ from . import ir
 from .errors import ProgramError, at
 
 MAX_NAME_LENGTH = 255
+# Nesting limits. Real PLC code stays far below them; they exist because every later stage
+# (checks, the compiler, Python compiling the generated code: at most 100 indentation
+# levels and 20 nested loops) has limits of its own, and a program file must meet a clear,
+# positioned error here instead of a crash there.
+MAX_EXPRESSION_DEPTH = 100   # operators, calls, indexing nested in one expression
+MAX_STATEMENT_DEPTH = 40     # IF / CASE / loops nested in one body
+MAX_LOOP_DEPTH = 12          # FOR / WHILE / REPEAT nested in one body
+_STATEMENTS = (ir.If, ir.Case, ir.For, ir.While, ir.Repeat)
+_LOOPS = (ir.For, ir.While, ir.Repeat)
+_EXPRESSIONS = (ir.Unary, ir.Binary, ir.Call, ir.Index, ir.Member, ir.BitAccess, ir.Deref,
+                ir.Arg)
 
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*", re.ASCII)
 _HAS_ALNUM = re.compile(r"[A-Za-z0-9]", re.ASCII)
@@ -105,9 +116,9 @@ def validate_names(program: ir.Program) -> ir.Program:
     """Check every string of ``program`` against what its field allows (module docstring).
     Returns the program; raises :class:`ProgramError` at the offending node's position (or
     the nearest enclosing node that has one)."""
-    stack = [(program, None, None)]
+    stack = [(program, None, None, (0, 0, 0))]
     while stack:
-        node, pos, ctx = stack.pop()
+        node, pos, ctx, depth = stack.pop()
         if isinstance(node, ir.Pos):
             continue
         if isinstance(node, (list, tuple)):
@@ -116,18 +127,19 @@ def validate_names(program: ir.Program) -> ir.Program:
                     if not _name_ok(item, ctx):
                         raise _bad_name(item, pos, _what(*ctx) if ctx else "name")
                 elif item is not None and not isinstance(item, (int, float)):
-                    stack.append((item, pos, ctx))
+                    stack.append((item, pos, ctx, depth))
             continue
         if isinstance(node, dict):
             for k, v in node.items():
                 if not is_identifier(k):
                     raise _bad_name(k, pos, "name")
-                stack.append((v, pos, ctx))
+                stack.append((v, pos, ctx, depth))
             continue
         if not dataclasses.is_dataclass(node):
             raise at(pos, f"unexpected {type(node).__name__} in the program structure")
         cls = type(node)
         pos = getattr(node, "pos", None) or pos
+        depth = _deeper(node, depth, pos)
         paths = cls is ir.VarBlock and node.kind in ("VAR_CONFIG", "VAR_ACCESS")
         for f in dataclasses.fields(node):
             key = (cls, f.name)
@@ -159,10 +171,32 @@ def validate_names(program: ir.Program) -> ir.Program:
                         isinstance(value, int) and 0 <= value < 64):
                     raise at(pos, f"bit number {value} is outside 0..63")
             elif paths and f.name == "decls":
-                stack.extend((d, pos, _PATH) for d in value)
+                stack.extend((d, pos, _PATH, depth) for d in value)
             else:
-                stack.append((value, pos, key))
+                stack.append((value, pos, key, depth))
     return program
+
+
+def _deeper(node, depth, pos):
+    """The (expression, statement, loop) nesting inside ``node``; an error past a limit."""
+    expr, stmt, loop = depth
+    if isinstance(node, _EXPRESSIONS):
+        expr += 3 if isinstance(node, ir.Index) else 1  # a bounds check wraps each index
+        if expr > MAX_EXPRESSION_DEPTH:
+            raise at(pos, f"expression nested more than {MAX_EXPRESSION_DEPTH} levels deep; "
+                          "split it with intermediate variables")
+    elif isinstance(node, _STATEMENTS):
+        expr, stmt = 0, stmt + 1
+        if stmt > MAX_STATEMENT_DEPTH:
+            raise at(pos, f"statements nested more than {MAX_STATEMENT_DEPTH} levels deep "
+                          "(IF, CASE and loops inside each other)")
+        if isinstance(node, _LOOPS):
+            loop += 1
+            if loop > MAX_LOOP_DEPTH:
+                raise at(pos, f"loops nested more than {MAX_LOOP_DEPTH} levels deep")
+    elif isinstance(node, (ir.Pou, ir.Method, ir.PropertyAccessor, ir.SfcAction)):
+        return (0, 0, 0)
+    return (expr, stmt, loop)
 
 
 def _what(cls, field_name: str) -> str:

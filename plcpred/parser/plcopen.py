@@ -124,6 +124,17 @@ class _Importer:
         except KeyError:
             raise self.error(el, f"<{el.tag}> needs a '{name}' attribute") from None
 
+    def int_attr(self, el: _El, name: str, default: int, low: int = 0,
+                 high: int = 1 << 31) -> int:
+        """An optional whole-number attribute in [low, high], or an error naming it."""
+        text = (el.attrib.get(name) or "").strip()
+        if not text:
+            return default
+        if not text.lstrip("+-").isdigit() or not low <= int(text) <= high:
+            raise self.error(el, f"<{el.tag}> attribute {name}={text[:40]!r}: expected a "
+                                 f"whole number {low}..{high}")
+        return int(text)
+
     # ------------------------------------------------------------------ ST fragments
     def _padded(self, text: str, line: int, col: int, header: str) -> str:
         """ST text placed at its true line/column, after a header on line 1."""
@@ -159,9 +170,10 @@ class _Importer:
         if tag.upper() in ELEMENTARY:
             return ir.NamedType(tag.upper())
         if tag.lower() in ("string", "wstring"):  # TC6 writes them lower case; some tools don't
-            length = t.attrib.get("length")
+            # a number, or a constant's name (CODESYS writes STRING(MAX_LEN) so)
+            length = (t.attrib.get("length") or "").strip()
             return ir.StringType(tag.lower() == "wstring",
-                                 ir.Literal(int(length), "ANY_INT") if length else None)
+                                 self.value_text(t, length) if length else None)
         if tag == "derived":
             return ir.NamedType(self.req(t, "name"))
         if tag == "array":
@@ -197,7 +209,7 @@ class _Importer:
         if v.tag == "arrayValue":
             items = []
             for item in v.findall("value"):
-                count = int(item.attrib.get("repetitionValue", "1"))
+                count = self.int_attr(item, "repetitionValue", 1, 0, 1 << 24)
                 items.append((count, self.init_of(item)))
             return ir.ArrayInit(items)
         if v.tag == "structValue":
@@ -340,7 +352,7 @@ class _Importer:
                 if not sources or not targets:
                     raise self.error(el, "transition is not connected to steps on both sides")
                 cond = self.condition(el, named_conditions)
-                prio = int(el.attrib.get("priority", 0) or 0)
+                prio = self.int_attr(el, "priority", 0, -(1 << 31))
                 transitions.append(ir.Transition(sources, targets, cond, prio,
                                                  pos=ir.Pos(self.file, el.line, el.col)))
             elif el.tag == "actionBlock":

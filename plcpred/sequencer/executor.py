@@ -29,7 +29,7 @@ from ..errors import PlcpredError
 from ..parser import ir
 from . import runtime as rtm
 from . import types
-from .compiler import Compiled, compile_program
+from .compiler import CompileError, Compiled, compile_program
 from .plant import CylinderPlant, valve_command
 from .sfc import ActionSpec, SfcRuntime, SfcSpec
 from .stdfb import TON, TOF, TP, TONR, make_standard_fb
@@ -182,7 +182,19 @@ class ProgramInstance:
         self.timers: list = []
         self.sfcs: list = []
         self.ns = _namespace(self.timers, self.sfcs)
-        code = compile(self.compiled.source, self.filename, "exec")
+        try:
+            code = compile(self.compiled.source, self.filename, "exec")
+        except (SyntaxError, RecursionError, MemoryError) as e:
+            # Python's own limits (nested parentheses, indentation, nested blocks): the
+            # name gate's nesting limits keep programs below them; this names the place
+            # should one still be reached
+            line = getattr(e, "lineno", None)
+            pos = self.compiled.line_pos[line - 1] if line and 0 < line <= len(
+                self.compiled.line_pos) else None
+            where = (pos.file, pos.line, pos.col) if pos else (self._file(program), 0, 0)
+            raise CompileError("this statement is nested too deeply for the executor "
+                               f"({getattr(e, 'msg', None) or type(e).__name__}); split it "
+                               "with intermediate variables", *where) from None
         exec(code, self.ns)
         self.programs = self.guard(self.ns["_build"])
         self.g = self.ns["_g"]
