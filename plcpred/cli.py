@@ -51,8 +51,15 @@ def cmd_check(args) -> int:
             print(e, file=sys.stderr)
             failed = True
     context = list(parsed.values())
+    results = {path: ([], []) if args.syntax_only else check_program(program, context)
+               for path, program in parsed.items()}
+    if not args.syntax_only and not any(errors for errors, _ in results.values()):
+        compile_error = _compile_check(context)
+        if compile_error is not None:
+            path = next((p for p in parsed if p == compile_error.file), next(iter(parsed)))
+            results[path][0].append(compile_error)
     for path, program in parsed.items():
-        errors, warnings = ([], []) if args.syntax_only else check_program(program, context)
+        errors, warnings = results[path]
         for w in warnings:
             print(w, file=sys.stderr)
         for e in errors:
@@ -64,6 +71,24 @@ def cmd_check(args) -> int:
             note = f" ({len(warnings)} warning{'s' if len(warnings) != 1 else ''})" if warnings else ""
             print(f"{path}: ok{note}: {_summary(program)}")
     return 1 if failed else 0
+
+
+def _compile_check(programs):
+    """Compile the project as ``timeline`` would, so that ``check`` reports first what
+    running it would reject: the CompileError, or None (also for a library, where no
+    PROGRAM runs)."""
+    from functools import reduce
+
+    from .parser import ProgramError
+    from .sequencer.compiler import compile_program
+
+    if not any(p.kind == "PROGRAM" for prog in programs for p in prog.pous):
+        return None
+    try:
+        compile_program(reduce(lambda a, b: a.merge(b), programs))
+    except ProgramError as e:
+        return e
+    return None
 
 
 def _durations(args) -> tuple[float, float | None]:
@@ -103,7 +128,7 @@ def cmd_timeline(args) -> int:
     try:
         machine = load_machine(args.machine)
         tl = unfold(machine, horizon_s, scan_stepping=args.scan_stepping,
-                    program=args.program)
+                    program=args.program, max_events=args.max_events)
     except _model_errors() as e:
         print(e, file=sys.stderr)
         return 1
@@ -116,7 +141,7 @@ def cmd_timeline(args) -> int:
     if info.get("period_s"):
         mode += (f", repeats every {info['period_s']:g} s from {info['tiled_from_s']:g} s "
                  "(tiled)")
-    print(f"{machine.name}: {len(tl.signals)} signals, {len(tl.time_ns)} changes over "
+    print(f"{machine.name}: {len(tl.signals)} signals, {tl.n_changes} changes over "
           f"{tl.horizon_s:g} s; {info['scans']} scans executed of "
           f"{int(tl.horizon_ns // (info['scan_ms'] * 1e6)) + 1} ({mode}); "
           f"{info['wall_s']:.2f} s")
@@ -137,7 +162,8 @@ def cmd_predict(args) -> int:
         return _fail(str(e))
     try:
         machine = load_machine(args.machine)
-        result = predict(machine, horizon_s, dt=dt_s, program=args.program)
+        result = predict(machine, horizon_s, dt=dt_s, program=args.program,
+                         max_events=args.max_events)
     except _model_errors() as e:
         print(e, file=sys.stderr)
         return 1
@@ -198,7 +224,8 @@ def cmd_size(args) -> int:
     except (ValueError, OutputError) as e:
         return _fail(f"{e}")
     try:
-        result = predict(args.machine, horizon_s, dt=dt_s, program=args.program)
+        result = predict(args.machine, horizon_s, dt=dt_s, program=args.program,
+                         max_events=args.max_events)
         s = size(result.profile, allowance=allowance, band_bar=band, hours_per_year=args.hours,
                  sec_kwh_per_nm3=args.sec, price_per_kwh=args.price, idle_after_s=idle_after)
     except _model_errors() as e:
@@ -301,6 +328,24 @@ def _machine_args(p, out: str | None = "output directory", dt: bool = True) -> N
         p.add_argument("--dt", help=DT_HELP)
     p.add_argument("--program", metavar="PROGRAM",
                    help="run this program instead of the one the machine file names")
+    if out:
+        p.add_argument("--max-events", type=_positive_int, default=DEFAULT_MAX_CHANGES,
+                       metavar="N", help="most signal changes held in memory (default "
+                       f"{DEFAULT_MAX_CHANGES:,}); a program that changes a signal every "
+                       "scan over a long horizon stops with an error naming it")
+
+
+DEFAULT_MAX_CHANGES = 20_000_000  # the sequencer's default (not imported: --help stays fast)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, not {text!r}") from None
+    if n <= 0:
+        raise argparse.ArgumentTypeError("must be at least 1")
+    return n
 
 
 def build_parser() -> argparse.ArgumentParser:

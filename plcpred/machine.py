@@ -117,6 +117,24 @@ _CONSUMER_KEYS = {"name", "kind", "valve", "bore_mm", "rod_mm", "stroke_mm", "tu
                   "pressure_bar_g", "C", "b", "m", "a", "orifice_mm", "Cd", "flow_model"}
 
 
+# Physical ranges of every number in a machine file: (lowest, highest). Wider than any real
+# machine, so they only catch typos, unit mix-ups and values that would overflow the
+# arithmetic (a 1e300 s stroke, a 1e-300 s pulse). Bounds are inclusive unless the key is
+# also required to be positive.
+RANGES = {
+    "scan_ms": (0.01, 60_000.0), "supply_bar_g": (0.0, 100.0),
+    "atmosphere_kpa": (50.0, 120.0), "ambient_c": (-60.0, 150.0),
+    "bore_mm": (0.0, 2_000.0), "rod_mm": (0.0, 2_000.0), "stroke_mm": (0.0, 20_000.0),
+    "tube_id_mm": (0.0, 200.0), "tube_length_m": (0.0, 1_000.0),
+    "stroke_time_s": (1e-4, 3_600.0), "switch_delay_s": (0.0, 60.0),
+    "pressure_bar_g": (0.0, 100.0), "C": (1e-15, 1e-3), "m": (0.0, 10.0), "a": (0.0, 1.0),
+    "orifice_mm": (0.0, 1_000.0), "Cd": (0.0, 1.0),
+    "pulse_ms": (1e-3, 1e9), "period_s": (1e-3, 1e8), "offset_s": (0.0, 1e9),
+    "jitter_s": (0.0, 1e8), "pulses_s": (0.0, 1e9),
+}
+MAX_PULSES = 1_000_000
+
+
 class _Reader:
     """Typed access to one TOML table, with errors that say where."""
 
@@ -140,12 +158,17 @@ class _Reader:
         return self._checked(key, self.table[key], positive, nonneg)
 
     def _checked(self, key, v, positive, nonneg) -> float:
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise self.error(f"{key} must be a number, not {v!r}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or (
+                isinstance(v, int) and abs(v) > 1e300) or not math.isfinite(v):
+            raise self.error(f"{key} must be a number, not {_shown(v)}")
         if positive and v <= 0:
             raise self.error(f"{key} must be > 0")
         if nonneg and v < 0:
             raise self.error(f"{key} must be >= 0")
+        low, high = RANGES.get(key, (-math.inf, math.inf))
+        if not low <= v <= high:
+            raise self.error(f"{key} = {_shown(v)} is outside the physical range "
+                             f"{low:g}..{high:g}")
         return float(v)
 
     def string(self, key, default=None, *, required=False, choices=None):
@@ -155,7 +178,9 @@ class _Reader:
             return default
         v = self.table[key]
         if not isinstance(v, str) or not v:
-            raise self.error(f"{key} must be a non-empty string, not {v!r}")
+            raise self.error(f"{key} must be a non-empty string, not {_shown(v)}")
+        if len(v) > 1000 or not v.isprintable():
+            raise self.error(f"{key} must be printable text of at most 1000 characters")
         if choices and v not in choices:
             raise self.error(f"{key} must be one of {', '.join(choices)}, not {v!r}")
         return v
@@ -171,6 +196,19 @@ class _Reader:
         return tuple(self._checked(key, x, positive, nonneg) for x in values)
 
 
+def _shown(v) -> str:
+    text = repr(v)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _signal_name(r: _Reader, key: str, v) -> str:
+    """A signal: a variable name, an address or NAME.bit, as printable short text."""
+    if not isinstance(v, str) or not v or len(v) > 255 or not v.isprintable():
+        raise r.error(f"{key} must be a signal name (a variable, %IX0.0 or WORD.3), "
+                      f"not {_shown(v)}")
+    return v
+
+
 def _consumer(file: str, index: int, table: dict, warnings: list) -> Consumer:
     label = f'consumer "{table.get("name")}"' if isinstance(table, dict) and table.get(
         "name") else f"consumer #{index + 1}"
@@ -184,10 +222,10 @@ def _consumer(file: str, index: int, table: dict, warnings: list) -> Consumer:
     elif kind == "leak":
         raise r.error("a leak is always on and has no valve")
     elif isinstance(valve, str) and valve:
-        c.valve = [valve]
+        c.valve = [_signal_name(r, "valve", valve)]
     elif (isinstance(valve, list) and len(valve) == 2
           and all(isinstance(v, str) and v for v in valve)):
-        c.valve = list(valve)
+        c.valve = [_signal_name(r, "valve", v) for v in valve]
     else:
         raise r.error("valve must be a signal name (monostable) or two (bistable), "
                       f"not {valve!r}")
@@ -218,7 +256,7 @@ def _consumer(file: str, index: int, table: dict, warnings: list) -> Consumer:
         if not isinstance(sw, dict) or set(sw) - {"retracted", "extended"} or not all(
                 isinstance(v, str) and v for v in sw.values()):
             raise r.error("switches must be { retracted = \"...\", extended = \"...\" }")
-        c.switches = dict(sw)
+        c.switches = {k: _signal_name(r, f"switches.{k}", v) for k, v in sw.items()}
         c.initial = r.string("initial", "retracted", choices=("retracted", "extended"))
         for key in ("C", "b", "m", "a", "orifice_mm", "Cd", "pressure_bar_g", "flow_model"):
             if key in table:
@@ -257,19 +295,19 @@ def _input(file: str, index: int, table: dict) -> InputSchedule:
     label = f'input "{table.get("signal")}"' if isinstance(table, dict) and table.get(
         "signal") else f"input #{index + 1}"
     r = _Reader(file, label, table, _INPUT_KEYS)
-    s = InputSchedule(r.string("signal", required=True))
+    s = InputSchedule(_signal_name(r, "signal", r.string("signal", required=True)))
     pulses = table.get("pulses_s", [])
-    if not isinstance(pulses, list) or not all(
-            isinstance(p, (int, float)) and not isinstance(p, bool) and p >= 0 for p in pulses):
-        raise r.error("pulses_s must be a list of times >= 0")
-    s.pulses_s = sorted(float(p) for p in pulses)
+    if not isinstance(pulses, list) or len(pulses) > MAX_PULSES:
+        raise r.error(f"pulses_s must be a list of at most {MAX_PULSES:,} times")
+    s.pulses_s = sorted(r._checked("pulses_s", p, False, True) for p in pulses)
     s.pulse_ms = r.number("pulse_ms", 200.0, positive=True)
     s.period_s = r.number("period_s", positive=True)
     s.offset_s = r.number("offset_s", 0.0, nonneg=True)
     s.jitter_s = r.number("jitter_s", 0.0, nonneg=True)
     if "seed" in table:
-        if not isinstance(table["seed"], int) or isinstance(table["seed"], bool):
-            raise r.error("seed must be an integer")
+        if not isinstance(table["seed"], int) or isinstance(table["seed"], bool) or not (
+                0 <= table["seed"] < 2**63):
+            raise r.error("seed must be a whole number 0..2^63-1")
         s.seed = table["seed"]
     if "initial" in table:
         if not isinstance(table["initial"], bool):
@@ -292,6 +330,11 @@ def load_machine(path) -> Machine:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except OSError as e:
         raise MachineError(file, "", f"cannot read file: {e.strerror}") from None
+    except UnicodeDecodeError as e:
+        raise MachineError(file, "", f"not UTF-8 text (byte {e.start}): TOML files are "
+                                     "UTF-8") from None
+    except RecursionError:
+        raise MachineError(file, "", "not valid TOML: nested too deeply") from None
     except tomllib.TOMLDecodeError as e:
         raise MachineError(file, "", f"not valid TOML: {e}") from None
     unknown = sorted(set(data) - {"machine", "signals", "input", "consumer"})
@@ -317,7 +360,9 @@ def load_machine(path) -> Machine:
         raise r.error(f"program file '{program}' not found (looked for "
                       f"{machine.program_path})")
     signals = data.get("signals", {})
-    if not isinstance(signals, dict) or not all(isinstance(v, str) for v in signals.values()):
+    if not isinstance(signals, dict) or not all(
+            isinstance(v, str) and v and len(v) <= 255 and v.isprintable()
+            for v in signals.values()):
         raise MachineError(file, "[signals]", 'entries must look like "%IX0.0" = "PB1"')
     machine.signals = dict(signals)
     for key, what, builder, out in (("input", "[[input]]", _input, machine.inputs),

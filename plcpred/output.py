@@ -44,12 +44,20 @@ class OutputError(PlcpredError):
 
 def atomic_write_text(path, text: str) -> None:
     """Write ``text`` to ``path`` through a temporary file in the same directory."""
+    with atomic_writer(path) as f:
+        f.write(text)
+
+
+@contextmanager
+def atomic_writer(path):
+    """A text file to write in pieces (for output too large to build in memory), renamed
+    into place when the block ends without an exception."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
-            f.write(text)
+            yield f
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
@@ -132,7 +140,11 @@ def _write_manifest(staging: Path, run_id: str, command: str) -> None:
     files = {}
     for f in sorted(staging.iterdir()):
         if f.is_file():
-            digest = hashlib.sha256(f.read_bytes()).hexdigest()
+            h = hashlib.sha256()
+            with open(f, "rb") as fh:
+                for block in iter(lambda: fh.read(1 << 20), b""):
+                    h.update(block)
+            digest = h.hexdigest()
             files[f.name] = {"bytes": f.stat().st_size, "sha256": digest}
     manifest = {"run_id": run_id, "command": command,
                 "created": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "files": files}

@@ -7,6 +7,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..errors import PlcpredError
 from ..sequencer.timeline import NS, Timeline
 from .demand import ConsumerModel, DemandProfile, consumer_models, demand_profile
 
@@ -77,10 +78,20 @@ def _span(seconds: float) -> str:
     return f"{seconds:g} s"
 
 
-def predict(machine, horizon="60s", dt=None, program=None, timeline=None) -> Prediction:
+# demand grid cells x (consumers + 1) held at once: about 320 MB of float64
+MAX_GRID_VALUES = 40_000_000
+
+
+class GridError(PlcpredError, ValueError):
+    """A demand grid that cannot be built (a step that is not positive, or too fine)."""
+
+
+def predict(machine, horizon="60s", dt=None, program=None, timeline=None,
+            max_events: int | None = None) -> Prediction:
     """Run ``machine`` (a path or a loaded machine) over ``horizon`` and turn its timeline
     into a demand profile on a ``dt`` grid (seconds, or a duration such as ``"1s"``;
-    default :func:`default_dt`)."""
+    default :func:`default_dt`). ``max_events`` caps the signal changes held in memory
+    (default: the sequencer's)."""
     from ..machine import Machine, load_machine
     from ..sequencer import parse_horizon, unfold
 
@@ -89,7 +100,8 @@ def predict(machine, horizon="60s", dt=None, program=None, timeline=None) -> Pre
     if not isinstance(machine, Machine):
         machine = load_machine(machine)
     if timeline is None:
-        timeline = unfold(machine, horizon, program=program)
+        extra = {} if max_events is None else {"max_events": max_events}
+        timeline = unfold(machine, horizon, program=program, **extra)
     stages["sequence"] = time.perf_counter() - t0
     horizon_s = timeline.horizon_ns / NS
     if dt is None:
@@ -98,10 +110,17 @@ def predict(machine, horizon="60s", dt=None, program=None, timeline=None) -> Pre
         dt_s = parse_horizon(dt) / NS
     else:
         dt_s = float(dt)
-        if dt_s <= 0:
-            raise ValueError("dt must be positive")
-    t0 = time.perf_counter()
+    if not dt_s > 0:
+        raise GridError("--dt must be positive")
     models = consumer_models(machine)
+    values = (horizon_s / dt_s + 1) * (len(models) + 1)
+    if values > MAX_GRID_VALUES:
+        raise GridError(f"--dt {dt_s:g} s over {horizon_s:g} s gives {horizon_s / dt_s:,.0f} "
+                        f"grid cells for {len(models)} consumers, more than the "
+                        f"{MAX_GRID_VALUES:,} values plcpred holds; use a coarser --dt "
+                        f"(at least {horizon_s * (len(models) + 1) / MAX_GRID_VALUES:.3g} s) "
+                        "or leave it out for the default")
+    t0 = time.perf_counter()
     profile = demand_profile(timeline, models, dt_s)
     stages["air_model"] = time.perf_counter() - t0
     return Prediction(machine, timeline, profile, models, stages)

@@ -11,14 +11,14 @@ semantics and a plant I/O model.
 from .compiler import CompileError, compile_program
 from .executor import Sequencer, SequencerError
 from .runtime import ExecutionError, Watchdog
-from .timeline import Signal, Timeline, parse_horizon
+from .timeline import DEFAULT_MAX_CHANGES, Signal, Timeline, TimelineTooLarge, parse_horizon
 
 __all__ = ["CompileError", "ExecutionError", "Sequencer", "SequencerError", "Signal",
-           "Timeline", "Watchdog", "compile_program", "parse_horizon", "unfold"]
+           "Timeline", "TimelineTooLarge", "Watchdog", "compile_program", "parse_horizon", "unfold"]
 
 
 def unfold(machine, horizon="60s", scan_stepping: bool = False, tiling: bool = True,
-           program=None) -> Timeline:
+           program=None, max_events: int = DEFAULT_MAX_CHANGES) -> Timeline:
     """Run ``machine``'s program (or ``program``, an IR or a path, instead) over
     ``horizon`` (``"90s"``, ``"T#1m30s"``, ``"8h"`` or seconds) and return its timeline.
 
@@ -37,4 +37,4 @@ def unfold(machine, horizon="60s", scan_stepping: bool = False, tiling: bool = T
         program = load_program(program)
     check_against_program(machine, program)
     return Sequencer(program, machine).run(horizon_ns, scan_stepping=scan_stepping,
-                                           tiling=tiling)
+                                           tiling=tiling, max_events=max_events)

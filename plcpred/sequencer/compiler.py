@@ -1206,9 +1206,16 @@ class Compiler:
             self._et_const = False
         if lt.cat == "int" and rt.cat == "real" and isinstance(x.left, ir.Literal):
             lc = repr(float(lc))
+        if (lt.cat == "string") != (rt.cat == "string") and "void" not in (lt.cat, rt.cat):
+            raise _err(x, f"'{op}' between {getattr(lt, 'name', lt.cat)} and "
+                          f"{getattr(rt, 'name', rt.cat)}: convert one of them first")
         if op in _CMP:
             return f"({lc} {_CMP[op]} {rc})", BOOL
-        if op in ("AND", "AND_THEN", "OR", "OR_ELSE", "XOR"):
+        if op in ("AND", "AND_THEN", "OR", "OR_ELSE", "XOR", "&"):
+            if {lt.cat, rt.cat} - {"bool", "int"} or (lt.cat == "bool") != (rt.cat == "bool"):
+                raise _err(x, f"{op} needs two BOOL or two bit-string/integer operands, not "
+                              f"{getattr(lt, 'name', lt.cat)} and {getattr(rt, 'name', rt.cat)}")
+            op = "AND" if op == "&" else op
             if lt.cat == "bool" and rt.cat == "bool":
                 if op == "XOR":
                     return f"({lc} != {rc})", BOOL

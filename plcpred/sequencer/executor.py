@@ -33,7 +33,7 @@ from .compiler import CompileError, Compiled, compile_program
 from .plant import CylinderPlant, valve_command
 from .sfc import ActionSpec, SfcRuntime, SfcSpec
 from .stdfb import TON, TOF, TP, TONR, make_standard_fb
-from .timeline import NS, Signal, Timeline
+from .timeline import DEFAULT_MAX_CHANGES, NS, Signal, Timeline
 
 _TIMERS = (TON, TOF, TP, TONR)
 NEVER = 1 << 62      # "no event" in integer nanoseconds
@@ -525,8 +525,10 @@ class Sequencer:
 
     # ------------------------------------------------------------------ run
     def run(self, horizon_ns: int, scan_stepping: bool = False,
-            tiling: bool = True) -> Timeline:
-        """Unfold the program over ``[0, horizon_ns]`` and return the timeline."""
+            tiling: bool = True, max_events: int = DEFAULT_MAX_CHANGES) -> Timeline:
+        """Unfold the program over ``[0, horizon_ns]`` and return the timeline. A run
+        whose program keeps changing signals (more than ``max_events`` changes held in
+        memory) stops with an error naming the signal that changes most."""
         wall0 = _time.perf_counter()
         inst = ProgramInstance(self.program, self.compiled)
         ins, outs = self._signals(inst)
@@ -594,6 +596,8 @@ class Sequencer:
                     tt.append(t)
                     ss.append(k)
                     vv.append(v)
+            if len(tt) > max_events:
+                raise SequencerError(_too_many_changes(signals, ss, t, scan, max_events))
 
         timers = inst.timers
         sfcs = inst.sfcs
@@ -690,14 +694,13 @@ class Sequencer:
         time_ns = np.asarray(tt, dtype=np.int64)
         sig = np.asarray(ss, dtype=np.int32)
         val = np.asarray([float(v) for v in vv], dtype=np.float64)
-        if tiled_from is not None:
-            time_ns, sig, val = _tile(time_ns, sig, val, tiled_from, horizon_ns)
         info = {"scans": scans, "scan_ms": scan / 1e6, "wall_s": _time.perf_counter() - wall0,
                 "mode": "scan-stepping" if scan_stepping else "event-driven",
                 "period_s": (tiled_from[1] - tiled_from[0]) / NS if tiled_from else None,
                 "tiled_from_s": tiled_from[1] / NS if tiled_from else None,
                 "machine_signals": dict(self.signal_names)}
-        return Timeline(signals, time_ns, sig, val, horizon_ns, info)
+        return Timeline(signals, time_ns, sig, val, horizon_ns, info, tiled=tiled_from,
+                        max_changes=max_events)
 
     @staticmethod
     def _state_key(inst, t, schedules, cylinders):
@@ -716,6 +719,18 @@ class Sequencer:
 _ATTR = re.compile(r"[A-Za-z_][A-Za-z0-9_]*", re.ASCII)
 
 
+def _too_many_changes(signals, sig_idx, t_ns, scan_ns, limit) -> str:
+    counts = np.bincount(np.asarray(sig_idx[-100_000:], dtype=np.int64),
+                         minlength=len(signals))
+    worst = int(counts.argmax())
+    n = int(np.count_nonzero(np.asarray(sig_idx, dtype=np.int64) == worst))
+    scans = max(1, t_ns // scan_ns)
+    rate = "every scan" if n >= 0.9 * scans else f"{n / max(t_ns / NS, 1e-9):,.0f} times/s"
+    return (f"more than {limit:,} signal changes by {t_ns / NS:g} s (--max-events): "
+            f"'{signals[worst].name}' changes {n:,} times ({rate}); a program that "
+            "toggles an output on every scan cannot be predicted over a long horizon")
+
+
 def _value_getter(slots):
     """A function returning the current values of ``(object, attribute)`` slots (an SFC
     runtime with a step index reads that step's flag) as one tuple, built in one go."""
@@ -728,20 +743,3 @@ def _value_getter(slots):
     src = "def values():\n    return (" + "".join(p + ", " for p in parts) + ")\n"
     exec(src, names)
     return names["values"]
-
-
-def _tile(time_ns, sig, val, period, horizon_ns):
-    """Repeat the edges in (t1, t2] every t2 - t1 up to the horizon."""
-    t1, t2 = period
-    p = t2 - t1
-    m = (time_ns > t1) & (time_ns <= t2)
-    pt, ps, pv = time_ns[m], sig[m], val[m]
-    if len(pt) == 0:
-        return time_ns, sig, val
-    reps = int((horizon_ns - t2) // p) + 1
-    k = np.arange(1, reps + 1, dtype=np.int64)
-    tt = (pt[None, :] + k[:, None] * p).ravel()
-    keep = tt <= horizon_ns
-    return (np.concatenate([time_ns, tt[keep]]),
-            np.concatenate([sig, np.tile(ps, reps)[keep]]),
-            np.concatenate([val, np.tile(pv, reps)[keep]]))

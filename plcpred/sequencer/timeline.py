@@ -6,14 +6,15 @@ them, then step flags, then outputs). BOOL values are written 1/0.
 """
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..output import atomic_write_text
+from ..errors import PlcpredError
+from ..output import atomic_writer
 
 if TYPE_CHECKING:  # pandas is imported where a DataFrame is built
     import pandas as pd
@@ -30,18 +31,110 @@ class Signal:
     dtype: str   # "bool" | "int" | "real" | "time" | ...
 
 
+class TimelineTooLarge(PlcpredError):
+    """More changes than a run may hold in memory (``max_changes``)."""
+
+
+DEFAULT_MAX_CHANGES = 20_000_000  # about 400 MB of edge arrays
+
+
 class Timeline:
-    """Edges as parallel arrays (``time_ns``, signal index, value), sorted by time."""
+    """Edges as parallel arrays (``time_ns``, signal index, value), sorted by time.
+
+    A machine that repeats its cycle is stored as the edges up to the end of the first
+    repetition plus the period (``tiled``): ``to_csv`` and ``n_changes`` work from that in
+    bounded memory however long the horizon, and the full arrays are built only when
+    asked for, refused with :class:`TimelineTooLarge` beyond ``max_changes``."""
 
     def __init__(self, signals: list[Signal], time_ns, signal_idx, values, horizon_ns: int,
-                 info: dict | None = None):
+                 info: dict | None = None, tiled: tuple[int, int] | None = None,
+                 max_changes: int = DEFAULT_MAX_CHANGES):
         self.signals = list(signals)
-        self.time_ns = np.asarray(time_ns, dtype=np.int64)
-        self.signal_idx = np.asarray(signal_idx, dtype=np.int32)
-        self.values = np.asarray(values, dtype=np.float64)
+        self._base = (np.asarray(time_ns, dtype=np.int64),
+                      np.asarray(signal_idx, dtype=np.int32),
+                      np.asarray(values, dtype=np.float64))
         self.horizon_ns = int(horizon_ns)
         self.info = dict(info or {})
+        self.tiled = tiled
+        self.max_changes = int(max_changes)
+        self._full = None if tiled is not None else self._base
         self._index = {s.name.upper(): i for i, s in enumerate(self.signals)}
+
+    # ------------------------------------------------------------------ edges
+    def _period_edges(self):
+        """(edge times, signals, values) of one period (t1, t2], and the number of
+        repetitions after t2 that start within the horizon."""
+        t1, t2 = self.tiled
+        t, s, v = self._base
+        m = (t > t1) & (t <= t2)
+        reps = max(0, int((self.horizon_ns - t2) // (t2 - t1)) + 1) if m.any() else 0
+        return t[m], s[m], v[m], reps
+
+    @property
+    def n_changes(self) -> int:
+        """How many rows ``timeline.csv`` has (without building the arrays)."""
+        if self._full is not None:
+            return len(self._full[0])
+        t1, t2 = self.tiled
+        pt, _, _, reps = self._period_edges()
+        if not reps:
+            return len(self._base[0])
+        p = t2 - t1
+        last = self.horizon_ns - reps * p  # the last repetition keeps edges <= last
+        return len(self._base[0]) + (reps - 1) * len(pt) + int(np.count_nonzero(pt <= last))
+
+    def _materialize(self):
+        if self._full is None:
+            n = self.n_changes
+            if n > self.max_changes:
+                raise TimelineTooLarge(
+                    f"{n:,} signal changes over {self.horizon_s:g} s exceed the limit of "
+                    f"{self.max_changes:,} held in memory (--max-events); timeline.csv "
+                    "streams any length, the air model needs a shorter --horizon")
+            t, s, v = self._base
+            pt, ps, pv, reps = self._period_edges()
+            if reps:
+                p = self.tiled[1] - self.tiled[0]
+                k = np.arange(1, reps + 1, dtype=np.int64)
+                tt = (pt[None, :] + k[:, None] * p).ravel()
+                keep = tt <= self.horizon_ns
+                t = np.concatenate([t, tt[keep]])
+                s = np.concatenate([s, np.tile(ps, reps)[keep]])
+                v = np.concatenate([v, np.tile(pv, reps)[keep]])
+            self._full = (t, s, v)
+        return self._full
+
+    @property
+    def time_ns(self) -> np.ndarray:
+        return self._materialize()[0]
+
+    @property
+    def signal_idx(self) -> np.ndarray:
+        return self._materialize()[1]
+
+    @property
+    def values(self) -> np.ndarray:
+        return self._materialize()[2]
+
+    def chunks(self, rows: int = 1_000_000):
+        """The edges in time order as (times, signals, values) arrays of about ``rows``
+        each, built one at a time (a tiled timeline repeats its period)."""
+        if self._full is not None:
+            t, s, v = self._full
+            for a in range(0, max(len(t), 1), rows):
+                yield t[a:a + rows], s[a:a + rows], v[a:a + rows]
+            return
+        yield self._base
+        pt, ps, pv, reps = self._period_edges()
+        if not reps:
+            return
+        p = self.tiled[1] - self.tiled[0]
+        per_chunk = max(1, rows // max(len(pt), 1))
+        for k0 in range(1, reps + 1, per_chunk):
+            k = np.arange(k0, min(reps, k0 + per_chunk - 1) + 1, dtype=np.int64)
+            tt = (pt[None, :] + k[:, None] * p).ravel()
+            keep = tt <= self.horizon_ns
+            yield tt[keep], np.tile(ps, len(k))[keep], np.tile(pv, len(k))[keep]
 
     # ------------------------------------------------------------------ access
     @property
@@ -132,22 +225,70 @@ class Timeline:
                 f"horizon {self.horizon_s:g} s)")
 
     # ------------------------------------------------------------------ files
-    def to_csv(self, path) -> None:
-        """Write ``timeline.csv`` (through a temporary file, so a failed run never leaves
-        a half-written one)."""
-        path = Path(path)
+    def to_csv(self, path, rows_per_write: int = 200_000) -> None:
+        """Write ``timeline.csv`` in pieces (bounded memory at any horizon), through a
+        temporary file, so a failed run never leaves a half-written one. A tiled
+        timeline's repetitions are written from the period's rows formatted once (only
+        the whole seconds change from one repetition to the next)."""
+        with atomic_writer(path) as f:
+            f.write("time_s,signal,value\n")
+            if self._full is not None or self.tiled is None:
+                t, s, v = self._materialize()
+                for a in range(0, len(t), rows_per_write):
+                    f.write(self._rows(t[a:a + rows_per_write], s[a:a + rows_per_write],
+                                       v[a:a + rows_per_write]))
+                return
+            f.write(self._rows(*self._base))
+            pt, ps, pv, reps = self._period_edges()
+            if not reps:
+                return
+            t1, t2 = self.tiled
+            p = t2 - t1
+            # full repetitions k = 1..reps-1 by the fast path; the last one may be cut
+            # by the horizon and goes through the general one
+            cycle = NS // math.gcd(p, NS)  # repetitions after which the fractions repeat
+            per_write = max(1, rows_per_write // max(len(pt), 1))
+            if cycle * len(pt) <= 200_000:
+                # per residue of k modulo the cycle: each row's whole-second carry and
+                # its text after the whole seconds (fraction, signal, value)
+                tails = [r.split(",", 1)[1] for r in self._rows(pt, ps, pv).splitlines(True)]
+                ks = np.arange(cycle, dtype=np.int64)
+                starts = pt[None, :] + ks[:, None] * p
+                carries = starts // NS - (ks * p // NS)[:, None]
+                suffixes = [[_frac_text(x) + "," + tail for x, tail in zip(row, tails)]
+                            for row in (starts % NS).tolist()]
+            for k in range(1, reps, per_write):
+                kk = np.arange(k, min(reps, k + per_write), dtype=np.int64)
+                if cycle * len(pt) > 200_000:
+                    tt = (pt[None, :] + kk[:, None] * p).ravel()
+                    f.write(self._rows(tt, np.tile(ps, len(kk)), np.tile(pv, len(kk))))
+                    continue
+                res = kk % cycle
+                wholes = (carries[res] + (kk * p // NS)[:, None]).ravel().tolist()
+                suf = suffixes[0] * len(kk) if cycle == 1 else [
+                    x for r in res.tolist() for x in suffixes[r]]
+                f.write("".join(map(str.__add__, map(str, wholes), suf)))
+            tt = pt + reps * p
+            keep = tt <= self.horizon_ns
+            f.write(self._rows(tt[keep], ps[keep], pv[keep]))
+
+    def _rows(self, t, sig, val) -> str:
+        """CSV rows for edges (general path: any times)."""
         names = self.names
         real = [s.dtype == "real" for s in self.signals]
         times = {}
-        lines = ["time_s,signal,value\n"]
-        append = lines.append
-        for t, i, v in zip(self.time_ns.tolist(), self.signal_idx.tolist(),
-                           self.values.tolist()):
-            ts = times.get(t)
+        out = []
+        append = out.append
+        for ti, i, v in zip(t.tolist(), sig.tolist(), val.tolist()):
+            ts = times.get(ti)
             if ts is None:
-                ts = times[t] = format_seconds(t)
+                ts = times[ti] = format_seconds(ti)
             append(f"{ts},{names[i]},{v!r}\n" if real[i] else f"{ts},{names[i]},{int(v)}\n")
-        atomic_write_text(path, "".join(lines))
+        return "".join(out)
+
+
+def _frac_text(frac_ns: int) -> str:
+    return f".{frac_ns:09d}".rstrip("0") if frac_ns else ""
 
 
 def format_seconds(t_ns: int) -> str:
