@@ -324,6 +324,11 @@ def _input(file: str, index: int, table: dict) -> InputSchedule:
 
 def load_machine(path) -> Machine:
     """Read and validate a machine file. Raises :class:`MachineError`."""
+    return machine_from_data(read_machine_data(path), path)
+
+
+def read_machine_data(path) -> dict:
+    """The machine file's TOML as a dict (not yet validated)."""
     path = Path(path)
     file = str(path)
     try:
@@ -337,6 +342,15 @@ def load_machine(path) -> Machine:
         raise MachineError(file, "", "not valid TOML: nested too deeply") from None
     except tomllib.TOMLDecodeError as e:
         raise MachineError(file, "", f"not valid TOML: {e}") from None
+    return data
+
+
+def machine_from_data(data: dict, path) -> Machine:
+    """Validate a machine file's TOML data (as read, or with a sweep's settings applied:
+    both go through the same checks). ``path`` is where it came from: the program path
+    is relative to it and errors name it."""
+    path = Path(path)
+    file = str(path)
     unknown = sorted(set(data) - {"machine", "signals", "input", "consumer"})
     if unknown:
         raise MachineError(file, "", f"unknown table [{unknown[0]}] (known: [machine], "

@@ -62,15 +62,19 @@ def _number(key, text):
         raise SweepError(f"{key}: {text!r} is not a number") from None
 
 
-def apply_settings(machine, program, scenario: dict):
-    """A copy of ``machine`` (and of ``program``'s IR) with the scenario's settings."""
-    from .machine import MachineError
+def apply_settings(data: dict, path, program, scenario: dict):
+    """The machine (validated) and program IR with the scenario's settings applied.
 
-    m = copy.deepcopy(machine)
+    Settings change the machine file's TOML data, which then goes through the same
+    loader and checks as a file (physical ranges included): a swept value the loader
+    would reject in a file is rejected here too, naming the setting."""
+    from .machine import MachineError, machine_from_data
+
+    d = copy.deepcopy(data)
     prog = program
     for key, value in scenario.items():
         if key in MACHINE_KEYS:
-            setattr(m, key, _number(key, value))
+            d.setdefault("machine", {})[key] = _number(key, value)
             continue
         head, _, field = key.rpartition(".")
         if key.lower().startswith("program."):
@@ -79,33 +83,41 @@ def apply_settings(machine, program, scenario: dict):
             continue
         if head.lower().startswith("input."):
             sig = head.split(".", 1)[1]
-            sched = next((s for s in m.inputs if s.signal.upper() == sig.upper()), None)
-            if sched is None:
+            table = next((t for t in _tables(d, "input")
+                          if str(t.get("signal", "")).upper() == sig.upper()), None)
+            if table is None:
                 raise SweepError(f"{key}: no [[input]] for signal '{sig}'")
             if field not in _FLOAT_FIELDS:
                 raise SweepError(f"{key}: cannot sweep '{field}' of an input")
-            setattr(sched, field, _number(key, value))
+            table[field] = _number(key, value)
             continue
-        try:
-            c = m.consumer(head)
-        except KeyError:
-            names = ", ".join(c.name for c in m.consumers)
-            raise SweepError(f"{key}: no consumer named '{head}' (consumers: {names})") from None
+        table = next((t for t in _tables(d, "consumer") if t.get("name") == head), None)
+        if table is None:
+            names = ", ".join(str(t.get("name")) for t in _tables(d, "consumer"))
+            raise SweepError(f"{key}: no consumer named '{head}' (consumers: {names})")
         if field in _PAIR_FIELDS:
-            parts = value.split("/")
-            nums = [_number(key, p) for p in parts]
-            setattr(c, field, (nums[0], nums[-1]))
+            nums = [_number(key, p) for p in value.split("/")]
+            table[field] = [nums[0], nums[-1]]
         elif field in _FLOAT_FIELDS:
-            setattr(c, field, _number(key, value))
-            if field == "orifice_mm" or field == "Cd":
-                c.C = None
+            table[field] = _number(key, value)
+            if field in ("orifice_mm", "Cd"):
+                table.pop("C", None)
+                table.setdefault("b", 0.528)
         elif field == "flow_model":
-            c.flow_model = value
+            table[field] = value
         else:
             raise SweepError(f"{key}: cannot sweep '{field}' of a consumer")
-    if m.supply_bar_g < 0 or m.scan_ms <= 0:
-        raise MachineError(str(m.path), "[machine]", "swept values out of range")
-    return m, prog
+    try:
+        machine = machine_from_data(d, path)
+    except MachineError as e:
+        shown = ", ".join(f"{k}={v}" for k, v in scenario.items())
+        raise SweepError(f"scenario {shown}: {e}") from None
+    return machine, prog
+
+
+def _tables(data: dict, key: str) -> list:
+    tables = data.get(key, [])
+    return [t for t in tables if isinstance(t, dict)] if isinstance(tables, list) else []
 
 
 def _set_program_value(program, name: str, value: str, key: str):
@@ -137,12 +149,13 @@ def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
     """One prediction with the scenario applied: a row of totals."""
     from .air import predict
     from .air.sizing import size
-    from .machine import load_machine
+    from .machine import machine_from_data, read_machine_data
     from .parser import load_program
 
-    base = load_machine(machine_path)
+    data = read_machine_data(machine_path)
+    base = machine_from_data(data, machine_path)
     program = load_program(program_path or base.program_path)
-    machine, program = apply_settings(base, program, scenario)
+    machine, program = apply_settings(data, machine_path, program, scenario)
     result = predict(machine, horizon_s, dt=dt_s, program=program)
     s = size(result.profile, hours_per_year=hours, sec_kwh_per_nm3=sec)
     row = dict(scenario)
@@ -180,13 +193,14 @@ def sweep(machine_path, settings: list[Setting], horizon_s: float, dt_s=None,
     machine_path = str(machine_path)
     combos = scenarios(settings)
     # fail fast, in this process, on settings that cannot apply
-    from .machine import load_machine
+    from .machine import machine_from_data, read_machine_data
     from .parser import load_program
-    base = load_machine(machine_path)
+    data = read_machine_data(machine_path)
+    base = machine_from_data(data, machine_path)
     program_path = str(program) if program is not None else None
     prog = load_program(program_path or base.program_path)
     for sc in combos:
-        apply_settings(base, prog, sc)
+        apply_settings(data, machine_path, prog, sc)
     bar = _Progress(len(combos), progress)
     args = [(machine_path, sc, horizon_s, dt_s, program_path) for sc in combos]
     if engine == "dask":

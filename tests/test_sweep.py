@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from plcpred import predict
-from plcpred.machine import load_machine
+from plcpred.machine import load_machine, read_machine_data
 from plcpred.parser import load_program
 from plcpred.sweep import SweepError, apply_settings, parse_setting, scenarios, sweep
 
@@ -32,7 +32,7 @@ def test_sweep_rows_equal_single_predictions():
     for row in rows[::3]:
         sc = {k: row[k] for k in ("supply_bar_g", "air knives.pressure_bar_g",
                                   "program.BLOW_TIME")}
-        m, p = apply_settings(base, program, sc)
+        m, p = apply_settings(read_machine_data(RIG), RIG, program, sc)
         single = predict(m, 20.0, dt=0.05, program=p).profile
         assert row["total_nl"] == single.total_nl
         assert row["air knives_nl"] == pytest.approx(
@@ -89,3 +89,12 @@ def test_errors_survive_the_trip_from_a_worker_process():
               Watchdog("w", "p.st", 9, 1)):
         back = pickle.loads(pickle.dumps(e))
         assert type(back) is type(e) and str(back) == str(e)
+
+
+@pytest.mark.parametrize("setting, message", [
+    ("A.bore_mm=-5", "bore_mm must be > 0"), ("supply_bar_g=nan", "supply_bar_g must be a number"),
+    ("A.bore_mm=1e400", "must be a number"), ("A.stroke_time_s=1e-300", "physical range"),
+    ("supply_bar_g=500", "physical range"), ("scan_ms=0", "scan_ms must be > 0")])
+def test_swept_values_go_through_the_loaders_checks(setting, message):
+    with pytest.raises(SweepError, match=message):
+        sweep(RIG, [parse_setting(setting)], 1.0, workers=1)

@@ -170,6 +170,7 @@ class Compiler:
         for text, pos in self._pending_sfc:
             e(0, text, pos)
         programs = self._program_instances()
+        self._check_memory(gdecls, programs, fbs)
         e(0, "def _build():")
         e(1, "global _g")
         e(1, "_g = k_GLOBALS()")
@@ -181,6 +182,24 @@ class Compiler:
                         self.globals, self.reads_et, self.reads_clock, self.types,
                         dict(self.address_slots), dict(self.intervals),
                         tuple(sorted(self.et_thresholds)))
+
+    def _check_memory(self, gdecls, programs, fbs):
+        """The whole project's variables within MAX_PROGRAM_CELLS, else an error at the
+        declaration that holds the most."""
+        sizes = [(ty.cells(self.globals[ident(d.name)][1], self.types), d) for d in gdecls]
+        for name, cls in programs:
+            fb = next(f for f in fbs if f.cls_name == cls)
+            for b in fb.pou.var_blocks:
+                for d in b.decls:
+                    if b.kind not in ("VAR_EXTERNAL", "VAR_IN_OUT"):
+                        sizes.append((ty.cells(self.types.resolve(d.type, d.pos),
+                                               self.types), d))
+        total = sum(n for n, _ in sizes)
+        if total > ty.MAX_PROGRAM_CELLS:
+            n, d = max(sizes, key=lambda x: x[0])
+            raise _err(d, f"the program's variables hold {total:,} values (arrays and "
+                          f"instances counted through), more than the executor's "
+                          f"{ty.MAX_PROGRAM_CELLS:,}; {d.name} alone holds {n:,}")
 
     def _et_compare(self, x: ir.Binary):
         """The threshold (ns) of ``timer.ET <op> constant`` (either way round), or None."""
@@ -663,9 +682,10 @@ class Compiler:
                 raise _err(init, "an array initialiser for a variable that is not an array")
             flat = []
             for count, item in init.items:
+                if len(flat) + count > t.size:  # checked first: count may be huge
+                    raise _err(init, f"{len(flat) + count:,} initial values for an array "
+                                     f"of {t.size:,}")
                 flat.extend([self._init(t.elem, item, scope, decl)] * count)
-            if len(flat) > t.size:
-                raise _err(init, f"{len(flat)} initial values for an array of {t.size}")
             flat += [self._init(t.elem, None, scope, decl)] * (t.size - len(flat))
             return f"_nest([{', '.join(flat)}], {[hi - lo + 1 for lo, hi in t.dims]!r})"
         if isinstance(init, ir.StructInit):
@@ -814,6 +834,12 @@ class Compiler:
             i = self.src.temp("i")
             e(ind, f"{r} = _for_range({start}, {end}, {step})", pos)
             e(ind, f"for {i} in {r}:", pos)
+            if not _short_for(s):
+                # counted like WHILE: a FOR that runs away stops at the watchdog (an
+                # EXIT inside may end it earlier, so the range alone does not decide)
+                e(ind + 1, f"if {i} - {r}.start > {WATCHDOG_ITERATIONS} * {r}.step if "
+                           f"{r}.step > 0 else {r}.start - {i} > {WATCHDOG_ITERATIONS} * "
+                           f"-{r}.step: _watchdog('FOR', {_pos_args(pos)})", pos)
             self._store(var, i, ty.ANY_INT, scope, ind + 1, pos, raw=True)
             self._loop_depth += 1
             self._stmts(s.body, scope, ind + 1, True)
@@ -1679,6 +1705,14 @@ def _children(e):
     if isinstance(e, ir.Call):
         return tuple(a.value for a in e.args if a.value is not None)
     return ()
+
+
+def _short_for(s: ir.For) -> bool:
+    """A FOR whose literal bounds keep it under the watchdog (no counting needed)."""
+    vals = [x.value if isinstance(x, ir.Literal) and isinstance(x.value, int) else None
+            for x in (s.start, s.end, s.step or ir.Literal(1, "ANY_INT"))]
+    return None not in vals and vals[2] != 0 and len(
+        range(vals[0], vals[1] + 1, vals[2])) <= WATCHDOG_ITERATIONS
 
 
 def _has_fb(t) -> bool:

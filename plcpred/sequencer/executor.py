@@ -303,57 +303,93 @@ class ProgramInstance:
 # ---------------------------------------------------------------------- inputs
 
 class Schedule:
-    """The edges one scheduled input goes through: (time_ns, value) sorted."""
+    """The edges one scheduled input goes through, (time_ns, value) in time order,
+    generated a block of pulses at a time: a short period over a long horizon costs
+    memory for one block, not for every pulse. Jittered pulses draw from the seeded
+    generator in the same order whatever the block size, so runs repeat exactly."""
+
+    BLOCK = 4096
 
     def __init__(self, spec, horizon_ns: int):
         self.spec = spec
         base = bool(spec.initial)
-        pulse_ns = round(spec.pulse_ms * 1e6)
-        if spec.period_s is not None:
-            period_ns = round(spec.period_s * NS)
-            n = int((horizon_ns - spec.offset_s * NS) // period_ns) + 2
-            starts = spec.offset_s * NS + np.arange(max(n, 0)) * period_ns
-            if spec.jitter_s > 0:
-                # uniform in +-jitter_s; without a seed, seed 0, so runs repeat exactly
-                rng = np.random.default_rng(spec.seed if spec.seed is not None else 0)
-                starts = starts + rng.uniform(-spec.jitter_s, spec.jitter_s, len(starts)) * NS
-            starts = np.maximum(np.round(starts), 0).astype(np.int64)
-            self.period_ns = period_ns
-        else:
-            starts = np.array([round(p * NS) for p in spec.pulses_s], dtype=np.int64)
-            self.period_ns = None
-        times, values = [], []
-        last_end = -1
-        for s in starts.tolist():
-            s = max(s, last_end)
-            times += [s, s + pulse_ns]
-            values += [not base, base]
-            last_end = s + pulse_ns
-        self.times = times
-        self.values = values
         self.initial = base
-        self.first_ns = int(starts[0]) if len(starts) else None
-        self.k = 0
         self.value = base
         self.random = spec.jitter_s > 0
+        self._pulse_ns = round(spec.pulse_ms * 1e6)
+        self._last_end = -1
+        self._next = 0  # index of the next pulse to generate
+        if spec.period_s is not None:
+            self.period_ns = round(spec.period_s * NS)
+            self._offset_ns = round(spec.offset_s * NS)
+            span = horizon_ns - self._offset_ns
+            self._count = max(0, span // self.period_ns + 2) if span >= 0 else 0
+            # uniform in +-jitter_s; without a seed, seed 0, so runs repeat exactly
+            self._rng = np.random.default_rng(spec.seed if spec.seed is not None else 0) \
+                if self.random else None
+            self._pulses = None
+        else:
+            self.period_ns = None
+            self._pulses = np.array([round(p * NS) for p in spec.pulses_s], dtype=np.int64)
+            self._count = len(self._pulses)
+        self.times: list = []
+        self.values: list = []
+        self.k = 0
+        self.first_ns = None
+        self._fill()
+        if self.times:
+            self.first_ns = self.times[0]
+            if self.period_ns is not None and not self.random:
+                self.first_ns = max(self._offset_ns, 0)
+
+    def _fill(self) -> bool:
+        """Generate the next block of pulses; False when there are no more."""
+        if self._next >= self._count:
+            return False
+        n = min(self.BLOCK, self._count - self._next)
+        if self._pulses is not None:
+            starts = self._pulses[self._next:self._next + n]
+        else:
+            k = np.arange(self._next, self._next + n, dtype=np.int64)
+            starts = self._offset_ns + k * self.period_ns
+            if self._rng is not None:
+                starts = starts + self._rng.uniform(-self.spec.jitter_s, self.spec.jitter_s,
+                                                    n) * NS
+            starts = np.maximum(np.round(starts), 0).astype(np.int64)
+        self._next += n
+        times, values = [], []
+        base, pulse_ns, last_end = self.initial, self._pulse_ns, self._last_end
+        for st in starts.tolist():
+            st = max(st, last_end)
+            times += [st, st + pulse_ns]
+            values += [not base, base]
+            last_end = st + pulse_ns
+        self._last_end = last_end
+        self.times, self.values, self.k = times, values, 0
+        return True
 
     def advance(self, t_ns: int) -> bool:
-        times, k = self.times, self.k
-        while k < len(times) and times[k] <= t_ns:
-            self.value = self.values[k]
-            k += 1
-        self.k = k
-        return self.value
+        while True:
+            times, k = self.times, self.k
+            while k < len(times) and times[k] <= t_ns:
+                self.value = self.values[k]
+                k += 1
+            self.k = k
+            if k < len(times) or not self._fill():
+                return self.value
 
     def next_ns(self):
-        return self.times[self.k] if self.k < len(self.times) else None
+        if self.k >= len(self.times) and not self._fill():
+            return None
+        return self.times[self.k]
 
     def key(self, t_ns: int):
         """Phase of a periodic schedule; None when the future is not periodic."""
         if self.random:
             return None
-        if self.period_ns is None:
-            return ("done", self.value) if self.k >= len(self.times) else None
+        done = self.k >= len(self.times) and self._next >= self._count
+        if self.period_ns is None or self.first_ns is None:
+            return ("done", self.value) if done else None
         if t_ns < self.first_ns:
             return ("before", self.first_ns - t_ns)
         return ("phase", (t_ns - self.first_ns) % self.period_ns, self.value)

@@ -81,6 +81,35 @@ class StructT:
     cat = "struct"
 
 
+MAX_ARRAY_ELEMENTS = 1_000_000
+MAX_PROGRAM_CELLS = 5_000_000  # variables (array elements counted) of a whole project
+
+
+def cells(t, table: "TypeTable", _active=None) -> int:
+    """How many values a variable of type ``t`` holds (arrays and FB instances counted
+    through), the measure the executor's memory limit is stated in."""
+    if isinstance(t, ArrayT):
+        return t.size * cells(t.elem, table, _active)
+    if isinstance(t, StructT):
+        return max(1, sum(cells(m, table, _active) for m in t.members.values()))
+    if isinstance(t, FbT):
+        active = _active or set()
+        if t.name.upper() in active:
+            raise at(t.pou.pos, f"{t.name} contains an instance of itself")
+        active = active | {t.name.upper()}
+        total = 1
+        for x in t.chain():
+            for b in x.pou.var_blocks:
+                if b.kind in ("VAR_EXTERNAL", "VAR_IN_OUT"):
+                    continue
+                for d in b.decls:
+                    total += cells(table.resolve(d.type, d.pos), table, active)
+                    if total > MAX_PROGRAM_CELLS:
+                        return total
+        return total
+    return 1
+
+
 @dataclass(eq=False)
 class ArrayT:
     dims: list[tuple[int, int]]
@@ -289,8 +318,16 @@ class TypeTable:
                 if lo is None:
                     raise at(tr.pos, "ARRAY[*] (variable length) is not supported by the "
                                      "executor")
-                dims.append((self.const_int(lo), self.const_int(hi)))
-            return ArrayT(dims, self.resolve(tr.element, tr.pos))
+                low, high = self.const_int(lo), self.const_int(hi)
+                if high < low:
+                    raise at(tr.pos or pos, f"ARRAY[{low}..{high}]: the upper bound is below the "
+                                     "lower one")
+                dims.append((low, high))
+            t = ArrayT(dims, self.resolve(tr.element, tr.pos))
+            if t.size > MAX_ARRAY_ELEMENTS:
+                raise at(tr.pos or pos, f"an array of {t.size:,} elements; the executor holds at "
+                                 f"most {MAX_ARRAY_ELEMENTS:,} per array")
+            return t
         if isinstance(tr, ir.PointerType):
             return PtrT(self.resolve(tr.target, tr.pos), tr.reference)
         if isinstance(tr, ir.SubrangeType):
