@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 from .errors import PlcpredError
 
+DASK_CONNECT_TIMEOUT_S = 10
 MACHINE_KEYS = ("supply_bar_g", "scan_ms", "ambient_c", "atmosphere_kpa")
 _FLOAT_FIELDS = {"bore_mm", "rod_mm", "stroke_mm", "tube_id_mm", "switch_delay_s",
                  "pressure_bar_g", "C", "b", "m", "a", "orifice_mm", "Cd", "pulse_ms",
@@ -233,7 +234,17 @@ def _run_dask(args, scheduler, bar):
     if not scheduler:
         raise SweepError("--engine dask needs --scheduler ADDRESS (tcp://host:8786) of a "
                          "running Dask cluster")
-    client = scheduler if hasattr(scheduler, "submit") else Client(scheduler)
+    if hasattr(scheduler, "submit"):
+        client = scheduler
+    else:
+        try:
+            client = Client(scheduler, timeout=DASK_CONNECT_TIMEOUT_S)
+        except (OSError, TimeoutError, ValueError, TypeError) as e:
+            raise SweepError(f"--scheduler {scheduler}: no Dask scheduler answered within "
+                             f"{DASK_CONNECT_TIMEOUT_S} s ({type(e).__name__}: "
+                             f"{str(e).splitlines()[0][:120] if str(e) else 'no detail'}); "
+                             "is the cluster running and the address right "
+                             "(tcp://host:8786)?") from None
     try:
         futures = [client.submit(run_scenario, *a, pure=False) for a in args]
         index = {f.key: k for k, f in enumerate(futures)}

@@ -141,9 +141,15 @@ def mutate_machine(path: Path, rng: random.Random) -> str | bytes:
         tables = [data["machine"]] + data.get("input", []) + data.get("consumer", [])
         table = rng.choice(tables)
         keys = [k for k in table if k != "program"] or ["name"]
+        numeric = [k for k in keys if isinstance(table[k], (int, float))
+                   and not isinstance(table[k], bool) and abs(table[k]) < 1e300]
         key = rng.choice(keys)
         op = rng.randrange(10)
-        if op < 6:
+        if op < 4 and numeric:
+            # a number scaled into odd but often still valid territory: deeper runs
+            key = rng.choice(numeric)
+            table[key] = table[key] * rng.choice([0.0, 1e-6, 1e-3, 0.5, 2.0, 1e3, 1e6, -1.0])
+        elif op < 6:
             table[key] = rng.choice(ODD_VALUES)
         elif op == 6:
             table.pop(key, None)

@@ -145,3 +145,26 @@ def test_summary_files_are_strict_json(tmp_path):
         json.loads((tmp_path / "o" / name).read_text(),
                    parse_constant=lambda c: pytest.fail(f"{name} holds {c}"))
     assert os.stat(tmp_path / "o").st_mode & 0o777 != 0o700
+
+
+def test_names_with_mathtext_and_pipes_still_plot_and_report(tmp_path):
+    text = RIG.read_text().replace('name = "air knives"', 'name = "$\\\\alpha$ knives | 2"')
+    text = text.replace('program = "rig.st"', f'program = "{(RIG.parent / "rig.st").as_posix()}"')
+    machine = tmp_path / "m.toml"
+    machine.write_text(text)
+    assert "$\\alpha$ knives | 2" in machine.read_text().replace("\\\\", "\\")
+    assert cli.main(["predict", str(machine), "--horizon", "20s", "--out",
+                     str(tmp_path / "p")]) == 0
+    assert (tmp_path / "p" / "demand.png").stat().st_size > 1000
+    assert cli.main(["size", str(machine), "--horizon", "20s", "--out",
+                     str(tmp_path / "s")]) == 0
+    md = (tmp_path / "s" / "sizing.md").read_text()
+    assert "| $\\alpha$ knives \\| 2 |" in md
+
+
+def test_unreachable_dask_scheduler_is_a_clean_error(capsys):
+    pytest.importorskip("dask.distributed")
+    code = cli.main(["sweep", str(RIG), "--horizon", "1s", "--set", "supply_bar_g=4,5",
+                     "--engine", "dask", "--scheduler", "nonsense://x"])
+    assert code == 2
+    assert "no Dask scheduler answered" in capsys.readouterr().err
