@@ -22,6 +22,7 @@ from __future__ import annotations
 import builtins
 import re
 import time as _time
+from array import array
 
 import numpy as np
 
@@ -623,7 +624,8 @@ class Sequencer:
         values_now = _value_getter([(o, a) for _, o, a, _ in ins]
                                    + [(sfc, i) for _, sfc, i in steps]
                                    + [(o, a) for _, o, a, _ in outs])
-        tt, ss, vv = [], [], []
+        # typed arrays: 8 bytes a change instead of a Python object (--max-events of them)
+        tt, ss, vv = array("q"), array("i"), array("d")
 
         def record(t, values, before):
             """The signals that changed since ``before`` (all of them at the first scan)."""
@@ -631,7 +633,7 @@ class Sequencer:
                 if before is None or v != before[k]:
                     tt.append(t)
                     ss.append(k)
-                    vv.append(v)
+                    vv.append(float(v))
             if len(tt) > max_events:
                 raise SequencerError(_too_many_changes(signals, ss, t, scan, max_events))
 
@@ -727,9 +729,9 @@ class Sequencer:
             raise
         except Exception as e:  # a fault inside the compiled program
             raise inst.positioned(e) from None
-        time_ns = np.asarray(tt, dtype=np.int64)
-        sig = np.asarray(ss, dtype=np.int32)
-        val = np.asarray([float(v) for v in vv], dtype=np.float64)
+        time_ns = np.frombuffer(tt, dtype=np.int64).copy()
+        sig = np.frombuffer(ss, dtype=np.int32).copy()
+        val = np.frombuffer(vv, dtype=np.float64).copy()
         info = {"scans": scans, "scan_ms": scan / 1e6, "wall_s": _time.perf_counter() - wall0,
                 "mode": "scan-stepping" if scan_stepping else "event-driven",
                 "period_s": (tiled_from[1] - tiled_from[0]) / NS if tiled_from else None,
@@ -756,10 +758,10 @@ _ATTR = re.compile(r"[A-Za-z_][A-Za-z0-9_]*", re.ASCII)
 
 
 def _too_many_changes(signals, sig_idx, t_ns, scan_ns, limit) -> str:
-    counts = np.bincount(np.asarray(sig_idx[-100_000:], dtype=np.int64),
-                         minlength=len(signals))
+    idx = np.frombuffer(sig_idx, dtype=np.int32)  # no copy of up to --max-events ints
+    counts = np.bincount(idx[-100_000:], minlength=len(signals))
     worst = int(counts.argmax())
-    n = int(np.count_nonzero(np.asarray(sig_idx, dtype=np.int64) == worst))
+    n = int(np.count_nonzero(idx == worst))
     scans = max(1, t_ns // scan_ns)
     rate = "every scan" if n >= 0.9 * scans else f"{n / max(t_ns / NS, 1e-9):,.0f} times/s"
     return (f"more than {limit:,} signal changes by {t_ns / NS:g} s (--max-events): "
