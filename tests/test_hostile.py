@@ -337,3 +337,21 @@ def test_nesting_beyond_the_limits_is_a_positioned_error(body, message):
 def test_nesting_within_the_limits_compiles_and_runs(body):
     src = _st_expr("0").replace("x := 0;", body)
     _run(parse_st(src, "t.st"), scans=1)
+
+
+_LAUGHS = ('<?xml version="1.0"?><!DOCTYPE l [<!ENTITY a "aaaaaaaaaa">'
+           + "".join(f'<!ENTITY {chr(98 + k)} "{("&" + chr(97 + k) + ";") * 10}">'
+                     for k in range(8))
+           + ']><project>&i;</project>')
+
+
+@pytest.mark.parametrize("xml, message", [
+    (_LAUGHS, "amplification"),
+    ('<?xml version="1.0"?><!DOCTYPE p [<!ENTITY x SYSTEM "file:///etc/passwd">]>'
+     '<project><types><pous><pou name="&x;" pouType="program"/></pous></types></project>',
+     "external entity"),
+    ("<project>" + "<a>" * 100_000 + "</a>" * 100_000 + "</project>", "nested more than"),
+])
+def test_xml_attacks_are_refused(xml, message):
+    with pytest.raises(ProgramError, match=message):
+        parse_plcopen(xml, "t.xml")

@@ -25,6 +25,9 @@ _VAR_KINDS = {"localVars": "VAR", "inputVars": "VAR_INPUT", "outputVars": "VAR_O
 _POU_KINDS = {"program": "PROGRAM", "functionBlock": "FUNCTION_BLOCK", "function": "FUNCTION"}
 
 
+MAX_XML_DEPTH = 500  # a PLCopen file nests about 12 deep; FBD/LD layouts a few more
+
+
 class _El:
     __slots__ = ("tag", "attrib", "children", "text_parts", "line", "col", "text_line",
                  "text_col")
@@ -44,10 +47,14 @@ class _El:
         return [c for c in self.children if c.tag == tag]
 
     def iter(self, tag=None):
-        if tag is None or self.tag == tag:
-            yield self
-        for c in self.children:
-            yield from c.iter(tag)
+        """This element and its descendants in document order (iteratively: nesting in
+        a file is unbounded)."""
+        stack = [self]
+        while stack:
+            el = stack.pop()
+            if tag is None or el.tag == tag:
+                yield el
+            stack.extend(reversed(el.children))
 
     def all_text(self) -> tuple[str, int, int]:
         """Text of this element and its descendants, with where it starts."""
@@ -70,6 +77,10 @@ def _parse_xml(text: str, filename: str) -> _El:
         return name.rsplit(":", 1)[-1]
 
     def start(name, attrs):
+        if len(stack) >= MAX_XML_DEPTH:
+            raise ProgramError(f"XML elements nested more than {MAX_XML_DEPTH} deep",
+                               filename, parser.CurrentLineNumber,
+                               parser.CurrentColumnNumber + 1)
         el = _El(local(name), {local(k): v for k, v in attrs.items()},
                  parser.CurrentLineNumber, parser.CurrentColumnNumber + 1)
         if stack:
@@ -327,7 +338,14 @@ class _Importer:
                        "simultaneousDivergence", "simultaneousConvergence"}
 
         def walk(start, edges, found, seen):
-            for nxt in edges[start]:
+            # depth first through divergence and convergence nodes, iteratively (a
+            # file may chain any number of them)
+            pending = [iter(edges[start])]
+            while pending:
+                nxt = next(pending[-1], None)
+                if nxt is None:
+                    pending.pop()
+                    continue
                 if nxt in seen:
                     continue
                 seen.add(nxt)
@@ -340,7 +358,7 @@ class _Importer:
                         raise self.error(el, f"jump to unknown step {target!r}")
                     found.append(target)
                 elif el.tag in passthrough:
-                    walk(nxt, edges, found, seen)
+                    pending.append(iter(edges[nxt]))
             return found
 
         transitions = []
