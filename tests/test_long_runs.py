@@ -101,3 +101,30 @@ def test_too_fine_a_grid_is_refused_before_it_is_built(tmp_path, capsys):
 def test_cli_default_matches_the_sequencer():
     assert cli.DEFAULT_MAX_CHANGES == DEFAULT_MAX_CHANGES
     assert re.search(r"--max-events N", cli.build_parser().format_help()) is None  # per command
+
+
+def test_a_periodic_input_starting_after_the_horizon(tmp_path):
+    text = PICK.read_text().replace("offset_s = 0.5", "offset_s = 5000")
+    text = text.replace('program = "codesys_pick_place.st"',
+                        f'program = "{(SAMPLES / "codesys_pick_place.st").as_posix()}"')
+    m = tmp_path / "m.toml"
+    m.write_text(text)
+    tl = unfold(m, "60s")
+    assert tl.count_rising("xPartPresent") == 0
+
+
+def test_jittered_schedules_are_the_same_whatever_the_block_size(monkeypatch):
+    from plcpred.sequencer.executor import Schedule
+    from plcpred.machine import InputSchedule
+    spec = InputSchedule("x", period_s=1.0, offset_s=0.3, pulse_ms=100, jitter_s=0.2, seed=7)
+
+    def edges(block):
+        monkeypatch.setattr(Schedule, "BLOCK", block)
+        s = Schedule(spec, 3_000 * 10**9)
+        out = []
+        while (t := s.next_ns()) is not None:
+            s.advance(t)
+            out.append((t, s.value))
+        return out
+    a, b = edges(4096), edges(7)
+    assert a == b and len(a) == 2 * 3001  # pulses up to one period past the horizon
