@@ -92,17 +92,22 @@ class Timeline:
                     f"{self.max_changes:,} held in memory (--max-events); timeline.csv "
                     "streams any length, the air model needs a shorter --horizon")
             t, s, v = self._base
-            pt, ps, pv, reps = self._period_edges()
+            reps = self._period_edges()[3]
             if reps:
-                p = self.tiled[1] - self.tiled[0]
-                k = np.arange(1, reps + 1, dtype=np.int64)
-                tt = (pt[None, :] + k[:, None] * p).ravel()
-                keep = tt <= self.horizon_ns
-                t = np.concatenate([t, tt[keep]])
-                s = np.concatenate([s, np.tile(ps, reps)[keep]])
-                v = np.concatenate([v, np.tile(pv, reps)[keep]])
+                tt, ss, vv = self._repetitions(1, reps)
+                t, s, v = np.concatenate([t, tt]), np.concatenate([s, ss]), \
+                    np.concatenate([v, vv])
             self._full = (t, s, v)
         return self._full
+
+    def _repetitions(self, first: int, last: int):
+        """(times, signals, values) of repetitions ``first..last`` of the period, cut at
+        the horizon."""
+        pt, ps, pv, _ = self._period_edges()
+        k = np.arange(first, last + 1, dtype=np.int64)
+        tt = (pt[None, :] + k[:, None] * (self.tiled[1] - self.tiled[0])).ravel()
+        keep = tt <= self.horizon_ns
+        return tt[keep], np.tile(ps, len(k))[keep], np.tile(pv, len(k))[keep]
 
     @property
     def time_ns(self) -> np.ndarray:
@@ -125,16 +130,10 @@ class Timeline:
                 yield t[a:a + rows], s[a:a + rows], v[a:a + rows]
             return
         yield self._base
-        pt, ps, pv, reps = self._period_edges()
-        if not reps:
-            return
-        p = self.tiled[1] - self.tiled[0]
+        pt, _, _, reps = self._period_edges()
         per_chunk = max(1, rows // max(len(pt), 1))
         for k0 in range(1, reps + 1, per_chunk):
-            k = np.arange(k0, min(reps, k0 + per_chunk - 1) + 1, dtype=np.int64)
-            tt = (pt[None, :] + k[:, None] * p).ravel()
-            keep = tt <= self.horizon_ns
-            yield tt[keep], np.tile(ps, len(k))[keep], np.tile(pv, len(k))[keep]
+            yield self._repetitions(k0, min(reps, k0 + per_chunk - 1))
 
     # ------------------------------------------------------------------ access
     @property
@@ -232,11 +231,9 @@ class Timeline:
         the whole seconds change from one repetition to the next)."""
         with atomic_writer(path) as f:
             f.write("time_s,signal,value\n")
-            if self._full is not None or self.tiled is None:
-                t, s, v = self._materialize()
-                for a in range(0, len(t), rows_per_write):
-                    f.write(self._rows(t[a:a + rows_per_write], s[a:a + rows_per_write],
-                                       v[a:a + rows_per_write]))
+            if self._full is not None:
+                for t, s, v in self.chunks(rows_per_write):
+                    f.write(self._rows(t, s, v))
                 return
             f.write(self._rows(*self._base))
             pt, ps, pv, reps = self._period_edges()
@@ -260,17 +257,14 @@ class Timeline:
             for k in range(1, reps, per_write):
                 kk = np.arange(k, min(reps, k + per_write), dtype=np.int64)
                 if cycle * len(pt) > 200_000:
-                    tt = (pt[None, :] + kk[:, None] * p).ravel()
-                    f.write(self._rows(tt, np.tile(ps, len(kk)), np.tile(pv, len(kk))))
+                    f.write(self._rows(*self._repetitions(k, int(kk[-1]))))
                     continue
                 res = kk % cycle
                 wholes = (carries[res] + (kk * p // NS)[:, None]).ravel().tolist()
                 suf = suffixes[0] * len(kk) if cycle == 1 else [
                     x for r in res.tolist() for x in suffixes[r]]
                 f.write("".join(map(str.__add__, map(str, wholes), suf)))
-            tt = pt + reps * p
-            keep = tt <= self.horizon_ns
-            f.write(self._rows(tt[keep], ps[keep], pv[keep]))
+            f.write(self._rows(*self._repetitions(reps, reps)))
 
     def _rows(self, t, sig, val) -> str:
         """CSV rows for edges (general path: any times)."""
