@@ -5,6 +5,7 @@ import argparse
 import sys
 
 from . import __version__
+from .errors import PlcpredError
 
 
 def _summary(program) -> str:
@@ -129,7 +130,7 @@ def cmd_timeline(args) -> int:
         machine = load_machine(args.machine)
         tl = unfold(machine, horizon_s, scan_stepping=args.scan_stepping,
                     program=args.program, max_events=args.max_events)
-    except _model_errors() as e:
+    except PlcpredError as e:
         print(e, file=sys.stderr)
         return 1
     for w in machine.warnings:
@@ -164,7 +165,7 @@ def cmd_predict(args) -> int:
         machine = load_machine(args.machine)
         result = predict(machine, horizon_s, dt=dt_s, program=args.program,
                          max_events=args.max_events)
-    except _model_errors() as e:
+    except PlcpredError as e:
         print(e, file=sys.stderr)
         return 1
     with output_dir(out, _command_line(args)) as staging:
@@ -202,13 +203,6 @@ def _bar(text: str) -> float:
     return float(t[:-3]) if t.endswith("bar") else float(t)
 
 
-def _model_errors():
-    """What a model run reports as a finding about the user's files: every
-    :class:`~plcpred.errors.PlcpredError` (program, machine, execution)."""
-    from .errors import PlcpredError
-    return PlcpredError
-
-
 def cmd_size(args) -> int:
     from .air import predict
     from .air.sizing import size
@@ -228,7 +222,7 @@ def cmd_size(args) -> int:
                          max_events=args.max_events)
         s = size(result.profile, allowance=allowance, band_bar=band, hours_per_year=args.hours,
                  sec_kwh_per_nm3=args.sec, price_per_kwh=args.price, idle_after_s=idle_after)
-    except _model_errors() as e:
+    except PlcpredError as e:
         print(e, file=sys.stderr)
         return 1
     except ValueError as e:
@@ -261,7 +255,7 @@ def cmd_compare(args) -> int:
     try:
         result = compare(args.base, args.new, horizon_s, args.max_increase, dt=dt_s,
                          program_base=args.program_base, program_new=args.program_new)
-    except _model_errors() as e:
+    except PlcpredError as e:
         print(e, file=sys.stderr)
         return 2
     except (ValueError, OSError) as e:
@@ -286,7 +280,7 @@ def cmd_sweep(args) -> int:
                      scheduler=args.scheduler, workers=args.workers, program=args.program)
     except (SweepError, OutputError) as e:
         return _fail(str(e))
-    except _model_errors() as e:
+    except PlcpredError as e:
         print(e, file=sys.stderr)
         return 1
     except ValueError as e:
@@ -495,8 +489,6 @@ def main(argv=None) -> int:
               file=sys.stderr)
         return 130
     except Exception as e:
-        from .errors import PlcpredError
-
         if isinstance(e, PlcpredError):
             print(f"plcpred: error: {e}", file=sys.stderr)
             return 2

@@ -42,6 +42,13 @@ class OutputError(PlcpredError):
     """An output path that cannot be written."""
 
 
+def _umask() -> int:
+    """The process umask (reading it means setting it; it is put back at once)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return umask
+
+
 def atomic_write_text(path, text: str) -> None:
     """Write ``text`` to ``path`` through a temporary file in the same directory."""
     with atomic_writer(path) as f:
@@ -58,9 +65,7 @@ def atomic_writer(path):
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="") as f:
             yield f
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     except BaseException:
         try:
@@ -122,9 +127,7 @@ def output_dir(path, command: str = ""):
     out = check_out_dir(path).absolute()
     out.parent.mkdir(parents=True, exist_ok=True)
     staging = Path(tempfile.mkdtemp(prefix=f"{_STAGING_PREFIX}{out.name}-", dir=out.parent))
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(staging, 0o777 & ~umask)  # mkdtemp's 0700 would become --out's mode
+    os.chmod(staging, 0o777 & ~_umask())  # mkdtemp's 0700 would become --out's mode
     run_id = uuid.uuid4().hex
     try:
         yield staging
