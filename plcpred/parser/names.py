@@ -55,7 +55,7 @@ _BINARY_OPS = frozenset({"**", "*", "/", "MOD", "+", "-", "<", ">", "<=", ">=", 
 _ASSIGN_OPS = frozenset({":=", "REF=", "?=", "S=", "R="})
 _POU_KINDS = frozenset({"PROGRAM", "FUNCTION_BLOCK", "FUNCTION"})
 
-# (class, field) -> the set of values allowed, or a checker
+# (class, field) -> the set of values allowed
 _ENUM_FIELDS = {
     (ir.Unary, "op"): _UNARY_OPS,
     (ir.Binary, "op"): _BINARY_OPS,
@@ -65,12 +65,12 @@ _ENUM_FIELDS = {
     (ir.PropertyAccessor, "kind"): frozenset({"GET", "SET"}),
     (ir.Pou, "kind"): _POU_KINDS,
 }
-# type and interface references may be qualified with a library namespace (``Lib.T``)
+# type and interface references may be qualified with a library namespace (``Lib.T``);
+# VAR_CONFIG / VAR_ACCESS declarations name instance paths (``Res.Inst.var``)
+_PATH = ("path",)
 _QUALIFIED = {(ir.NamedType, "name"), (ir.Pou, "extends"), (ir.Pou, "implements"),
               (ir.Interface, "extends"), (ir.StructType, "extends"),
-              (ir.ProgramInstance, "type_name"), (ir.EnumLiteral, "type_name")}
-_PATH = ("path",)
-_QUALIFIED.add(_PATH)
+              (ir.ProgramInstance, "type_name"), (ir.EnumLiteral, "type_name"), _PATH}
 _ADDRESS_FIELDS = {(ir.DirectAddress, "address"), (ir.VarDecl, "address")}
 # fields whose text never reaches generated code
 _FREE_TEXT = {

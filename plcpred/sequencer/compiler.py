@@ -170,25 +170,22 @@ class Compiler:
         for text, pos in self._pending_sfc:
             e(0, text, pos)
         programs = self._program_instances()
-        self._check_memory(gdecls, programs, fbs)
+        prog_types = {name: next(f for f in fbs if f.cls_name == cls) for name, cls in programs}
+        self._check_memory(gdecls, prog_types.values())
         e(0, "def _build():")
         e(1, "global _g")
         e(1, "_g = k_GLOBALS()")
         e(1, "return [" + ", ".join(f"{cls}()" for _, cls in programs) + "]")
-        prog_types = {}
-        for name, cls in programs:
-            prog_types[name] = next(f for f in fbs if f.cls_name == cls)
         return Compiled("\n".join(self.src.lines) + "\n", self.src.pos, programs, prog_types,
                         self.globals, self.reads_et, self.reads_clock, self.types,
                         dict(self.address_slots), dict(self.intervals),
                         tuple(sorted(self.et_thresholds)))
 
-    def _check_memory(self, gdecls, programs, fbs):
+    def _check_memory(self, gdecls, program_types):
         """The whole project's variables within MAX_PROGRAM_CELLS, else an error at the
         declaration that holds the most."""
         sizes = [(ty.cells(self.globals[ident(d.name)][1], self.types), d) for d in gdecls]
-        for name, cls in programs:
-            fb = next(f for f in fbs if f.cls_name == cls)
+        for fb in program_types:
             for b in fb.pou.var_blocks:
                 for d in b.decls:
                     if b.kind not in ("VAR_EXTERNAL", "VAR_IN_OUT"):
