@@ -444,7 +444,112 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, help="local processes (default: one per core)")
     p.add_argument("--out", metavar="DIR", help="also write DIR/sweep.csv")
     p.set_defaults(func=cmd_sweep)
+
+    p = sub.add_parser("diagnose", help="diagnose the gap between prediction and a measured "
+                                        "flow log",
+                       description="Compare a machine's prediction with measured flow "
+                                   "logs: baseline error, where in the cycle the gap lies "
+                                   "(idle, a drive's strokes, a nozzle on, SFC steps), which "
+                                   "unmodelled effect causes it (leak, passive_flow, "
+                                   "supply_pressure, dead_volume, incomplete_exhaust, "
+                                   "shared_supply, valve_delay, stroke_time, sensor_lag; or "
+                                   "none) and how far the gap shrinks with it on samples the "
+                                   "fit never saw. Prints a report; exit 0 whatever the "
+                                   "verdict, 2 on bad input.")
+    p.add_argument("machine", metavar="MACHINE", help="machine file (.toml)")
+    p.add_argument("--measured", action="append", required=True, metavar="RUN.csv",
+                   help="a flow log: time_s,flow_l_min[,supply_bar_g] or any logger's CSV "
+                        "(see --time-col/--flow-col); repeat for several runs")
+    p.add_argument("--io", action="append", metavar="RUN.timeline.csv",
+                   help="recorded I/O of each run (time_s,signal,value): valve edges from "
+                        "the trace instead of the sequencer (one per --measured)")
+    p.add_argument("--offset", action="append", type=_seconds, metavar="S",
+                   help="the logger's clock reading at the machine's start, per run "
+                        "(default: found by correlating the log with the prediction)")
+    p.add_argument("--max-offset", type=_seconds, metavar="S",
+                   help="search the clock offset within this many seconds of the log's "
+                        "first sample (default: half the run, at most 120 s)")
+    p.add_argument("--time-col", metavar="NAME|N", help="time column (default time_s); "
+                   "seconds or ISO 8601 date-times")
+    p.add_argument("--flow-col", metavar="NAME|N", help="flow column (default flow_l_min)")
+    p.add_argument("--flow-unit", default="l/min", choices=("l/min", "m3/h", "l/s", "scfm"),
+                   help="unit of the flow column (default l/min)")
+    p.add_argument("--reference", choices=("iso8778", "din1343", "iso2533"),
+                   help="the meter's reference condition (default: the machine file's "
+                        "[meter] reference, else iso8778)")
+    p.add_argument("--effects", metavar="A,B",
+                   help="try only these effects (default: all that apply)")
+    p.add_argument("--json", metavar="OUT", help="write the diagnosis as JSON (- for stdout)")
+    p.add_argument("--out", metavar="DIR",
+                   help="write diagnose.json, diagnose.png and diagnose.html to DIR")
+    p.add_argument("--write-machine", metavar="FIXED.toml",
+                   help="write the machine file with the diagnosed effect(s) added")
+    p.add_argument("--program", metavar="PROGRAM",
+                   help="run this program instead of the one the machine file names")
+    p.set_defaults(func=cmd_diagnose)
     return ap
+
+
+def cmd_diagnose(args) -> int:
+    from .diagnose import diagnose, read_io_timeline, read_measured
+    from .diagnose.core import write_fixed_machine
+    from .machine import load_machine
+    from .output import OutputError, atomic_write_text, check_out_dir, output_dir, write_json
+
+    try:
+        out = check_out_dir(args.out) if args.out else None
+        if args.io and len(args.io) != len(args.measured):
+            raise ValueError(f"give one --io per --measured run ({len(args.measured)}), "
+                             f"not {len(args.io)}")
+        if args.offset and len(args.offset) != len(args.measured):
+            raise ValueError(f"give one --offset per --measured run ({len(args.measured)}),"
+                             f" not {len(args.offset)}")
+        effects = [e.strip() for e in args.effects.split(",")] if args.effects else None
+    except (ValueError, OutputError) as e:
+        return _fail(str(e))
+    machine = load_machine(args.machine)
+    reference = args.reference or (machine.meter.reference if machine.meter else "iso8778")
+    runs = [read_measured(p, time_col=args.time_col, flow_col=args.flow_col,
+                          flow_unit=args.flow_unit, reference=reference)
+            for p in args.measured]
+    io = [read_io_timeline(p, horizon_s=r.span_s) for p, r in zip(args.io, runs)] \
+        if args.io else None
+    d = diagnose(machine, runs, io=io, offsets=args.offset, max_offset_s=args.max_offset,
+                 effects=effects, program=args.program)
+    if args.write_machine:
+        write_fixed_machine(d, args.write_machine)
+    for w in d.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    print(d.report(), file=sys.stderr if args.json == "-" else sys.stdout)
+    if args.json:
+        if args.json == "-":
+            import json
+            print(json.dumps(d.summary(), indent=2, allow_nan=False))
+        else:
+            write_json(args.json, d.summary())
+    if out is not None:
+        from .report import diagnosis_html, plot_diagnosis
+
+        with output_dir(out, _command_line(args)) as staging:
+            write_json(staging / "diagnose.json", d.summary())
+            plot_diagnosis(d, staging / "diagnose.png")
+            atomic_write_text(staging / "diagnose.html",
+                              diagnosis_html(d, (staging / "diagnose.png").read_bytes()))
+        print(f"wrote {out / 'diagnose.json'}, {out / 'diagnose.png'}, "
+              f"{out / 'diagnose.html'}")
+    if args.write_machine:
+        print(f"wrote {args.write_machine}")
+    return 0
+
+
+def _seconds(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds, not {text!r}") from None
+    if v != v or abs(v) > 1e12:
+        raise argparse.ArgumentTypeError(f"expected a finite number of seconds, not {text!r}")
+    return v
 
 
 class Terminated(KeyboardInterrupt):

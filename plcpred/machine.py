@@ -68,6 +68,7 @@ class Consumer:
     orifice_mm: float | None = None
     Cd: float | None = None
     flow_model: str = "iso6358"
+    exhaust_tau_s: float | None = None  # air-model option: incomplete exhaust (off)
 
     @property
     def is_cylinder(self) -> bool:
@@ -89,6 +90,18 @@ class Consumer:
 
 
 @dataclass
+class Meter:
+    """The flow meter a measured run comes from (``[meter]``): what ``diagnose`` compares
+    a prediction through, and what ``emulate`` imitates. All optional."""
+    tau_s: float | None = None          # first-order response time
+    rate_hz: float | None = None        # logging rate (readings averaged over 1/rate)
+    reference: str = "iso8778"          # iso8778 | din1343 | iso2533
+    noise_l_min: float = 0.0
+    offset_l_min: float = 0.0           # reading at zero flow
+    full_scale_l_min: float | None = None
+
+
+@dataclass
 class Machine:
     name: str
     path: Path
@@ -101,6 +114,7 @@ class Machine:
     inputs: list[InputSchedule] = field(default_factory=list)
     consumers: list[Consumer] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    meter: Meter | None = None
 
     def consumer(self, name: str) -> Consumer:
         for c in self.consumers:
@@ -114,7 +128,11 @@ _INPUT_KEYS = {"signal", "pulses_s", "pulse_ms", "period_s", "offset_s", "jitter
                "initial"}
 _CONSUMER_KEYS = {"name", "kind", "valve", "bore_mm", "rod_mm", "stroke_mm", "tube_id_mm",
                   "tube_length_m", "stroke_time_s", "switch_delay_s", "switches", "initial",
-                  "pressure_bar_g", "C", "b", "m", "a", "orifice_mm", "Cd", "flow_model"}
+                  "pressure_bar_g", "C", "b", "m", "a", "orifice_mm", "Cd", "flow_model",
+                  "exhaust_tau_s"}
+_METER_KEYS = {"tau_s", "rate_hz", "reference", "noise_l_min", "offset_l_min",
+               "full_scale_l_min"}
+METER_REFERENCES = ("iso8778", "din1343", "iso2533")
 
 
 # Physical ranges of every number in a machine file: (lowest, highest). Wider than any real
@@ -130,7 +148,9 @@ RANGES = {
     "pressure_bar_g": (0.0, 100.0), "C": (1e-15, 1e-3), "m": (0.0, 10.0), "a": (0.0, 1.0),
     "orifice_mm": (0.0, 1_000.0), "Cd": (0.0, 1.0),
     "pulse_ms": (1e-3, 1e9), "period_s": (1e-3, 1e8), "offset_s": (0.0, 1e9),
-    "jitter_s": (0.0, 1e8), "pulses_s": (0.0, 1e9),
+    "jitter_s": (0.0, 1e8), "pulses_s": (0.0, 1e9), "exhaust_tau_s": (1e-4, 60.0),
+    "tau_s": (0.0, 600.0), "rate_hz": (1e-4, 1e5), "noise_l_min": (0.0, 1e7),
+    "offset_l_min": (-1e6, 1e6), "full_scale_l_min": (0.0, 1e8),
 }
 MAX_PULSES = 1_000_000
 
@@ -258,12 +278,14 @@ def _consumer(file: str, index: int, table: dict, warnings: list) -> Consumer:
             raise r.error("switches must be { retracted = \"...\", extended = \"...\" }")
         c.switches = {k: _signal_name(r, f"switches.{k}", v) for k, v in sw.items()}
         c.initial = r.string("initial", "retracted", choices=("retracted", "extended"))
+        c.exhaust_tau_s = r.number("exhaust_tau_s", positive=True)
         for key in ("C", "b", "m", "a", "orifice_mm", "Cd", "pressure_bar_g", "flow_model"):
             if key in table:
                 raise r.error(f"'{key}' applies to nozzles and leaks, not to a {kind}")
     else:
         for key in ("bore_mm", "rod_mm", "stroke_mm", "stroke_time_s", "switches",
-                    "tube_length_m", "tube_id_mm", "switch_delay_s", "initial"):
+                    "tube_length_m", "tube_id_mm", "switch_delay_s", "initial",
+                    "exhaust_tau_s"):
             if key in table:
                 raise r.error(f"'{key}' applies to cylinders, not to a {kind}")
         c.C = r.number("C", positive=True)
@@ -322,6 +344,16 @@ def _input(file: str, index: int, table: dict) -> InputSchedule:
     return s
 
 
+def _meter(file: str, table: dict) -> Meter:
+    r = _Reader(file, "[meter]", table, _METER_KEYS)
+    return Meter(tau_s=r.number("tau_s", nonneg=True),
+                 rate_hz=r.number("rate_hz", positive=True),
+                 reference=r.string("reference", "iso8778", choices=METER_REFERENCES),
+                 noise_l_min=r.number("noise_l_min", 0.0, nonneg=True),
+                 offset_l_min=r.number("offset_l_min", 0.0),
+                 full_scale_l_min=r.number("full_scale_l_min", positive=True))
+
+
 def load_machine(path) -> Machine:
     """Read and validate a machine file. Raises :class:`MachineError`."""
     return machine_from_data(read_machine_data(path), path)
@@ -351,10 +383,10 @@ def machine_from_data(data: dict, path) -> Machine:
     is relative to it and errors name it."""
     path = Path(path)
     file = str(path)
-    unknown = sorted(set(data) - {"machine", "signals", "input", "consumer"})
+    unknown = sorted(set(data) - {"machine", "signals", "input", "consumer", "meter"})
     if unknown:
         raise MachineError(file, "", f"unknown table [{unknown[0]}] (known: [machine], "
-                                     "[signals], [[input]], [[consumer]])")
+                                     "[signals], [[input]], [[consumer]], [meter])")
     if "machine" not in data:
         raise MachineError(file, "", "missing the [machine] table")
     r = _Reader(file, "[machine]", data["machine"], _MACHINE_KEYS)
@@ -387,6 +419,8 @@ def machine_from_data(data: dict, path) -> Machine:
         for i, t in enumerate(tables):
             out.append(builder(file, i, t, machine.warnings) if key == "consumer"
                        else builder(file, i, t))
+    if "meter" in data:
+        machine.meter = _meter(file, data["meter"])
     seen = set()
     for c in machine.consumers:
         if c.name in seen:

@@ -305,3 +305,78 @@ def write_sizing_report(result, sizing, out_dir) -> list[Path]:
     atomic_write_text(out / "sizing.html", sizing_html(md, images))
     return [out / "sizing.json", out / "sizing.md", out / "sizing.html", out / "sizing.png",
             out / "demand.png"]
+
+
+# ---------------------------------------------------------------------- diagnosis report
+
+def plot_diagnosis(d, path) -> None:
+    """``diagnose.png``: per run, the measured, predicted and corrected meter readings
+    against the logger's clock with the located windows shaded; the cumulative NL of
+    all three; the residual per context."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    runs = d.runs
+    fig, axes = plt.subplots(len(runs) + 2, 1, figsize=(11, 3.0 * (len(runs) + 2)),
+                             constrained_layout=True)
+    best = d.best_params()
+    named = {c.context for c in d.contexts if c.stands_out}
+    corrected_label = ("corrected (" + " + ".join(d.combination["effects"]) + ")"
+                       if d.combination else None)
+    for ax, rd, base, fixed in zip(axes, runs, d.bases, best):
+        t = rd.end_s + rd.offset_s
+        ax.plot(t, rd.measured_l_min, color="black", lw=1.0, label="measured")
+        ax.plot(t, rd.readings(base), color="tab:blue", lw=1.0, label="predicted")
+        if corrected_label:
+            ax.plot(t, rd.readings(fixed), color="tab:red", lw=1.0, ls="--",
+                    label=_plain(corrected_label))
+        for loc in d.locations[:30]:
+            if loc.get("run") == rd.run.name and loc["context"] in named:
+                ax.axvspan(loc["start_s"], loc["end_s"], color="orange", alpha=0.15, lw=0)
+        ax.set_ylabel("NL/min")
+        ax.set_title(_plain(f"{rd.run.name}: meter readings (shaded: located gap)"),
+                     fontsize=10)
+        ax.legend(loc="upper right", fontsize=8)
+    ax = axes[-2]
+    offset = 0.0
+    for rd, base, fixed in zip(runs, d.bases, best):
+        t = rd.end_s + offset
+        w = rd.weight_s / 60.0
+        ax.plot(t, np.cumsum(rd.measured_l_min * w), color="black", lw=1.0)
+        ax.plot(t, np.cumsum(rd.readings(base) * w), color="tab:blue", lw=1.0)
+        if corrected_label:
+            ax.plot(t, np.cumsum(rd.readings(fixed) * w), color="tab:red", lw=1.0, ls="--")
+        offset = t[-1]
+    ax.set_ylabel("NL")
+    ax.set_xlabel("time in the prediction, s (runs one after another)")
+    ax.set_title("cumulative air: measured (black), predicted (blue), corrected (red)",
+                 fontsize=10)
+    ax = axes[-1]
+    ctx = d.contexts[:12]
+    ax.barh([_plain(c.context) for c in ctx][::-1], [c.residual_nl for c in ctx][::-1],
+            xerr=[3 * c.uncertainty_nl for c in ctx][::-1],
+            color=["tab:orange" if c.stands_out else "lightgray" for c in ctx][::-1])
+    ax.axvline(0, color="black", lw=0.8)
+    ax.set_xlabel("residual NL (measured - predicted); bars +/- 3 sigma of noise")
+    ax.set_title(_plain(f"where the gap lies; verdict: {d.verdict}"), fontsize=10)
+    _save_fig(fig, path)
+
+
+def diagnosis_html(d, png: bytes | None) -> str:
+    """``diagnose.html``: the printed report and the plot in one self-contained page."""
+    import base64
+    import html
+
+    parts = ["<!DOCTYPE html><html><head><meta charset='utf-8'><title>Diagnosis</title>",
+             "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;"
+             "color:#222}pre{background:#f6f6f6;padding:1em;overflow-x:auto}"
+             "img{max-width:100%}</style></head><body>",
+             f"<h1>{html.escape(d.machine.name)}: diagnosis of the sim-to-real gap</h1>",
+             f"<pre>{html.escape(d.report())}</pre>"]
+    if png is not None:
+        parts.append(f"<p><img alt='diagnosis' src='data:image/png;base64,"
+                     f"{base64.b64encode(png).decode()}'></p>")
+    parts.append("</body></html>")
+    return "\n".join(parts)

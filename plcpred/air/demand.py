@@ -34,7 +34,7 @@ from ..machine import CYLINDER_KINDS
 from ..output import atomic_write_text, write_json
 from ..sequencer.timeline import NS
 from .flow import bar_g_to_pa, celsius_to_k, flow_nl_min, orifice_conductance
-from .volumes import consumer_stroke_volumes_nl
+from .volumes import consumer_stroke_volumes_nl, dead_fill_volumes_nl
 
 
 @dataclass
@@ -51,6 +51,10 @@ class ConsumerModel:
     delay_s: float = 0.0
     stroke_time_s: tuple[float, float] | None = None
     initial_extended: bool = False
+    # incomplete exhaust (off unless the machine file gives exhaust_tau_s): the air a
+    # chamber's dead volume holds above atmosphere when filled at supply, cap and rod end
+    exhaust_tau_s: float | None = None
+    dead_fill_nl: tuple[float, float] = (0.0, 0.0)
 
 
 def consumer_models(machine) -> list[ConsumerModel]:
@@ -67,7 +71,10 @@ def consumer_models(machine) -> list[ConsumerModel]:
             out.append(ConsumerModel(c.name, c.kind, list(c.valve), "active", v_ext, v_ret,
                                      pressure_bar_g=machine.supply_bar_g,
                                      delay_s=c.switch_delay_s, stroke_time_s=st,
-                                     initial_extended=c.initial == "extended"))
+                                     initial_extended=c.initial == "extended",
+                                     exhaust_tau_s=getattr(c, "exhaust_tau_s", None),
+                                     dead_fill_nl=dead_fill_volumes_nl(
+                                         c, p_pa, p_atm_pa, t_supply_k)))
         else:
             p_bar_g = c.pressure_bar_g if c.pressure_bar_g is not None else machine.supply_bar_g
             C = c.C if c.C is not None else orifice_conductance(c.orifice_mm, c.Cd)
@@ -160,6 +167,55 @@ def _cumulative(points_s, start_s, duration_s, amount):
         kk = np.clip(k, 0, None)
         out += np.where(inside, cum_at_bp[kk] + slope[kk] * (points_s - bp[kk]), 0.0)
     return out
+
+
+def residual_fill_nl(t_s, extend, delay_s: float, stroke_time_s, exhaust_tau_s: float,
+                     dead_fill_nl) -> np.ndarray:
+    """Air a fill does not take because its chamber has not finished exhausting
+    (domain.md section 7, "incomplete exhaust"): a chamber starts exhausting when the
+    opposite stroke has ended (its edge + delay + stroke time) and the air its dead volume
+    holds above atmosphere decays as ``exp(-t / exhaust_tau_s)``; a fill at ``t`` after
+    that start needs ``dead_fill_nl * exp(-t / tau)`` less (the whole of it if the opposite
+    stroke has not ended). The first transition fills a chamber that has been empty."""
+    t_s = np.asarray(t_s, dtype=float)
+    extend = np.asarray(extend, dtype=bool)
+    out = np.zeros(len(t_s))
+    if len(t_s) < 2 or not exhaust_tau_s or exhaust_tau_s <= 0:
+        return out
+    st_ext, st_ret = stroke_time_s if stroke_time_s is not None else (0.0, 0.0)
+    prev_end = t_s[:-1] + delay_s + np.where(extend[:-1], st_ext, st_ret)
+    since = np.clip(t_s[1:] - prev_end, 0.0, None)
+    held = np.where(extend[1:], dead_fill_nl[0], dead_fill_nl[1])
+    out[1:] = held * np.exp(-since / exhaust_tau_s)
+    return out
+
+
+def stroke_cells(edges_s, t_s, extend, extend_nl: float, retract_nl: float,
+                 delay_s: float = 0.0, stroke_time_s=None, exhaust_tau_s=None,
+                 dead_fill_nl=(0.0, 0.0)) -> np.ndarray:
+    """(D1, transition rule) normal litres per grid cell of one drive's strokes: each
+    transition's volume spread evenly over its switching delay plus stroke time (see the
+    module docstring), less the residual of an incomplete exhaust when
+    ``exhaust_tau_s`` is given (:func:`residual_fill_nl`)."""
+    t_s = np.asarray(t_s, dtype=float)
+    extend = np.asarray(extend, dtype=bool)
+    vol = np.where(extend, extend_nl, retract_nl)
+    if exhaust_tau_s:
+        vol = np.clip(vol - residual_fill_nl(t_s, extend, delay_s, stroke_time_s,
+                                             exhaust_tau_s, dead_fill_nl), 0.0, None)
+    if stroke_time_s is not None:
+        dur = delay_s + np.where(extend, stroke_time_s[0], stroke_time_s[1])
+    else:
+        dur = np.full(len(t_s), float(delay_s))
+    return np.diff(_cumulative(edges_s, t_s, dur, vol))
+
+
+def interval_cells(edges_s, starts_s, ends_s, flow_l_min: float) -> np.ndarray:
+    """(D2 while on) normal litres per grid cell of a consumer flowing ``flow_l_min``
+    over the given periods."""
+    starts_s = np.asarray(starts_s, dtype=float)
+    dur = np.asarray(ends_s, dtype=float) - starts_s
+    return np.diff(_cumulative(edges_s, starts_s, dur, flow_l_min / 60.0 * dur))
 
 
 def grid_edges_s(horizon_s: float, dt_s: float) -> np.ndarray:
@@ -305,25 +361,18 @@ def demand_profile(timeline, models: list[ConsumerModel], dt_s: float = 0.01,
     for i, m in enumerate(models):
         if m.role == "active":
             t_ns, ext = valve_transitions(timeline, m, signal_map)
-            t_s = t_ns / NS
-            vol = np.where(ext, m.extend_nl, m.retract_nl)
-            if m.stroke_time_s is not None:
-                dur = m.delay_s + np.where(ext, m.stroke_time_s[0], m.stroke_time_s[1])
-            else:
-                dur = np.full(len(t_s), m.delay_s)
             strokes[m.name] = (int(ext.sum()), int((~ext).sum()))
-            cum = _cumulative(edges, t_s, dur, vol)
-            cells[i] = np.diff(cum)
+            cells[i] = stroke_cells(edges, t_ns / NS, ext, m.extend_nl, m.retract_nl,
+                                    m.delay_s, m.stroke_time_s, m.exhaust_tau_s,
+                                    m.dead_fill_nl)
             active[i] = cells[i].sum()
         else:
-            rate_nl_s = m.flow_l_min / 60.0
             if m.role == "leak":
                 starts, ends = np.array([0.0]), np.array([horizon_s])
             else:
                 s_ns, e_ns = passive_intervals(timeline, m, signal_map)
                 starts, ends = s_ns / NS, e_ns / NS
-            cum = _cumulative(edges, starts, ends - starts, rate_nl_s * (ends - starts))
-            cells[i] = np.diff(cum)
+            cells[i] = interval_cells(edges, starts, ends, m.flow_l_min)
             passive[i] = cells[i].sum()
     return DemandProfile([m.name for m in models], [m.role for m in models], cells, dt_s,
                          horizon_s, active, passive, strokes, list(models))

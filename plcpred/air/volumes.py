@@ -58,3 +58,15 @@ def consumer_stroke_volumes_nl(consumer, supply_pa: float, supply_temp_k: float 
     v_ret = stroke_volume_nl(a_ret, consumer.stroke_mm, l_rod, tube_id, supply_pa,
                              supply_temp_k)
     return v_ext, v_ret
+
+
+def dead_fill_volumes_nl(consumer, supply_pa: float, atmosphere_pa: float,
+                         supply_temp_k: float = T0_K) -> tuple[float, float]:
+    """(cap, rod) normal litres that a chamber's dead volume (its tube from the valve)
+    holds above atmospheric pressure when it is at supply pressure: what an exhaust cut
+    short leaves for the next fill (domain.md section 7; the ``exhaust_tau_s`` option of
+    the air model). ``V_t * (P_s - P_atm) / P0 * T0 / T_s``."""
+    tube_id = consumer.tube_id_mm or 0.0
+    area_mm2 = math.pi * tube_id ** 2 / 4.0
+    return tuple(length_m * 1000.0 * area_mm2 * 1e-6 * (supply_pa - atmosphere_pa) / P0_PA
+                 * (T0_K / supply_temp_k) for length_m in consumer.tube_length_m)

@@ -1,0 +1,408 @@
+"""The diagnosis of a sim-to-real gap, as one call: :func:`diagnose`.
+
+1. Predict each measured run (the sequencer, or the run's recorded I/O trace) and align
+   the log's clock to it (:func:`~plcpred.diagnose.fit.align`).
+2. **Baseline**: measured vs predicted NL, error %, RMSE of the meter readings.
+3. **Where**: the residual by context (:mod:`~plcpred.diagnose.locate`), named only where
+   it stands out of the noise estimated from the data.
+4. **Which effect**: every effect of the vocabulary fitted to the fit samples and scored
+   on held-out samples (:func:`~plcpred.diagnose.fit.folds`); ranked by held-out RMSE,
+   BIC breaking near-ties. The verdict is the best effect when it beats the baseline on
+   held-out samples by more than the noise allows, else ``none``.
+5. **Combination**: from the verdict, effects are added one at a time while each still
+   improves the held-out error by more than the noise allows (up to three).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .effects import EFFECTS, Effect
+from .fit import (DiagnosisError, FitResult, RunData, Score, align, fit_effects, folds,
+                  heldout, score)
+from .io import MeasuredRun
+from .locate import contexts, sample_contexts, step_contexts, windows
+from .meter import noise_level_l_min
+from .model import MachineModel, RunModel
+
+MAX_COMBINATION = 3
+MAX_CELLS_PER_RUN = 200_000
+# units that do not fit: a log this many times the prediction (or a fraction of it)
+SCALE_LIMIT = 20.0
+
+
+@dataclass
+class EffectResult:
+    name: str
+    title: str
+    fit: FitResult
+    fit_score: Score
+    heldout_score: Score
+    parameters: dict
+    physical: dict
+
+    def summary(self) -> dict:
+        return {"name": self.name, "title": self.title, "parameters": self.physical,
+                "fitted": {k: {"value": float(v), "stderr": _num(s), "unit": u}
+                           for k, v, s, u in zip(self.fit.names, self.fit.theta,
+                                                 self.fit.stderr, self.fit.units)},
+                "error_pct_after": _num(self.fit_score.error_pct),
+                "rmse_l_min_after": _num(self.fit_score.rmse_l_min),
+                "heldout_error_pct_after": _num(self.heldout_score.error_pct),
+                "heldout_rmse_l_min_after": _num(self.heldout_score.rmse_l_min),
+                "bic": _num(self.fit.bic)}
+
+
+def _num(x):
+    return None if x is None or not math.isfinite(float(x)) else float(x)
+
+
+@dataclass
+class Diagnosis:
+    machine: object
+    runs: list[RunData]
+    baseline: Score
+    baseline_heldout: Score
+    noise_l_min: float
+    contexts: list
+    step_contexts: list
+    locations: list[dict]
+    effects: list[EffectResult]
+    verdict: str
+    combination: dict | None
+    fold_kind: str
+    warnings: list[str] = field(default_factory=list)
+    fixed_machine: str | None = None
+    bases: list = field(default_factory=list)       # per run: the aligned nominal model
+    machine_model: MachineModel | None = None
+
+    def best_params(self):
+        """Per run: the model parameters of the combination (which starts with the
+        verdict), else the baseline's."""
+        if self.combination:
+            return self.combination["fit"].params
+        return self.bases
+
+    def summary(self) -> dict:
+        b = self.baseline
+        out = {
+            "machine": self.machine.name,
+            "baseline": {"measured_nl": b.measured_nl, "predicted_nl": b.predicted_nl,
+                         "error_pct": _num(b.error_pct), "rmse_l_min": _num(b.rmse_l_min)},
+            "runs": [{"name": rd.run.name, "offset_s": rd.offset_s,
+                      "meter_tau_s": rd.meter_tau_s, "correlation": rd.correlation,
+                      "samples": int(len(rd.end_s)),
+                      "interval_s": rd.run.interval_s,
+                      "source": "recorded I/O" if rd.model.timeline.info.get(
+                          "mode") == "recorded" else "sequencer"} for rd in self.runs],
+            "noise_l_min": self.noise_l_min,
+            "heldout": self.fold_kind,
+            "contexts": [c.summary() for c in self.contexts],
+            "locations": self.locations,
+            "effects": [e.summary() for e in self.effects],
+            "verdict": self.verdict,
+            "combination": None if not self.combination else {
+                "effects": self.combination["effects"],
+                "heldout_error_pct_after": _num(self.combination["heldout"].error_pct),
+                "heldout_rmse_l_min_after": _num(self.combination["heldout"].rmse_l_min),
+                "error_pct_after": _num(self.combination["score"].error_pct),
+                "parameters": self.combination["physical"]},
+            "fixed_machine": self.fixed_machine,
+            "warnings": self.warnings,
+        }
+        if self.step_contexts:
+            out["step_contexts"] = [c.summary() for c in self.step_contexts]
+        return out
+
+    def report(self) -> str:
+        """The readable report printed by ``plcpred diagnose``."""
+        b = self.baseline
+        lines = [f"{self.machine.name}: {len(self.runs)} run"
+                 f"{'s' if len(self.runs) != 1 else ''}, noise {self.noise_l_min:.2g} NL/min"]
+        for rd in self.runs:
+            src = rd.model.timeline.info.get("mode") == "recorded"
+            lines.append(f"  {rd.run.name}: {len(rd.end_s)} samples every "
+                         f"{rd.run.interval_s:g} s, clock offset {rd.offset_s:+.3f} s, "
+                         f"meter lag {rd.meter_tau_s:g} s, correlation {rd.correlation:.2f}"
+                         f"{', edges from recorded I/O' if src else ''}")
+        lines += ["", f"baseline: measured {b.measured_nl:.2f} NL, predicted "
+                      f"{b.predicted_nl:.2f} NL, error {b.error_pct:+.1f} %, RMSE "
+                      f"{b.rmse_l_min:.2f} NL/min", "",
+                  "where (residual = measured - predicted):"]
+        for c in self.contexts[:8]:
+            mark = "  <- stands out" if c.stands_out else ""
+            lines.append(f"  {c.context:<28} {c.residual_nl:+9.3f} NL  "
+                         f"({100 * c.share:5.1f} % of the gap, +/- {c.uncertainty_nl:.3f})"
+                         f"{mark}")
+        lines += ["", f"which effect (held-out: {self.fold_kind}):",
+                  f"  {'effect':<20} {'error after':>11} {'held-out':>9} {'RMSE held-out':>14}"
+                  "  parameters",
+                  f"  {'(baseline)':<20} {b.error_pct:>+10.1f}% "
+                  f"{self.baseline_heldout.error_pct:>+8.1f}% "
+                  f"{self.baseline_heldout.rmse_l_min:>14.2f}"]
+        for e in self.effects:
+            lines.append(f"  {e.name:<20} {e.fit_score.error_pct:>+10.1f}% "
+                         f"{e.heldout_score.error_pct:>+8.1f}% "
+                         f"{e.heldout_score.rmse_l_min:>14.2f}  {_short(e.physical)}")
+        lines += ["", f"verdict: {self.verdict}"]
+        if self.combination and len(self.combination["effects"]) > 1:
+            c = self.combination
+            lines.append(f"combination: {' + '.join(c['effects'])}: held-out error "
+                         f"{c['heldout'].error_pct:+.1f} %, RMSE "
+                         f"{c['heldout'].rmse_l_min:.2f} NL/min")
+        return "\n".join(lines)
+
+
+def _short(physical: dict, depth: int = 0) -> str:
+    parts = []
+    for k, v in physical.items():
+        if isinstance(v, dict):
+            parts.append(f"{k}: {_short(v, depth + 1)}")
+        elif isinstance(v, float):
+            parts.append(f"{k}={v:.3g}")
+        elif isinstance(v, list):
+            parts.append(f"{k}=[{', '.join(f'{x:.3g}' for x in v)}]")
+        else:
+            parts.append(f"{k}={v}")
+    text = ", ".join(parts)
+    return text if depth or len(text) <= 90 else text[:87] + "..."
+
+
+def _grid_dt(span_s: float, interval_s: float) -> float:
+    """A grid fine enough for the meter's intervals and lag, at most MAX_CELLS_PER_RUN."""
+    dt = 0.01
+    while span_s / dt > MAX_CELLS_PER_RUN:
+        dt *= 2.0
+    return min(dt, max(0.01, interval_s / 10.0)) if span_s / 0.01 <= MAX_CELLS_PER_RUN \
+        else dt
+
+
+def significant(base: Score, new: Score, noise_l_min: float) -> bool:
+    """Does ``new`` beat ``base`` on held-out samples by more than noise allows? The
+    mean-square error must fall by more than both 2 % of the baseline's and the
+    fluctuation noise alone gives an MSE estimate (``3 sigma^2 sqrt(2/n)``)."""
+    if not (math.isfinite(new.mse) and math.isfinite(base.mse)):
+        return False
+    n = max(new.n, 1)
+    gain = base.mse - new.mse
+    return gain > max(0.02 * base.mse, 3.0 * noise_l_min ** 2 * math.sqrt(2.0 / n))
+
+
+def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
+             max_offset_s: float | None = None, effects=None,
+             max_combination: int = MAX_COMBINATION, program=None) -> Diagnosis:
+    """Diagnose the gap between ``machine``'s prediction and measured ``runs``.
+
+    ``io``: per run a recorded I/O :class:`~plcpred.sequencer.Timeline` (or None: the
+    sequencer's); ``offsets``: per run the logger's clock at the machine's start (or
+    None: aligned by correlation within ``max_offset_s``, default half the run up to
+    120 s); ``effects``: names to try (default: all that apply)."""
+    from ..machine import Machine, load_machine
+    from ..sequencer import unfold
+
+    if not isinstance(machine, Machine):
+        machine = load_machine(machine)
+    if not runs:
+        raise DiagnosisError("no measured runs given")
+    io = list(io or [None] * len(runs))
+    offsets = list(offsets or [None] * len(runs))
+    if len(io) != len(runs) or len(offsets) != len(runs):
+        raise DiagnosisError("give one --io (and one --offset) per measured run, or none")
+    mm = MachineModel.of(machine)
+    meter_tau = machine.meter.tau_s if machine.meter and machine.meter.tau_s is not None \
+        else None
+    warnings = list(machine.warnings)
+    rds: list[RunData] = []
+    period_s = None
+    for run, tl, off in zip(runs, io, offsets):
+        window = max_offset_s if max_offset_s is not None else min(
+            120.0, max(2.0, 0.5 * run.span_s))
+        horizon = run.span_s + (window if off is None else 0.0) + 3.0
+        if off is not None:
+            horizon = max(1.0, float(run.time_s[-1]) - off + 1.0)
+        if tl is None:
+            tl = unfold(machine, horizon, program=program)
+            if tl.info.get("period_s"):
+                period_s = float(tl.info["period_s"])
+                if run.span_s < period_s:
+                    raise DiagnosisError(
+                        f"{run.name}: the log covers {run.span_s:g} s, less than one cycle "
+                        f"of {machine.name} ({period_s:g} s)")
+        dt = _grid_dt(tl.horizon_ns / 1e9, run.interval_s)
+        rm = RunModel(mm, tl, dt)
+        nominal = mm.nominal(meter_tau or 0.0)
+        rd = align(run, rm, nominal, window, meter_tau, off)
+        _check_run(rd, machine.name, off is not None, warnings)
+        rds.append(rd)
+    bases = []
+    for rd in rds:
+        p = mm.nominal(rd.meter_tau_s)
+        bases.append(p)
+    base_score = score(rds, bases)
+    residuals = [rd.measured_l_min - rd.readings(p) for rd, p in zip(rds, bases)]
+    noise = float(np.median([noise_level_l_min(r) for r in residuals]))
+
+    # where
+    labels = [sample_contexts(rd, p) for rd, p in zip(rds, bases)]
+    weights = [rd.weight_s for rd in rds]
+    ctx_list = contexts(labels, residuals, weights, noise)
+    named = {c.context for c in ctx_list if c.stands_out}
+    locations = []
+    for rd, lab, r in zip(rds, labels, residuals):
+        locations += windows(rd, lab, r, noise, named)
+    locations.sort(key=lambda x: -abs(x["residual_nl"]))
+    steps = [step_contexts(rd) for rd in rds]
+    step_list = contexts(steps, residuals, weights, noise) if all(
+        s is not None for s in steps) else []
+
+    # which effect
+    fold_masks = folds(rds, period_s)
+    fold_kind = ("leave one run out" if len(rds) >= 2
+                 else "alternate blocks of the run (fit on one half, scored on the other)")
+    ctx = {"mean_l_min": max(base_score.measured_nl, 1e-9) * 60.0 / max(
+        sum(float(rd.weight_s.sum()) for rd in rds), 1e-9),
+        "meter_tau_s": meter_tau or 0.0}
+    base_heldout = heldout([], mm, rds, bases, ctx, fold_masks)
+    names = effects or list(EFFECTS)
+    unknown = [n for n in names if n not in EFFECTS]
+    if unknown:
+        raise DiagnosisError(f"unknown effect {unknown[0]!r} (known: {', '.join(EFFECTS)})")
+    results = []
+    for name in names:
+        effect = EFFECTS[name]
+        if not effect.applies(mm):
+            continue
+        results.append(_evaluate([effect], mm, rds, bases, ctx, fold_masks))
+    results.sort(key=lambda e: e.heldout_score.rmse_l_min)
+    results = _tie_break(results, noise)
+    verdict = "none"
+    combination = None
+    if results and significant(base_heldout, results[0].heldout_score, noise):
+        verdict = results[0].name
+        chosen = [EFFECTS[verdict]]
+        best = results[0]
+        candidates = [e for e in results[1:] if significant(base_heldout, e.heldout_score,
+                                                             noise)]
+        while len(chosen) < max_combination and candidates:
+            trials = [_evaluate(chosen + [EFFECTS[c.name]], mm, rds, bases, ctx, fold_masks)
+                      for c in candidates]
+            trial = min(trials, key=lambda e: e.heldout_score.rmse_l_min)
+            if not significant(best.heldout_score, trial.heldout_score, noise):
+                break
+            best = trial
+            chosen = list(trial.fit.effects)
+            candidates = [c for c in candidates if EFFECTS[c.name] not in chosen]
+        combination = {"effects": [e.name for e in chosen], "fit": best.fit,
+                       "heldout": best.heldout_score, "score": best.fit_score,
+                       "physical": best.physical}
+    return Diagnosis(machine, rds, base_score, base_heldout, noise, ctx_list, step_list,
+                     locations, results, verdict, combination, fold_kind, warnings,
+                     bases=bases, machine_model=mm)
+
+
+def _evaluate(effects: list[Effect], mm, rds, bases, ctx, fold_masks) -> EffectResult:
+    all_masks = [np.ones(len(rd.end_s), bool) for rd in rds]
+    fit = fit_effects(effects, mm, rds, all_masks, bases, ctx)
+    fit_score = score(rds, fit.params)
+    held = heldout(effects, mm, rds, bases, ctx, fold_masks)
+    physical = {}
+    k = 0
+    for e, n in zip(effects, fit.counts):
+        ph = e.physical(mm, fit.theta[k:k + n])
+        physical.update(ph if len(effects) == 1 else {e.name: ph})
+        k += n
+    name = "+".join(e.name for e in effects)
+    return EffectResult(name, " + ".join(e.title for e in effects), fit, fit_score, held,
+                        dict(zip(fit.names, map(float, fit.theta))), physical)
+
+
+def _tie_break(results: list[EffectResult], noise: float) -> list[EffectResult]:
+    """Among effects whose held-out RMSE is within 1 % of the best, the lowest BIC
+    (fewest parameters for the same fit) goes first."""
+    if len(results) < 2:
+        return results
+    best = results[0].heldout_score.rmse_l_min
+    near = [e for e in results if e.heldout_score.rmse_l_min <= best * 1.01 + 1e-12]
+    rest = [e for e in results if e not in near]
+    near.sort(key=lambda e: e.fit.bic)
+    return near + rest
+
+
+def _check_run(rd: RunData, machine_name: str, given_offset: bool,
+               warnings: list[str]) -> None:
+    run = rd.run
+    pred = rd.readings(rd.model.mm.nominal(rd.meter_tau_s))
+    meas_mean = float(rd.measured_l_min @ rd.weight_s) / float(rd.weight_s.sum())
+    pred_mean = float(pred @ rd.weight_s) / float(rd.weight_s.sum())
+    if pred_mean > 0 and meas_mean > 0:
+        ratio = meas_mean / pred_mean
+        if ratio > SCALE_LIMIT or ratio < 1.0 / SCALE_LIMIT:
+            raise DiagnosisError(
+                f"{run.name}: the measured flow averages {meas_mean:.4g} NL/min, "
+                f"{ratio:.3g} times the prediction ({pred_mean:.4g} NL/min): check "
+                "--flow-unit (l/min, m3/h, l/s, scfm) and --reference")
+    if meas_mean <= 0:
+        raise DiagnosisError(f"{run.name}: the log shows no flow (mean "
+                             f"{meas_mean:.3g} NL/min)")
+    if rd.correlation < 0.2 and np.std(pred) > 0:
+        text = (f"{run.name}: the log does not look like {machine_name}'s prediction "
+                f"(best correlation {rd.correlation:.2f}); is it a run of this machine?")
+        if given_offset:
+            warnings.append(text)
+        else:
+            raise DiagnosisError(text + " If it is, give the clock offset with --offset")
+
+
+def write_fixed_machine(d: Diagnosis, path) -> list[str]:
+    """Write ``d.machine``'s file with the combination's effects (the verdict first) added
+    in the machine file's own keys, so that ``plcpred predict`` on it carries them.
+    Returns what was changed. The file is checked by loading it before it is renamed
+    into place."""
+    import os
+    from pathlib import Path
+
+    from ..machine import machine_from_data, read_machine_data
+    from ..output import atomic_write_text
+    from .io import dump_machine_toml
+
+    path = Path(path)
+    machine = d.machine
+    data = read_machine_data(machine.path)
+    changes: list[str] = []
+    skipped: list[str] = []
+    if d.combination:
+        fit = d.combination["fit"]
+        mm = d.machine_model
+        ctx_sizes = [len(n) for n in _param_groups(fit)]
+        k = 0
+        for e, n in zip(fit.effects, ctx_sizes):
+            theta = fit.theta[k:k + n]
+            k += n
+            if not e.expressible:
+                skipped.append(e.name)
+                continue
+            changes += e.to_machine(mm, data, theta)
+    rel = Path(os.path.relpath(machine.program_path, path.resolve().parent)).as_posix()
+    # beside or near the original: relative, so the pair can move together; else absolute
+    data["machine"]["program"] = rel if rel.count("../") <= 2 else \
+        machine.program_path.as_posix()
+    header = [f"{machine.name}, corrected by plcpred diagnose from {machine.path.name}",
+              f"verdict: {d.verdict}"]
+    header += [f"changed: {c}" for c in changes] or ["changed: nothing"]
+    header += [f"not written (the air model cannot express it yet): {s}" for s in skipped]
+    text = dump_machine_toml(data, "\n".join(header))
+    machine_from_data(data, path)       # a fixed file that does not load is a bug
+    atomic_write_text(path, text)
+    d.fixed_machine = str(path)
+    return changes
+
+
+def _param_groups(fit: FitResult) -> list[list[str]]:
+    """The fitted parameter names per effect (contiguous slices of ``fit.names``)."""
+    groups, k = [], 0
+    for n in fit.counts:
+        groups.append(fit.names[k:k + n])
+        k += n
+    return groups

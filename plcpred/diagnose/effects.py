@@ -1,0 +1,442 @@
+"""The unmodelled effects a diagnosis can name, each a physically bounded change of the
+activation model's numbers (shaped after lmfit: a function plus parameter specs).
+
+Each :class:`Effect` has parameters with a unit and bounds, ``apply`` (fitted values to a
+changed :class:`~plcpred.diagnose.model.ModelParams`), ``physical`` (the values as a user
+reads them: a leak as NL/min and its sonic conductance C, a tube as metres, ...) and
+``to_machine`` (the change written into a machine file in the model's own keys, so that
+``plcpred predict`` on the fixed file carries it).
+
+The vocabulary (design contract): ``leak passive_flow supply_pressure dead_volume
+incomplete_exhaust shared_supply valve_delay stroke_time sensor_lag``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..air.flow import P0_PA, T0_K, bar_g_to_pa, celsius_to_k, flow_nl_min
+from ..machine import AUTO_SPEED_MM_S
+from .model import MachineModel, ModelParams
+
+# a diagnosed leak is written as an orifice-like restriction: ISO 6358 with b and m of a
+# sharp-edged hole (choked at any supply above 0.9 bar gauge, so its flow is C-linear)
+LEAK_B = 0.528
+LEAK_M = 0.5
+DEFAULT_TUBE_ID_MM = 4.0     # a diagnosed dead volume on a drive without tube data
+MAX_METER_TAU_S = 10.0
+NUISANCE_METER_TAU_S = 0.6   # thermal-mass meters respond in 0.1-0.6 s (domain.md s. 5)
+
+
+@dataclass
+class Param:
+    name: str
+    unit: str
+    lower: float
+    upper: float
+    init: float
+
+
+class Effect:
+    name = ""
+    title = ""
+    expressible = True      # to_machine can write it in the machine file's keys
+
+    def params(self, mm: MachineModel, ctx: dict) -> list[Param]:
+        raise NotImplementedError
+
+    def applies(self, mm: MachineModel) -> bool:
+        return True
+
+    def apply(self, mm: MachineModel, p: ModelParams, theta) -> ModelParams:
+        raise NotImplementedError
+
+    def physical(self, mm: MachineModel, theta) -> dict:
+        return {}
+
+    def to_machine(self, mm: MachineModel, data: dict, theta) -> list[str]:
+        """Change the machine file's TOML data in place; return what was changed."""
+        return []
+
+
+def _supply_pa(machine) -> float:
+    return bar_g_to_pa(machine.supply_bar_g, machine.atmosphere_kpa)
+
+
+def _consumer_table(data: dict, name: str) -> dict:
+    for t in data.get("consumer", []):
+        if t.get("name") == name:
+            return t
+    raise KeyError(name)
+
+
+def _drive_names(mm: MachineModel) -> list[str]:
+    return [mm.models[i].name for i in mm.drives]
+
+
+class Leak(Effect):
+    """An always-on flow the machine file does not have (a leak at a fitting, a pilot
+    supply, a blow-off left open): ``flow_l_min`` NL/min at the supply."""
+    name, title = "leak", "an unmodelled leak"
+
+    def params(self, mm, ctx):
+        return [Param("flow_l_min", "NL/min", 0.0, max(10.0, 5.0 * ctx["mean_l_min"]),
+                      0.1 * ctx["mean_l_min"])]
+
+    def apply(self, mm, p, theta):
+        q = p.copy()
+        q.extra_leak_l_min = p.extra_leak_l_min + float(theta[0])
+        return q
+
+    def conductance(self, mm, flow_l_min: float) -> float:
+        """(D2 inverted) the sonic conductance of a leak at the supply that flows
+        ``flow_l_min``."""
+        m = mm.machine
+        per_unit = flow_nl_min(1.0, LEAK_B, LEAK_M, 1.0, _supply_pa(m),
+                               m.atmosphere_kpa * 1000.0, celsius_to_k(m.ambient_c))
+        return flow_l_min / float(per_unit) if per_unit > 0 else math.nan
+
+    def physical(self, mm, theta):
+        return {"flow_l_min": float(theta[0]), "C_m3_s_pa": self.conductance(mm, theta[0]),
+                "b": LEAK_B, "m": LEAK_M}
+
+    def to_machine(self, mm, data, theta):
+        names = {t.get("name") for t in data.get("consumer", [])}
+        name, k = "diagnosed leak", 2
+        while name in names:
+            name, k = f"diagnosed leak {k}", k + 1
+        C = self.conductance(mm, theta[0])
+        data.setdefault("consumer", []).append(
+            {"name": name, "kind": "leak", "C": float(f"{C:.4g}"), "b": LEAK_B, "m": LEAK_M})
+        return [f'added consumer "{name}" (leak, C = {C:.3g} m^3/(s Pa), '
+                f'{theta[0]:.3g} NL/min)']
+
+
+class PassiveFlow(Effect):
+    """Nozzles and air knives flowing other than their D2 model says (a wrong
+    conductance, worn nozzles, the sonic assumption at low pressure): a factor on each
+    nozzle's flow while on."""
+    name, title = "passive_flow", "nozzles flowing other than modelled"
+
+    def _nozzles(self, mm):
+        return [k for k, row in enumerate(mm.passives) if mm.models[row].role == "passive"]
+
+    def applies(self, mm):
+        return bool(self._nozzles(mm))
+
+    def params(self, mm, ctx):
+        return [Param(f"{mm.models[mm.passives[k]].name}.factor", "", 0.1, 5.0, 1.0)
+                for k in self._nozzles(mm)]
+
+    def apply(self, mm, p, theta):
+        q = p.copy()
+        for k, f in zip(self._nozzles(mm), theta):
+            q.passive_l_min[k] = p.passive_l_min[k] * f
+        return q
+
+    def _C(self, mm, k) -> float:
+        from ..air.flow import orifice_conductance
+
+        c = mm.machine.consumers[mm.passives[k]]
+        return c.C if c.C is not None else orifice_conductance(c.orifice_mm, c.Cd)
+
+    def physical(self, mm, theta):
+        out = {}
+        for k, f in zip(self._nozzles(mm), theta):
+            m = mm.models[mm.passives[k]]
+            out[m.name] = {"factor": float(f), "flow_l_min": m.flow_l_min * float(f),
+                           "C_m3_s_pa": self._C(mm, k) * float(f)}
+        return out
+
+    def to_machine(self, mm, data, theta):
+        changes = []
+        for k, f in zip(self._nozzles(mm), theta):
+            if abs(f - 1.0) < 1e-3:
+                continue
+            m = mm.models[mm.passives[k]]
+            t = _consumer_table(data, m.name)
+            C = self._C(mm, k) * float(f)
+            for key in ("orifice_mm", "Cd"):
+                t.pop(key, None)
+            t["C"] = float(f"{C:.4g}")
+            t.setdefault("b", mm.machine.consumers[mm.passives[k]].b)
+            changes.append(f'consumer "{m.name}": C = {C:.3g} m^3/(s Pa) (x{f:.3g})')
+        return changes
+
+
+class SupplyPressure(Effect):
+    """The machine runs at another supply pressure than its file says (a regulator set
+    differently, a drooping network): D1 volumes scale with the absolute supply, nozzles
+    and leaks follow D2 at their new upstream pressure."""
+    name, title = "supply_pressure", "a different supply pressure"
+
+    def params(self, mm, ctx):
+        p = mm.machine.supply_bar_g
+        return [Param("supply_bar_g", "bar(g)", max(0.2, 0.4 * p), 1.6 * p + 1.0, p)]
+
+    def apply(self, mm, p, theta):
+        m = mm.machine
+        q = p.copy()
+        new_pa = bar_g_to_pa(float(theta[0]), m.atmosphere_kpa)
+        ratio = new_pa / _supply_pa(m)                                   # D1: V ~ P_s
+        q.extend_nl = p.extend_nl * ratio
+        q.retract_nl = p.retract_nl * ratio
+        t_k = celsius_to_k(m.ambient_c)
+        p_atm = m.atmosphere_kpa * 1000.0
+        for k, row in enumerate(mm.passives):
+            c = m.consumers[row]
+            model = mm.models[row]
+            if not model.flow_l_min:
+                continue
+            old_pa = bar_g_to_pa(model.pressure_bar_g, m.atmosphere_kpa)
+            up_pa = new_pa if c.pressure_bar_g is None else min(
+                new_pa, bar_g_to_pa(c.pressure_bar_g, m.atmosphere_kpa))
+            args = (c.b if c.b is not None else 0.528, c.m or 0.5, c.a or 1.0)
+            f_new = flow_nl_min(1.0, *args, up_pa, p_atm, t_k, c.flow_model)     # D2
+            f_old = flow_nl_min(1.0, *args, old_pa, p_atm, t_k, c.flow_model)
+            q.passive_l_min[k] = p.passive_l_min[k] * float(f_new) / float(f_old)
+        return q
+
+    def physical(self, mm, theta):
+        return {"supply_bar_g": float(theta[0])}
+
+    def to_machine(self, mm, data, theta):
+        data["machine"]["supply_bar_g"] = round(float(theta[0]), 4)
+        return [f"[machine] supply_bar_g = {theta[0]:.4g} (was "
+                f"{mm.machine.supply_bar_g:g})"]
+
+
+def _tube_area_mm2(consumer) -> float:
+    d = consumer.tube_id_mm or DEFAULT_TUBE_ID_MM
+    return math.pi * d * d / 4.0
+
+
+class DeadVolume(Effect):
+    """More (or less) volume between valve and piston than the file says (a longer tube,
+    a fitting, a manifold; D1 also counts a dead volume's air from zero, domain.md
+    section 7): ``extra_cm3`` per drive, filled to supply on every stroke."""
+    name, title = "dead_volume", "a different dead volume (tube length)"
+
+    def applies(self, mm):
+        return bool(mm.drives)
+
+    def params(self, mm, ctx):
+        out = []
+        for row in mm.drives:
+            c = mm.machine.consumers[row]
+            tube_cm3 = min(c.tube_length_m) * _tube_area_mm2(c) if c.tube_id_mm else 0.0
+            swept_cm3 = math.pi * c.bore_mm ** 2 / 4.0 * (c.stroke_mm or 0.0) / 1000.0
+            out.append(Param(f"{c.name}.extra_cm3", "cm^3", -tube_cm3,
+                             max(20.0, 2.0 * swept_cm3), 0.0))
+        return out
+
+    def _nl_per_cm3(self, mm) -> float:
+        m = mm.machine                                  # D1: V * P_s/P0 * T0/T_s
+        return 1e-3 * _supply_pa(m) / P0_PA * T0_K / celsius_to_k(m.ambient_c)
+
+    def apply(self, mm, p, theta):
+        q = p.copy()
+        extra = np.asarray(theta, dtype=float) * self._nl_per_cm3(mm)
+        q.extend_nl = np.clip(p.extend_nl + extra, 0.0, None)
+        single = np.array([mm.models[r].kind == "single_acting" for r in mm.drives])
+        q.retract_nl = np.where(single, p.retract_nl, np.clip(p.retract_nl + extra, 0.0,
+                                                              None))
+        return q
+
+    def physical(self, mm, theta):
+        out = {}
+        for row, v in zip(mm.drives, theta):
+            c = mm.machine.consumers[row]
+            out[c.name] = {"extra_cm3": float(v),
+                           "extra_tube_m": float(v) / _tube_area_mm2(c),  # cm3/mm2 = m
+                           "tube_id_mm": c.tube_id_mm or DEFAULT_TUBE_ID_MM}
+        return out
+
+    def to_machine(self, mm, data, theta):
+        changes = []
+        for row, v in zip(mm.drives, theta):
+            if abs(v) < 0.05:
+                continue
+            c = mm.machine.consumers[row]
+            dl = float(v) * 1000.0 / _tube_area_mm2(c) / 1000.0     # m
+            t = _consumer_table(data, c.name)
+            if not c.tube_id_mm:
+                t["tube_id_mm"] = DEFAULT_TUBE_ID_MM
+            lengths = [max(0.0, round(x + dl, 4)) for x in c.tube_length_m]
+            t["tube_length_m"] = lengths
+            changes.append(f'consumer "{c.name}": tube_length_m = {lengths} '
+                           f"({v:+.3g} cm^3 per chamber)")
+        return changes
+
+
+class IncompleteExhaust(Effect):
+    """Chambers refilled before they have exhausted (high cycle rates, a throttled
+    exhaust): each fill takes less by what the dead volume still holds, decaying with
+    the exhaust time constant (the air model's ``exhaust_tau_s`` option)."""
+    name, title = "incomplete_exhaust", "chambers not fully exhausted"
+
+    def _drives(self, mm):
+        return [k for k, row in enumerate(mm.drives) if max(mm.models[row].dead_fill_nl) > 0]
+
+    def applies(self, mm):
+        return bool(self._drives(mm))
+
+    def params(self, mm, ctx):
+        return [Param(f"{mm.models[mm.drives[k]].name}.exhaust_tau_s", "s", 0.002, 5.0,
+                      0.3) for k in self._drives(mm)]
+
+    def apply(self, mm, p, theta):
+        q = p.copy()
+        for k, tau in zip(self._drives(mm), theta):
+            q.exhaust_tau_s[k] = float(tau)
+        return q
+
+    def physical(self, mm, theta):
+        return {mm.models[mm.drives[k]].name: {"exhaust_tau_s": float(t)}
+                for k, t in zip(self._drives(mm), theta)}
+
+    def to_machine(self, mm, data, theta):
+        changes = []
+        for k, tau in zip(self._drives(mm), theta):
+            name = mm.models[mm.drives[k]].name
+            _consumer_table(data, name)["exhaust_tau_s"] = float(f"{tau:.4g}")
+            changes.append(f'consumer "{name}": exhaust_tau_s = {tau:.3g}')
+        return changes
+
+
+class SharedSupply(Effect):
+    expressible = False     # the air model has no shared-line option yet
+
+    """Drives on one supply line without check valves: holding neighbours give air back
+    to the line while a drive fills and take it again afterwards (domain.md section 7),
+    so a share of each stroke's air arrives later, as a refill with a time constant."""
+    name, title = "shared_supply", "drives refilling each other on a shared line"
+
+    def applies(self, mm):
+        return len(mm.drives) >= 2
+
+    def params(self, mm, ctx):
+        return [Param("refill_fraction", "", 0.0, 0.6, 0.1),
+                Param("refill_tau_s", "s", 0.02, 3.0, 0.3)]
+
+    def apply(self, mm, p, theta):
+        q = p.copy()
+        q.refill_fraction, q.refill_tau_s = float(theta[0]), float(theta[1])
+        return q
+
+    def physical(self, mm, theta):
+        return {"refill_fraction": float(theta[0]), "refill_tau_s": float(theta[1])}
+
+
+class ValveDelay(Effect):
+    """Valves switching later (or earlier) than the file says: ``delay_s`` added to each
+    drive's switching delay."""
+    name, title = "valve_delay", "different valve switching delays"
+
+    def applies(self, mm):
+        return bool(mm.drives)
+
+    def params(self, mm, ctx):
+        return [Param(f"{mm.models[r].name}.extra_delay_s", "s", -mm.models[r].delay_s, 0.5,
+                      0.0) for r in mm.drives]
+
+    def apply(self, mm, p, theta):
+        q = p.copy()
+        q.delay_s = np.clip(p.delay_s + np.asarray(theta, dtype=float), 0.0, None)
+        return q
+
+    def physical(self, mm, theta):
+        return {mm.models[r].name: {"switch_delay_s": mm.models[r].delay_s + float(d)}
+                for r, d in zip(mm.drives, theta)}
+
+    def to_machine(self, mm, data, theta):
+        changes = []
+        for r, d in zip(mm.drives, theta):
+            if abs(d) < 1e-4:
+                continue
+            m = mm.models[r]
+            new = round(max(0.0, m.delay_s + float(d)), 4)
+            _consumer_table(data, m.name)["switch_delay_s"] = new
+            changes.append(f'consumer "{m.name}": switch_delay_s = {new:g}')
+        return changes
+
+
+class StrokeTime(Effect):
+    """Strokes faster or slower than the file says (a flow control turned, a payload):
+    a factor on each drive's stroke times. Air per stroke stays (domain.md section 7); its
+    shape in time changes."""
+    name, title = "stroke_time", "different stroke times"
+
+    def applies(self, mm):
+        return bool(mm.drives)
+
+    def _reference(self, mm, k):
+        m = mm.models[mm.drives[k]]
+        if m.stroke_time_s is not None:
+            return m.stroke_time_s
+        c = mm.machine.consumers[mm.drives[k]]
+        t = (c.stroke_mm or 0.0) / AUTO_SPEED_MM_S
+        return (t, t)
+
+    def params(self, mm, ctx):
+        return [Param(f"{mm.models[r].name}.factor", "", 0.2, 5.0, 1.0) for r in mm.drives]
+
+    def apply(self, mm, p, theta):
+        q = p.copy()
+        for k, f in enumerate(theta):
+            ext, ret = self._reference(mm, k)
+            q.stroke_ext_s[k] = ext * float(f)
+            q.stroke_ret_s[k] = ret * float(f)
+        return q
+
+    def physical(self, mm, theta):
+        out = {}
+        for k, f in enumerate(theta):
+            ext, ret = self._reference(mm, k)
+            out[mm.models[mm.drives[k]].name] = {"factor": float(f),
+                                                 "stroke_time_s": [ext * f, ret * f]}
+        return out
+
+    def to_machine(self, mm, data, theta):
+        changes = []
+        for k, f in enumerate(theta):
+            if abs(f - 1.0) < 1e-3:
+                continue
+            ext, ret = self._reference(mm, k)
+            new = [round(max(1e-4, ext * float(f)), 4), round(max(1e-4, ret * float(f)), 4)]
+            name = mm.models[mm.drives[k]].name
+            _consumer_table(data, name)["stroke_time_s"] = new
+            changes.append(f'consumer "{name}": stroke_time_s = {new}')
+        return changes
+
+
+class SensorLag(Effect):
+    """The meter responds more slowly than assumed (a first-order lag of ``tau_s``;
+    thermal-mass meters are 0.1-0.6 s, some much slower). The clock alignment is refitted
+    with it, since a lag also delays every edge."""
+    name, title = "sensor_lag", "a slower flow meter"
+
+    def params(self, mm, ctx):
+        return [Param("tau_s", "s", 0.0, MAX_METER_TAU_S, max(1.0, ctx["meter_tau_s"])),
+                Param("clock_adjust_s", "s", -2.0, 2.0, 0.0)]
+
+    def apply(self, mm, p, theta):
+        q = p.copy()
+        q.meter_tau_s = float(theta[0])
+        q.clock_adjust_s = p.clock_adjust_s + float(theta[1])
+        return q
+
+    def physical(self, mm, theta):
+        return {"tau_s": float(theta[0]), "clock_adjust_s": float(theta[1])}
+
+    def to_machine(self, mm, data, theta):
+        data.setdefault("meter", {})["tau_s"] = round(float(theta[0]), 4)
+        return [f"[meter] tau_s = {theta[0]:.3g}"]
+
+
+EFFECTS: dict[str, Effect] = {e.name: e for e in (
+    Leak(), PassiveFlow(), SupplyPressure(), DeadVolume(), IncompleteExhaust(),
+    SharedSupply(), ValveDelay(), StrokeTime(), SensorLag())}
+VOCABULARY = ("none",) + tuple(EFFECTS)

@@ -1,0 +1,338 @@
+"""Reading what users bring to a diagnosis: flow-meter logs and recorded I/O traces.
+
+A flow log is a CSV file with a header row: by default ``time_s,flow_l_min`` with an
+optional ``supply_bar_g``, as ``plcpred emulate`` writes it, or any logger's columns chosen
+with ``time_col``/``flow_col`` (a header name or a 1-based column number). Times are
+seconds or ISO 8601 date-times; flows are in ``l/min``, ``m3/h``, ``l/s`` or ``scfm`` at the
+meter's reference condition (ISO 8778, DIN 1343 or ISO 2533), converted here to normal
+litres per minute at the ISO 8778 reference every other part of plcpred uses
+(domain.md section 1: ``V_2 = V_1 * (P_1/P_2) * (T_2/T_1)``). Fields separated by
+``,``, ``;`` or tabs; with ``;`` a decimal comma is read too (European loggers).
+"""
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from datetime import datetime
+from pathlib import Path
+
+import numpy as np
+
+from ..air.flow import P0_PA, T0_K
+from ..errors import PlcpredError
+
+# volume units per minute -> litres per minute
+FLOW_UNITS = {"l/min": 1.0, "m3/h": 1000.0 / 60.0, "l/s": 60.0, "scfm": 28.316846592}
+# reference conditions: (pressure Pa, temperature K)
+REFERENCES = {"iso8778": (P0_PA, T0_K), "din1343": (101_325.0, 273.15),
+              "iso2533": (101_325.0, 288.15)}
+MAX_ROWS = 20_000_000
+
+
+class MeasuredDataError(PlcpredError):
+    """A flow log or I/O trace that cannot be read as one."""
+
+
+@dataclass
+class MeasuredRun:
+    """One flow log: sample times on the logger's clock (s) and flows in NL/min at the
+    ISO 8778 reference. A sample at ``time_s[k]`` is the meter's reading then, i.e. the
+    (lagged) flow averaged over the interval since the previous sample."""
+    name: str
+    time_s: np.ndarray
+    flow_l_min: np.ndarray
+    supply_bar_g: np.ndarray | None = None
+    source: dict = field(default_factory=dict)   # unit, reference, columns, skipped rows
+
+    @property
+    def span_s(self) -> float:
+        return float(self.time_s[-1] - self.time_s[0])
+
+    @property
+    def interval_s(self) -> float:
+        """The median sampling interval."""
+        return float(np.median(np.diff(self.time_s)))
+
+    def interval_starts_s(self) -> np.ndarray:
+        """Start of each sample's averaging interval (the first one as long as the next)."""
+        t = self.time_s
+        return np.concatenate([[t[0] - (t[1] - t[0])], t[:-1]])
+
+
+def reference_factor(reference: str) -> float:
+    """Multiplier from normal litres at ``reference`` to ISO 8778 normal litres
+    (domain.md section 1): ``(P_ref / P0) * (T0 / T_ref)``; DIN 1343 litres are 8.7 %
+    more ISO 8778 litres."""
+    try:
+        p_pa, t_k = REFERENCES[reference]
+    except KeyError:
+        raise MeasuredDataError(f"unknown reference {reference!r} (known: "
+                                f"{', '.join(REFERENCES)})") from None
+    return (p_pa / P0_PA) * (T0_K / t_k)
+
+
+def flow_unit_factor(unit: str) -> float:
+    key = unit.strip().lower().replace(" ", "").replace("³", "3").replace("lpm", "l/min")
+    key = {"nl/min": "l/min", "nm3/h": "m3/h", "nl/s": "l/s", "l_min": "l/min",
+           "m3_h": "m3/h", "l_s": "l/s", "cfm": "scfm"}.get(key, key)
+    try:
+        return FLOW_UNITS[key]
+    except KeyError:
+        raise MeasuredDataError(f"unknown flow unit {unit!r} (known: "
+                                f"{', '.join(FLOW_UNITS)})") from None
+
+
+def _column(path: str, header: list[str], wanted, default: str | None, what: str,
+            option: str) -> int | None:
+    names = [h.strip() for h in header]
+    if wanted is None:
+        if default in names:
+            return names.index(default)
+        return None
+    text = str(wanted).strip()
+    if text.isdigit():
+        k = int(text)
+        if not 1 <= k <= len(names):
+            raise MeasuredDataError(f"{path}: {option} {k}: the file has {len(names)} "
+                                    "columns")
+        return k - 1
+    lower = [n.lower() for n in names]
+    if text.lower() in lower:
+        return lower.index(text.lower())
+    raise MeasuredDataError(f"{path}: no {what} column {text!r} (columns: "
+                            f"{', '.join(names)}); name it with {option}")
+
+
+def _number(cell: str, decimal_comma: bool) -> float:
+    s = cell.strip()
+    if decimal_comma:
+        s = s.replace(",", ".")
+    return float(s)
+
+
+def _timestamp(cell: str) -> float:
+    s = cell.strip()
+    if s.endswith("Z"):
+        s = s[:-1] + "+00:00"
+    dt = datetime.fromisoformat(s)
+    return dt.timestamp() if dt.tzinfo else (dt - datetime(1970, 1, 1)).total_seconds()
+
+
+def _read_text(path: Path) -> str:
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except OSError as e:
+        raise MeasuredDataError(f"{path}: cannot read file: {e.strerror}") from None
+    except UnicodeDecodeError as e:
+        raise MeasuredDataError(f"{path}: not UTF-8 text (byte {e.start})") from None
+
+
+def read_measured(path, time_col=None, flow_col=None, flow_unit: str = "l/min",
+                  reference: str = "iso8778", supply_col=None) -> MeasuredRun:
+    """Read a flow log (see the module docstring). Rows whose flow is empty or not a
+    number are skipped and counted in ``source["skipped_rows"]``; times must increase.
+    Raises :class:`MeasuredDataError` naming the file, the line and the column."""
+    path = Path(path)
+    file = str(path)
+    unit_k = flow_unit_factor(flow_unit)
+    ref_k = reference_factor(reference)
+    text = _read_text(path)
+    lines = text.splitlines()
+    while lines and not lines[0].strip():
+        lines.pop(0)
+    if not lines:
+        raise MeasuredDataError(f"{file}: empty file (expected a header such as "
+                                "time_s,flow_l_min and rows of samples)")
+    first = lines[0]
+    delimiter = max((",", ";", "\t"), key=first.count)
+    decimal_comma = delimiter != ","
+    rows = csv.reader(lines, delimiter=delimiter)
+    header = next(rows)
+    t_idx = _column(file, header, time_col, "time_s", "time", "--time-col")
+    f_idx = _column(file, header, flow_col, "flow_l_min", "flow", "--flow-col")
+    if t_idx is None or f_idx is None:
+        missing = "time" if t_idx is None else "flow"
+        raise MeasuredDataError(
+            f"{file}: line 1: no {missing} column (expected the header time_s,flow_l_min; "
+            f"this file has {', '.join(h.strip() for h in header) or 'no columns'}); name "
+            "the columns with --time-col and --flow-col")
+    s_idx = _column(file, header, supply_col, "supply_bar_g", "supply", "--supply-col")
+    times, flows, supplies = [], [], []
+    skipped = 0
+    iso = None
+    for lineno, row in enumerate(rows, start=2):
+        if not row or not "".join(row).strip():
+            continue
+        if len(times) >= MAX_ROWS:
+            raise MeasuredDataError(f"{file}: more than {MAX_ROWS:,} samples")
+        if max(t_idx, f_idx) >= len(row):
+            raise MeasuredDataError(f"{file}: line {lineno}: {len(row)} fields, the "
+                                    f"header has {len(header)}")
+        cell = row[t_idx]
+        try:
+            if iso is None:
+                try:
+                    t = _number(cell, decimal_comma)
+                    iso = False
+                except ValueError:
+                    t = _timestamp(cell)
+                    iso = True
+            else:
+                t = _timestamp(cell) if iso else _number(cell, decimal_comma)
+        except (ValueError, OverflowError):
+            raise MeasuredDataError(
+                f"{file}: line {lineno}, column {t_idx + 1}: cannot read the time "
+                f"{cell.strip()[:40]!r} (seconds or an ISO 8601 date-time)") from None
+        try:
+            q = _number(row[f_idx], decimal_comma)
+        except ValueError:
+            q = math.nan
+        if not math.isfinite(q):
+            skipped += 1
+            continue
+        if not math.isfinite(t):
+            raise MeasuredDataError(f"{file}: line {lineno}, column {t_idx + 1}: the time "
+                                    "is not a finite number")
+        if times and t <= times[-1]:
+            raise MeasuredDataError(f"{file}: line {lineno}, column {t_idx + 1}: time "
+                                    f"{cell.strip()} does not increase (previous row "
+                                    "is later or equal)")
+        times.append(t)
+        flows.append(q)
+        if s_idx is not None and s_idx < len(row):
+            try:
+                supplies.append(_number(row[s_idx], decimal_comma))
+            except ValueError:
+                supplies.append(math.nan)
+    if len(times) < 3:
+        raise MeasuredDataError(f"{file}: a flow log needs at least 3 samples with a "
+                                f"flow, found {len(times)}"
+                                + (f" ({skipped} rows without a number in the flow "
+                                   "column)" if skipped else ""))
+    time_s = np.asarray(times, dtype=float)
+    flow = np.asarray(flows, dtype=float) * unit_k * ref_k
+    supply = np.asarray(supplies, dtype=float) if s_idx is not None and len(
+        supplies) == len(times) else None
+    return MeasuredRun(path.name, time_s, flow, supply,
+                       {"path": file, "flow_unit": flow_unit, "reference": reference,
+                        "time_format": "iso8601" if iso else "seconds",
+                        "time_column": header[t_idx].strip(),
+                        "flow_column": header[f_idx].strip(), "skipped_rows": skipped})
+
+
+def read_io_timeline(path, horizon_s: float | None = None):
+    """A recorded I/O trace in ``timeline.csv`` form (``time_s,signal,value``, one row
+    per change, as a PLC trace or an OPC logger records it) as a
+    :class:`~plcpred.sequencer.Timeline`. Signals first seen after time 0 start at 0
+    (FALSE). The horizon is the last change unless ``horizon_s`` is longer."""
+    from ..sequencer.timeline import NS, Signal, Timeline
+
+    path = Path(path)
+    file = str(path)
+    text = _read_text(path)
+    rows = csv.reader(text.splitlines())
+    header = [h.strip().lower() for h in next(rows, [])]
+    if header[:3] != ["time_s", "signal", "value"]:
+        raise MeasuredDataError(f"{file}: line 1: expected the header time_s,signal,value "
+                                "(the timeline.csv form)")
+    index: dict[str, int] = {}
+    names: list[str] = []
+    t_ns, sig, val = [], [], []
+    for lineno, row in enumerate(rows, start=2):
+        if not row or not "".join(row).strip():
+            continue
+        if len(row) < 3:
+            raise MeasuredDataError(f"{file}: line {lineno}: expected time_s,signal,value")
+        try:
+            t = float(row[0])
+            v = float(row[2])
+        except ValueError:
+            raise MeasuredDataError(f"{file}: line {lineno}: time and value must be "
+                                    "numbers") from None
+        if not (math.isfinite(t) and math.isfinite(v)) or t < 0:
+            raise MeasuredDataError(f"{file}: line {lineno}: time must be >= 0 and values "
+                                    "finite")
+        name = row[1].strip()
+        if not name:
+            raise MeasuredDataError(f"{file}: line {lineno}: empty signal name")
+        key = name.upper()
+        if key not in index:
+            index[key] = len(names)
+            names.append(name)
+            if t > 0:   # first seen later: it was FALSE before
+                t_ns.append(0)
+                sig.append(index[key])
+                val.append(0.0)
+        t_ns.append(round(t * NS))
+        sig.append(index[key])
+        val.append(v)
+    if not names:
+        raise MeasuredDataError(f"{file}: no rows")
+    order = np.argsort(np.asarray(t_ns, dtype=np.int64), kind="stable")
+    t_arr = np.asarray(t_ns, dtype=np.int64)[order]
+    horizon_ns = int(t_arr[-1])
+    if horizon_s is not None:
+        horizon_ns = max(horizon_ns, round(horizon_s * NS))
+    signals = [Signal(n, "output", "bool") for n in names]
+    return Timeline(signals, t_arr, np.asarray(sig, dtype=np.int32)[order],
+                    np.asarray(val, dtype=float)[order], max(horizon_ns, 1),
+                    info={"mode": "recorded", "source": file})
+
+
+# ---------------------------------------------------------------------- machine files
+
+def _toml_key(key: str) -> str:
+    import re
+
+    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else _toml_value(key)
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if not math.isfinite(v):
+            raise ValueError(f"cannot write {v!r} to a machine file")
+        return repr(v)
+    if isinstance(v, str):
+        out = ['"']
+        for ch in v:
+            if ch in '"\\':
+                out.append("\\" + ch)
+            elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+                out.append(f"\\u{ord(ch):04x}")
+            else:
+                out.append(ch)
+        out.append('"')
+        return "".join(out)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}"
+                                for k, x in v.items()) + " }"
+    raise ValueError(f"cannot write a {type(v).__name__} to a machine file")
+
+
+def dump_machine_toml(data: dict, header: str = "") -> str:
+    """A machine file's TOML data as text (the tables plcpred knows, in their usual
+    order; comments of the original are not kept, ``header`` is written first)."""
+    lines = [f"# {line}" if line else "#" for line in header.splitlines()]
+    if lines:
+        lines.append("")
+    for table in ("machine", "signals", "meter"):
+        if table in data:
+            lines.append(f"[{table}]")
+            lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in data[table].items()]
+            lines.append("")
+    for array in ("input", "consumer"):
+        for t in data.get(array, []):
+            lines.append(f"[[{array}]]")
+            lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in t.items()]
+            lines.append("")
+    for table, v in data.items():
+        if table not in ("machine", "signals", "meter", "input", "consumer"):
+            raise ValueError(f"cannot write the table [{table}]")
+    return "\n".join(lines)

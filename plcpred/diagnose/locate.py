@@ -1,0 +1,118 @@
+"""Where in the cycle a residual lies: each logged sample gets the context the prediction
+gives it (a drive's strokes, a nozzle on, idle), and a context is named only when its
+residual stands out of the noise.
+
+A sample's context is the consumer with the most predicted air in the sample's interval
+(cylinders by their strokes, nozzles while on; leaks are always on and never a context);
+a sample with no stroke and no nozzle is ``idle``. For SFC programs each sample also has
+the step active at its midpoint.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..sequencer.timeline import NS
+from .meter import cumulative_nl
+
+IDLE = "idle"
+STANDS_OUT_SIGMA = 3.0
+
+
+@dataclass
+class Context:
+    context: str
+    residual_nl: float
+    share: float            # of the run's whole residual
+    samples: int
+    duration_s: float
+    uncertainty_nl: float   # one standard deviation of the residual from noise alone
+    stands_out: bool
+
+    def summary(self) -> dict:
+        return {"context": self.context, "residual_nl": self.residual_nl,
+                "share": self.share, "samples": self.samples, "duration_s": self.duration_s,
+                "uncertainty_nl": self.uncertainty_nl, "stands_out": self.stands_out}
+
+
+def sample_contexts(rd, params) -> np.ndarray:
+    """The context label of each of the run's samples (see the module docstring)."""
+    rm = rd.model
+    cells = rm.consumer_cells(params)[:-1]
+    labels = []
+    vols = []
+    for row, m in enumerate(rm.mm.models):
+        if m.role == "leak":
+            continue
+        cum = cumulative_nl(cells[row])
+        vols.append(np.interp(rd.end_s, rm.edges_s, cum)
+                    - np.interp(rd.start_s, rm.edges_s, cum))
+        labels.append(f"{m.name} strokes" if m.role == "active" else f"{m.name} on")
+    if not vols:
+        return np.full(len(rd.end_s), IDLE, dtype=object)
+    v = np.vstack(vols)
+    k = np.argmax(v, axis=0)
+    out = np.array(labels, dtype=object)[k]
+    out[v.max(axis=0) <= 1e-9] = IDLE
+    return out
+
+
+def step_contexts(rd) -> np.ndarray | None:
+    """The SFC step active at each sample's midpoint (``step NAME``), or None when the
+    program has no steps."""
+    tl = rd.model.timeline
+    steps = [s.name for s in tl.signals if s.kind == "step"]
+    if not steps:
+        return None
+    mid_ns = np.round((rd.start_s + rd.end_s) / 2.0 * NS).astype(np.int64)
+    out = np.full(len(mid_ns), "no step", dtype=object)
+    for name in steps:
+        t, v = tl.edge_times_ns(name)
+        k = np.searchsorted(t, mid_ns, side="right") - 1
+        active = (k >= 0) & (v[np.clip(k, 0, None)] != 0)
+        out[active] = f"step {name}"
+    return out
+
+
+def contexts(labels_per_run, residual_per_run, weight_per_run, noise_l_min: float
+             ) -> list[Context]:
+    """Residual NL (measured - predicted) per context over all runs, with its noise
+    uncertainty ``sigma * sqrt(sum w^2) / 60``; sorted by the size of the residual."""
+    labels = np.concatenate(labels_per_run)
+    r = np.concatenate(residual_per_run)
+    w = np.concatenate(weight_per_run)
+    total = float(r @ w) / 60.0
+    out = []
+    for c in sorted(set(labels.tolist())):
+        m = labels == c
+        res = float(r[m] @ w[m]) / 60.0
+        unc = noise_l_min * math.sqrt(float(w[m] @ w[m])) / 60.0
+        out.append(Context(c, res, res / total if total else 0.0, int(m.sum()),
+                           float(w[m].sum()), unc,
+                           abs(res) > STANDS_OUT_SIGMA * max(unc, 1e-12)))
+    out.sort(key=lambda c: -abs(c.residual_nl))
+    return out
+
+
+def windows(rd, labels, residual, noise_l_min: float, named: set[str],
+            limit: int = 50) -> list[dict]:
+    """Runs of consecutive samples with one context among ``named`` (the contexts that
+    stand out), on the logger's clock, largest residual first."""
+    out = []
+    if not len(labels):
+        return out
+    change = np.flatnonzero(labels[1:] != labels[:-1]) + 1
+    bounds = np.concatenate([[0], change, [len(labels)]])
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        c = labels[a]
+        if c not in named:
+            continue
+        w = rd.weight_s[a:b]
+        res = float(residual[a:b] @ w) / 60.0
+        out.append({"run": rd.run.name, "start_s": float(rd.start_s[a] + rd.offset_s),
+                    "end_s": float(rd.end_s[b - 1] + rd.offset_s), "context": c,
+                    "residual_nl": res})
+    out.sort(key=lambda x: -abs(x["residual_nl"]))
+    return out[:limit]

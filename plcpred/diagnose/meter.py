@@ -1,0 +1,56 @@
+"""What a flow meter makes of a flow: its response lag and its logging intervals.
+
+Comparing a prediction with a log means comparing like with like: the prediction's flow
+on a fine grid goes through the meter's first-order response and is averaged over each
+logged sample's interval, as a thermal-mass meter with a 1-2 Hz logger reports it
+(domain.md section 5: "the flow sensor acts as a low-pass filter"; section 7: meters lag
+0.1-0.6 s).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def first_order_lag(flow_l_min: np.ndarray, dt_s: float, tau_s: float,
+                    from_rest: bool = False) -> np.ndarray:
+    """A first-order sensor ``tau * dy/dt + y = x`` sampled on a grid of ``dt_s``, with
+    the input held over each cell (exact for piecewise-constant input):
+    ``y[n] = a y[n-1] + (1 - a) x[n]``, ``a = exp(-dt/tau)``. Starts settled at ``x[0]``
+    (or at 0 with ``from_rest``)."""
+    if not tau_s or tau_s <= 0 or len(flow_l_min) == 0:
+        return flow_l_min
+    from scipy.signal import lfilter
+
+    a = math.exp(-dt_s / tau_s)
+    x = np.asarray(flow_l_min, dtype=float)
+    y, _ = lfilter([1.0 - a], [1.0, -a], x, zi=[0.0 if from_rest else a * x[0]])
+    return y
+
+
+def cumulative_nl(cell_nl: np.ndarray) -> np.ndarray:
+    """Normal litres used by each grid edge (length cells + 1, starting at 0)."""
+    return np.concatenate([[0.0], np.cumsum(cell_nl)])
+
+
+def interval_means_l_min(cum_nl: np.ndarray, edges_s: np.ndarray, start_s: np.ndarray,
+                         end_s: np.ndarray) -> np.ndarray:
+    """Mean flow (NL/min) over each ``[start, end]`` from the cumulative volume at the
+    grid edges (linear within a cell, i.e. exact for cell-mean flows). Intervals must lie
+    within the grid."""
+    c1 = np.interp(end_s, edges_s, cum_nl)
+    c0 = np.interp(start_s, edges_s, cum_nl)
+    return (c1 - c0) / (end_s - start_s) * 60.0
+
+
+def noise_level_l_min(residual_l_min: np.ndarray) -> float:
+    """The measurement noise of a residual series, robustly: the median absolute
+    deviation of its first differences (white noise of sigma gives differences of
+    sigma*sqrt(2); steps at the few edges do not move a median), scaled to a standard
+    deviation."""
+    d = np.diff(np.asarray(residual_l_min, dtype=float))
+    if len(d) < 2:
+        return 0.0
+    mad = np.median(np.abs(d - np.median(d)))
+    return float(1.4826 * mad / math.sqrt(2.0))

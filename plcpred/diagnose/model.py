@@ -1,0 +1,179 @@
+"""The activation model taken apart so that an effect can change one piece of it.
+
+:class:`ModelParams` holds the numbers the activation/transition model runs on (each
+drive's D1 volumes, switching delay and stroke times, each nozzle's and leak's D2 flow) plus
+what the diagnosis adds (an extra leak flow, a drive's exhaust time constant, the meter's
+lag and a clock correction). An effect is a function from its fitted parameters to a
+changed copy of these numbers (:mod:`~plcpred.diagnose.effects`); :class:`RunModel` turns
+any such copy into what the meter would have logged for one run.
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..air.demand import (ConsumerModel, consumer_models, grid_edges_s, interval_cells,
+                          passive_intervals, stroke_cells, valve_transitions)
+from ..sequencer.timeline import NS
+from .meter import cumulative_nl, first_order_lag, interval_means_l_min
+
+
+@dataclass
+class ModelParams:
+    """The numbers an effect may change (per drive: in the order of
+    ``MachineModel.drives``; per passive consumer: ``MachineModel.passives``)."""
+    extend_nl: np.ndarray
+    retract_nl: np.ndarray
+    delay_s: np.ndarray
+    stroke_ext_s: np.ndarray          # NaN: no stroke time (the volume lands in the delay)
+    stroke_ret_s: np.ndarray
+    exhaust_tau_s: np.ndarray         # 0: chambers fully exhausted (D1)
+    passive_l_min: np.ndarray         # D2 flow while on (nozzles) or always (leaks)
+    extra_leak_l_min: float = 0.0     # an always-on flow the machine file does not have
+    refill_fraction: float = 0.0      # shared supply: share of each stroke refilled later
+    refill_tau_s: float = 0.0
+    meter_tau_s: float = 0.0
+    clock_adjust_s: float = 0.0       # added to the run's aligned offset
+
+    def copy(self) -> "ModelParams":
+        return copy.deepcopy(self)
+
+
+@dataclass
+class MachineModel:
+    """A machine's consumers as the diagnosis sees them."""
+    machine: object
+    models: list[ConsumerModel]
+    drives: list[int] = field(default_factory=list)     # rows of active consumers
+    passives: list[int] = field(default_factory=list)   # rows of nozzles and leaks
+
+    @classmethod
+    def of(cls, machine) -> "MachineModel":
+        models = consumer_models(machine)
+        return cls(machine, models, [i for i, m in enumerate(models) if m.role == "active"],
+                   [i for i, m in enumerate(models) if m.role != "active"])
+
+    def nominal(self, meter_tau_s: float = 0.0) -> ModelParams:
+        d = [self.models[i] for i in self.drives]
+        p = [self.models[i] for i in self.passives]
+        st = [m.stroke_time_s or (np.nan, np.nan) for m in d]
+        return ModelParams(
+            extend_nl=np.array([m.extend_nl for m in d], dtype=float),
+            retract_nl=np.array([m.retract_nl for m in d], dtype=float),
+            delay_s=np.array([m.delay_s for m in d], dtype=float),
+            stroke_ext_s=np.array([s[0] for s in st], dtype=float),
+            stroke_ret_s=np.array([s[1] for s in st], dtype=float),
+            exhaust_tau_s=np.array([m.exhaust_tau_s or 0.0 for m in d], dtype=float),
+            passive_l_min=np.array([m.flow_l_min for m in p], dtype=float),
+            meter_tau_s=meter_tau_s)
+
+    def drive_models(self) -> list[ConsumerModel]:
+        return [self.models[i] for i in self.drives]
+
+    def passive_models(self) -> list[ConsumerModel]:
+        return [self.models[i] for i in self.passives]
+
+
+class RunModel:
+    """One run's events (from the sequencer or a recorded I/O trace) on a fine grid, and
+    the meter readings any :class:`ModelParams` gives for the run's samples."""
+
+    def __init__(self, mm: MachineModel, timeline, dt_s: float):
+        self.mm = mm
+        self.timeline = timeline
+        self.horizon_s = timeline.horizon_ns / NS
+        self.dt_s = dt_s
+        self.edges_s = grid_edges_s(self.horizon_s, dt_s)
+        self.n_cells = len(self.edges_s) - 1
+        signal_map = timeline.info.get("machine_signals", {})
+        self.transitions = []
+        for m in mm.drive_models():
+            t_ns, ext = valve_transitions(timeline, m, signal_map)
+            self.transitions.append((t_ns / NS, ext))
+        # a passive consumer's cells per NL/min of flow (its cells scale with the flow)
+        self.unit_cells = np.zeros((len(mm.passives), self.n_cells))
+        self.on_intervals = []
+        for k, m in enumerate(mm.passive_models()):
+            if m.role == "leak":
+                s, e = np.array([0.0]), np.array([self.horizon_s])
+            else:
+                s_ns, e_ns = passive_intervals(timeline, m, signal_map)
+                s, e = s_ns / NS, e_ns / NS
+            self.on_intervals.append((s, e))
+            self.unit_cells[k] = interval_cells(self.edges_s, s, e, 1.0)
+        self.leak_unit = interval_cells(self.edges_s, [0.0], [self.horizon_s], 1.0)
+        self._drive_cache: dict[tuple, np.ndarray] = {}
+
+    # ------------------------------------------------------------------ cells
+    def drive_cells(self, params: ModelParams, k: int) -> np.ndarray:
+        """NL per cell of drive ``k`` under ``params`` (cached: most evaluations change
+        one drive at most)."""
+        st = (params.stroke_ext_s[k], params.stroke_ret_s[k])
+        key = (k, params.extend_nl[k], params.retract_nl[k], params.delay_s[k], st,
+               params.exhaust_tau_s[k], params.refill_fraction, params.refill_tau_s)
+        cells = self._drive_cache.get(key)
+        if cells is None:
+            if len(self._drive_cache) > 256:
+                self._drive_cache.clear()
+            t_s, ext = self.transitions[k]
+            m = self.mm.models[self.mm.drives[k]]
+            stroke = None if np.isnan(st[0]) else (float(st[0]), float(st[1]))
+            share = 1.0 - params.refill_fraction
+            cells = stroke_cells(self.edges_s, t_s, ext, share * params.extend_nl[k],
+                                 share * params.retract_nl[k], float(params.delay_s[k]),
+                                 stroke, float(params.exhaust_tau_s[k]) or None,
+                                 m.dead_fill_nl)
+            if params.refill_fraction > 0:
+                cells = cells + self._refill_cells(params, k, stroke)
+            self._drive_cache[key] = cells
+        return cells
+
+    def _refill_cells(self, params: ModelParams, k: int, stroke) -> np.ndarray:
+        """Shared supply: the share of each stroke's air that neighbours give back to the
+        line and take again afterwards, flowing as ``exp(-t/tau)`` from the stroke's end."""
+        t_s, ext = self.transitions[k]
+        vol = params.refill_fraction * np.where(ext, params.extend_nl[k],
+                                                params.retract_nl[k])
+        end = t_s + params.delay_s[k] + (0.0 if stroke is None else
+                                         np.where(ext, stroke[0], stroke[1]))
+        # the refill as a first-order response to the volume given back at each stroke
+        # end (the same filter as the meter's, volume preserved)
+        k_cell = np.clip((end / self.dt_s).astype(np.int64), 0, self.n_cells - 1)
+        keep = end < self.horizon_s
+        impulses = np.bincount(k_cell[keep], weights=vol[keep], minlength=self.n_cells)
+        return first_order_lag(impulses, self.dt_s, max(params.refill_tau_s, 1e-3),
+                               from_rest=True)
+
+    def consumer_cells(self, params: ModelParams) -> np.ndarray:
+        """NL per cell per consumer (rows as the machine's consumers), plus a last row for
+        the diagnosis' extra leak."""
+        out = np.zeros((len(self.mm.models) + 1, self.n_cells))
+        for k, row in enumerate(self.mm.drives):
+            out[row] = self.drive_cells(params, k)
+        for k, row in enumerate(self.mm.passives):
+            out[row] = self.unit_cells[k] * params.passive_l_min[k]
+        out[-1] = self.leak_unit * params.extra_leak_l_min
+        return out
+
+    def total_cells(self, params: ModelParams) -> np.ndarray:
+        total = self.leak_unit * params.extra_leak_l_min
+        if len(self.mm.passives):
+            total = total + params.passive_l_min @ self.unit_cells
+        for k in range(len(self.mm.drives)):
+            total = total + self.drive_cells(params, k)
+        return total
+
+    # ------------------------------------------------------------------ readings
+    def readings(self, params: ModelParams, start_s: np.ndarray, end_s: np.ndarray,
+                 total_cells: np.ndarray | None = None) -> np.ndarray:
+        """What the meter logs (NL/min) over each ``[start, end]`` of the run's prediction
+        time: the total flow through the meter's lag, averaged over the interval."""
+        cells = self.total_cells(params) if total_cells is None else total_cells
+        flow = cells / self.dt_s * 60.0
+        if params.meter_tau_s > 0:
+            flow = first_order_lag(flow, self.dt_s, params.meter_tau_s)
+        cum = cumulative_nl(flow * self.dt_s / 60.0)
+        shift = params.clock_adjust_s
+        return interval_means_l_min(cum, self.edges_s, start_s - shift, end_s - shift)

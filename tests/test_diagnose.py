@@ -1,0 +1,373 @@
+"""plcpred diagnose: reading logs, alignment, each effect against a hand calculation, the
+verdict on clean and faulty runs, the thesis case, the fixed machine file and the CLI.
+
+Measured runs here are made in the test from the prediction's flow and a first-order
+meter written out below (not the diagnosis' own meter code), plus seeded noise."""
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import plcpred
+from plcpred.air.demand import residual_fill_nl, stroke_cells
+from plcpred.cli import main
+from plcpred.diagnose import (EFFECTS, MeasuredDataError, MeasuredRun, diagnose,
+                              read_io_timeline, read_measured)
+from plcpred.diagnose.core import write_fixed_machine
+from plcpred.diagnose.fit import DiagnosisError
+from plcpred.diagnose.meter import first_order_lag, noise_level_l_min
+from plcpred.diagnose.model import MachineModel, RunModel
+
+ROOT = Path(__file__).resolve().parent.parent
+RIG = ROOT / "samples" / "prototype_rig" / "rig.toml"
+RIG_NOLEAK = ROOT / "samples" / "prototype_rig" / "rig_noleak.toml"
+PICK = ROOT / "samples" / "pick_place.toml"
+
+
+def meter_log(flow_l_min, dt_s, rate_hz, tau_s, noise, offset_s=0.0, seed=0, t_end=None):
+    """A meter's log of a flow on a grid: a first-order lag integrated step by step with
+    the exact exponential update, then each sample the mean over the interval since the
+    previous one (trapezoid over the grid), plus Gaussian noise."""
+    y = np.empty(len(flow_l_min))
+    state = float(flow_l_min[0])
+    for k, x in enumerate(flow_l_min):
+        if tau_s > 0:
+            state = x + (state - x) * math.exp(-dt_s / tau_s)
+        else:
+            state = x
+        y[k] = state
+    grid_t = (np.arange(len(y)) + 1) * dt_s
+    cum = np.concatenate([[0.0], np.cumsum(y * dt_s)])
+    t_cum = np.arange(len(cum)) * dt_s
+    interval = 1.0 / rate_hz
+    end = (t_end if t_end is not None else grid_t[-1]) - 1e-9
+    ts = np.arange(interval, end, interval)
+    means = (np.interp(ts, t_cum, cum) - np.interp(ts - interval, t_cum, cum)) / interval
+    rng = np.random.default_rng(seed)
+    return ts + offset_s, means + rng.normal(0.0, noise, len(ts))
+
+
+def run_of(machine, horizon_s, rate_hz=2.0, tau_s=0.3, noise=1.0, offset_s=0.0, seed=0,
+           name="run.csv", transform=None):
+    pred = plcpred.predict(machine, horizon_s, dt=0.01)
+    flow = pred.profile.flow_l_min            # consumers x cells
+    total = flow.sum(axis=0) if transform is None else transform(pred, flow)
+    t, q = meter_log(total, 0.01, rate_hz, tau_s, noise, offset_s, seed)
+    return MeasuredRun(name, t, q)
+
+
+# ---------------------------------------------------------------------- reading logs
+
+def test_units_and_references(tmp_path):
+    p = tmp_path / "log.csv"
+    p.write_text("time;Durchfluss\n0;1,5\n1;1,5\n2;3\n")
+    run = read_measured(p, time_col="time", flow_col="Durchfluss", flow_unit="m3/h",
+                        reference="din1343")
+    # 1.5 m3/h = 25 l/min; DIN 1343 -> ISO 8778: (101.325/100) * (293.15/273.15)
+    assert run.flow_l_min[0] == pytest.approx(25.0 * 1.01325 * 293.15 / 273.15, rel=1e-9)
+    assert run.flow_l_min[2] == pytest.approx(2 * run.flow_l_min[0])
+    p.write_text("t,q\n0,1\n0.5,2\n1.0,3\n")
+    assert read_measured(p, time_col=1, flow_col=2, flow_unit="l/s").flow_l_min[1] == 120.0
+    assert read_measured(p, time_col="t", flow_col="q", flow_unit="scfm",
+                         reference="iso8778").flow_l_min[0] == pytest.approx(28.316846592)
+    iso2533 = read_measured(p, time_col="t", flow_col="q", reference="iso2533")
+    assert iso2533.flow_l_min[0] == pytest.approx(1.01325 * 293.15 / 288.15)
+
+
+def test_iso_timestamps_and_skipped_rows(tmp_path):
+    p = tmp_path / "log.csv"
+    p.write_text("time_s,flow_l_min\n2026-03-01T08:00:00Z,10\n2026-03-01T08:00:00.5Z,\n"
+                 "2026-03-01T08:00:01Z,12\n2026-03-01T08:00:01.5Z,nan\n"
+                 "2026-03-01T08:00:02Z,14\n")
+    run = read_measured(p)
+    assert np.diff(run.time_s).tolist() == [1.0, 1.0]
+    assert run.source["skipped_rows"] == 2 and run.source["time_format"] == "iso8601"
+
+
+@pytest.mark.parametrize("text, message", [
+    ("time_s,pressure\n0,1\n1,2\n2,3\n", "no flow column"),
+    ("time_s,flow_l_min\n0,1\n2,2\n1,3\n", "line 4, column 1: time 1 does not increase"),
+    ("time_s,flow_l_min\n0,1\nnoon,2\n", "line 3, column 1: cannot read the time"),
+    ("time_s,flow_l_min\n0,1\n1,2\n", "at least 3 samples"),
+    ("", "empty file"),
+])
+def test_bad_logs_name_the_line(tmp_path, text, message):
+    p = tmp_path / "bad.csv"
+    p.write_text(text)
+    with pytest.raises(MeasuredDataError, match=message):
+        read_measured(p)
+
+
+def test_io_trace_reads_as_a_timeline(tmp_path):
+    p = tmp_path / "io.csv"
+    p.write_text("time_s,signal,value\n0,Y_A,0\n1.5,Y_A,1\n2.5,Y_KNIVES,1\n4,Y_A,0\n")
+    tl = read_io_timeline(p, horizon_s=10)
+    assert tl.horizon_s == 10
+    t, v = tl.edge_times_ns("Y_KNIVES")
+    assert (t / 1e9).tolist() == [0.0, 2.5] and v.tolist() == [0.0, 1.0]
+
+
+# ---------------------------------------------------------------------- the pieces
+
+def test_first_order_lag_of_a_step():
+    x = np.concatenate([np.zeros(100), np.ones(1000)])
+    y = first_order_lag(x, 0.001, 0.2)
+    # 0.2 s after the step: 1 - 1/e
+    assert y[99 + 200] == pytest.approx(1 - math.exp(-1), abs=2e-3)
+    assert first_order_lag(x, 0.001, 0.0) is x
+
+
+def test_noise_level_of_white_noise_with_steps():
+    rng = np.random.default_rng(3)
+    r = rng.normal(0, 2.0, 5000) + np.repeat([0.0, 50.0, 0.0, 80.0, 0.0], 1000)
+    assert noise_level_l_min(r) == pytest.approx(2.0, rel=0.08)
+
+
+def test_residual_fill_by_hand():
+    # extend at 0 (stroke 0.2 s, delay 0.01), retract at 1.0: the cap chamber starts
+    # exhausting at 1.0 + 0.01 + 0.3 = 1.31; the next extend at 1.5 finds
+    # 2.0 * exp(-0.19/0.1) of its dead-volume air still there
+    t = np.array([0.0, 1.0, 1.5])
+    ext = np.array([True, False, True])
+    saved = residual_fill_nl(t, ext, 0.01, (0.2, 0.3), 0.1, (2.0, 3.0))
+    # the retract at 1.0 fills the rod end, exhausting since 0 + 0.01 + 0.2 = 0.21
+    assert saved.tolist() == pytest.approx([0.0, 3.0 * math.exp(-0.79 / 0.1),
+                                            2.0 * math.exp(-0.19 / 0.1)])
+    edges = np.arange(0, 301) * 0.01
+    cells = stroke_cells(edges, t, ext, 5.0, 4.0, 0.01, (0.2, 0.3), 0.1, (2.0, 3.0))
+    assert cells.sum() == pytest.approx(5 + 4 + 5 - saved.sum())
+
+
+@pytest.fixture(scope="module")
+def rig_model():
+    m = plcpred.load_machine(RIG)
+    tl = plcpred.unfold(m, 20)
+    mm = MachineModel.of(m)
+    return m, mm, RunModel(mm, tl, 0.01)
+
+
+def _apply(name, mm, theta):
+    return EFFECTS[name].apply(mm, mm.nominal(), np.asarray(theta, dtype=float))
+
+
+def test_leak_effect_adds_a_constant(rig_model):
+    m, mm, rm = rig_model
+    base = rm.total_cells(mm.nominal()).sum()
+    assert rm.total_cells(_apply("leak", mm, [6.0])).sum() - base == pytest.approx(
+        6.0 / 60 * 20, rel=1e-9)
+
+
+def test_leak_written_as_a_conductance_reproduces_its_flow(rig_model):
+    m, mm, rm = rig_model
+    C = EFFECTS["leak"].physical(mm, [6.0])["C_m3_s_pa"]
+    # D2 choked: q = C * P_s * sqrt(T0/T) * 60000 (NL/min), 20 C supply
+    assert C * (m.supply_bar_g * 1e5 + 101325) * 60000 == pytest.approx(6.0, rel=1e-9)
+
+
+def test_passive_flow_scales_the_knives(rig_model):
+    m, mm, rm = rig_model
+    cells0 = rm.consumer_cells(mm.nominal())
+    cells = rm.consumer_cells(_apply("passive_flow", mm, [2.0]))
+    knives = [x.name for x in mm.models].index("air knives")
+    leak = [x.name for x in mm.models].index("pilot leak")
+    assert cells[knives].sum() == pytest.approx(2 * cells0[knives].sum())
+    assert cells[leak].sum() == pytest.approx(cells0[leak].sum())
+
+
+def test_supply_pressure_scales_d1_with_absolute_pressure(rig_model):
+    m, mm, rm = rig_model
+    p = _apply("supply_pressure", mm, [6.0])
+    ratio = (6e5 + 101325) / (m.supply_bar_g * 1e5 + 101325)
+    assert p.extend_nl == pytest.approx(mm.nominal().extend_nl * ratio)
+    # the knives stay choked (r = 1.013/7.01 < b = 0.22): their flow scales the same way
+    knives = [mm.models[r].name for r in mm.passives].index("air knives")
+    assert p.passive_l_min[knives] == pytest.approx(mm.nominal().passive_l_min[knives] * ratio)
+
+
+def test_dead_volume_adds_its_air_per_stroke(rig_model):
+    m, mm, rm = rig_model
+    base = rm.total_cells(mm.nominal()).sum()
+    p = _apply("dead_volume", mm, [10.0, 0.0, 0.0])       # 10 cm3 on drive A
+    # A strokes once each way over 20 s: 2 * 10 cm3 * (P_s / P0) at 20 C
+    extra = 2 * 0.010 * (m.supply_bar_g * 1e5 + 101325) / 1e5
+    assert rm.total_cells(p).sum() - base == pytest.approx(extra, rel=1e-9)
+
+
+def _centroid(cells, edges):
+    mid = (edges[:-1] + edges[1:]) / 2
+    return float(cells @ mid / cells.sum())
+
+
+def test_valve_delay_and_stroke_time_move_air_not_volume(rig_model):
+    m, mm, rm = rig_model
+    k = 0                                                   # drive A
+    nominal = rm.drive_cells(mm.nominal(), k)
+    later = rm.drive_cells(_apply("valve_delay", mm, [0.1, 0, 0]), k)
+    assert later.sum() == pytest.approx(nominal.sum())
+    # the air model spreads a stroke over [edge, edge + delay + stroke time]: 0.1 s more
+    # delay moves each rectangle's centre 0.05 s
+    assert _centroid(later, rm.edges_s) - _centroid(nominal, rm.edges_s) == pytest.approx(
+        0.05, abs=1e-3)
+    slower = rm.drive_cells(_apply("stroke_time", mm, [2.0, 1, 1]), k)
+    assert slower.sum() == pytest.approx(nominal.sum())
+    # rectangles twice as long: the volume-weighted mean of (st/2) doubles
+    a = mm.models[mm.drives[0]]
+    half = (a.extend_nl * a.stroke_time_s[0] + a.retract_nl * a.stroke_time_s[1]) / 2 / (
+        a.extend_nl + a.retract_nl)
+    assert _centroid(slower, rm.edges_s) - _centroid(nominal, rm.edges_s) == pytest.approx(
+        half, abs=2e-3)
+
+
+def test_shared_supply_delays_a_share_of_each_stroke(rig_model):
+    m, mm, rm = rig_model
+    base = rm.total_cells(mm.nominal())
+    shared = rm.total_cells(_apply("shared_supply", mm, [0.2, 0.5]))
+    assert shared.sum() == pytest.approx(base.sum(), rel=1e-3)     # the air is the same
+    active = sum(rm.drive_cells(mm.nominal(), k).sum() for k in range(3))
+    # 20 % of the strokes' air arrives, on average, tau = 0.5 s after the stroke's end
+    shift = (_centroid(shared, rm.edges_s) - _centroid(base, rm.edges_s)) * base.sum()
+    assert shift / active > 0.2 * 0.5 * 0.9
+
+
+def test_incomplete_exhaust_option_in_the_machine_file(tmp_path):
+    text = RIG.read_text().replace('switch_delay_s = 0.015\nswitches = { retracted = "A_RET"',
+                                   'switch_delay_s = 0.015\nexhaust_tau_s = 0.2\n'
+                                   'switches = { retracted = "A_RET"')
+    assert "exhaust_tau_s" in text
+    f = tmp_path / "rig.toml"
+    f.write_text(text.replace('program = "rig.st"', f'program = "{RIG.parent / "rig.st"}"'))
+    m = plcpred.load_machine(f)
+    assert m.consumer("A").exhaust_tau_s == 0.2
+    with_option = plcpred.predict(m, 20).profile
+    without = plcpred.predict(RIG, 20).profile
+    # one extend, one retract of A, each a long way from the other: nothing saved
+    a = with_option.names.index("A")
+    assert with_option.consumer_nl[a] == pytest.approx(without.consumer_nl[a], rel=1e-6)
+
+
+# ---------------------------------------------------------------------- alignment
+
+def test_alignment_finds_a_known_offset():
+    run = run_of(RIG, 30, rate_hz=5.0, tau_s=0.2, noise=0.5, offset_s=1234.56)
+    d = diagnose(RIG, [run], effects=["leak"])
+    rd = d.runs[0]
+    assert rd.offset_s == pytest.approx(1234.56, abs=0.03)
+    assert d.verdict == "none"
+
+
+def test_given_offset_is_used():
+    run = run_of(RIG, 30, offset_s=50.0)
+    d = diagnose(RIG, [run], offsets=[50.0], effects=["leak"])
+    assert d.runs[0].offset_s == 50.0
+
+
+# ---------------------------------------------------------------------- verdicts
+
+def test_verdict_none_on_a_clean_run():
+    run = run_of(PICK, 120, rate_hz=2.0, tau_s=0.4, noise=2.0, offset_s=7.0, seed=5)
+    d = diagnose(PICK, [run])
+    assert d.verdict == "none", d.report()
+    assert abs(d.baseline.error_pct) < 2
+
+
+def test_thesis_case_leak_located_in_idle_and_named():
+    # the rig with its pilot leak makes the log; the machine file does not have it
+    runs = [run_of(RIG, 20, rate_hz=2.0, tau_s=0.3, noise=1.5, offset_s=o, seed=s,
+                   name=f"seq1_{s}.csv") for s, o in ((1, 3.0), (2, 11.0))]
+    d = diagnose(RIG_NOLEAK, runs)
+    assert -30 < d.baseline.error_pct < -15, d.report()
+    assert d.contexts[0].context == "idle" and d.contexts[0].stands_out
+    assert d.verdict == "leak", d.report()
+    best = d.effects[0]
+    assert abs(best.heldout_score.error_pct) < 10
+    leak = plcpred.load_machine(RIG).consumer("pilot leak")
+    q_true = plcpred.predict(RIG, 20).profile.summary()["consumers"]["pilot leak"]["total_nl"] * 3
+    assert best.physical["flow_l_min"] == pytest.approx(q_true, rel=0.1)
+    assert leak.kind == "leak"
+
+
+def test_passive_flow_found_and_fixed_file_reproduces_it(tmp_path):
+    def worn_knives(pred, flow):
+        k = pred.profile.names.index("air knives")
+        return flow.sum(axis=0) + 0.3 * flow[k]
+    runs = [run_of(RIG, 20, noise=1.0, offset_s=2.0 + s, seed=s, transform=worn_knives,
+                   name=f"r{s}.csv") for s in range(2)]
+    d = diagnose(RIG, runs)
+    assert d.verdict == "passive_flow", d.report()
+    assert d.effects[0].physical["air knives"]["factor"] == pytest.approx(1.3, rel=0.05)
+    fixed = tmp_path / "fixed.toml"
+    write_fixed_machine(d, fixed)
+    m = plcpred.load_machine(fixed)
+    assert m.consumer("air knives").C == pytest.approx(6.56e-9 * 1.3, rel=0.05)
+    again = diagnose(fixed, runs, offsets=[r.offset_s for r in d.runs], effects=["leak"])
+    assert again.baseline.error_pct == pytest.approx(d.effects[0].fit_score.error_pct,
+                                                     abs=0.5)
+
+
+def test_leave_one_run_out_with_several_runs():
+    runs = [run_of(RIG, 20, offset_s=1.0, seed=s, name=f"r{s}.csv") for s in range(3)]
+    d = diagnose(RIG, runs, effects=["leak", "supply_pressure"])
+    assert d.fold_kind == "leave one run out"
+    assert d.verdict == "none"
+
+
+# ---------------------------------------------------------------------- bad input
+
+def test_units_that_do_not_fit(tmp_path):
+    run = run_of(RIG, 20)
+    run.flow_l_min = run.flow_l_min * 1000
+    with pytest.raises(DiagnosisError, match="check --flow-unit"):
+        diagnose(RIG, [run])
+
+
+def test_run_shorter_than_a_cycle():
+    run = run_of(PICK, 3.0)
+    with pytest.raises(DiagnosisError, match="less than one cycle"):
+        diagnose(PICK, [run])
+
+
+def test_run_of_another_machine():
+    rng = np.random.default_rng(0)
+    run = MeasuredRun("other.csv", np.arange(1, 200) * 0.5, 50 + 40 * (rng.random(199) > 0.5))
+    with pytest.raises(DiagnosisError, match="does not look like"):
+        diagnose(RIG, [run])
+
+
+# ---------------------------------------------------------------------- the command
+
+def test_cli_diagnose_json_and_outputs(tmp_path, capsys):
+    run = run_of(RIG, 20, offset_s=4.0, seed=9)
+    log = tmp_path / "log.csv"
+    log.write_text("time_s,flow_l_min\n" + "".join(
+        f"{t:.3f},{q:.4f}\n" for t, q in zip(run.time_s, run.flow_l_min)))
+    out = tmp_path / "out"
+    code = main(["diagnose", str(RIG_NOLEAK), "--measured", str(log), "--json",
+                 str(tmp_path / "d.json"), "--out", str(out), "--write-machine",
+                 str(tmp_path / "fixed.toml")])
+    assert code == 0
+    text = capsys.readouterr().out
+    assert "verdict: leak" in text
+    data = json.loads((tmp_path / "d.json").read_text())
+    assert set(data["baseline"]) == {"measured_nl", "predicted_nl", "error_pct", "rmse_l_min"}
+    assert data["verdict"] == "leak" and data["effects"][0]["name"] == "leak"
+    for key in ("name", "parameters", "error_pct_after", "rmse_l_min_after",
+                "heldout_error_pct_after"):
+        assert key in data["effects"][0]
+    assert data["runs"][0]["offset_s"] == pytest.approx(4.0, abs=0.05)
+    assert {"start_s", "end_s", "context", "residual_nl"} <= set(data["locations"][0])
+    assert data["combination"]["effects"][0] == "leak"
+    assert (out / "diagnose.png").stat().st_size > 10_000
+    assert "verdict: leak" in (out / "diagnose.html").read_text()
+    fixed = plcpred.load_machine(tmp_path / "fixed.toml")
+    assert any(c.kind == "leak" for c in fixed.consumers)
+
+
+def test_cli_diagnose_bad_unit_exit_2(tmp_path, capsys):
+    run = run_of(RIG, 20)
+    log = tmp_path / "log.csv"
+    log.write_text("time_s,flow_l_min\n" + "".join(
+        f"{t:.3f},{q:.4f}\n" for t, q in zip(run.time_s, run.flow_l_min)))
+    assert main(["diagnose", str(RIG), "--measured", str(log), "--flow-unit", "l/s"]) == 2
+    assert "check --flow-unit" in capsys.readouterr().err
