@@ -183,7 +183,7 @@ def test_initially_extended_cylinder_retracting_at_start_costs_a_retract():
     assert (t / S).tolist() == [0.0, 2.0] and ext.tolist() == [False, True]
 
 
-def test_each_edge_total_is_exact_whatever_the_grid_and_spread_over_delay_plus_stroke():
+def test_each_edge_total_is_exact_whatever_the_grid_and_flows_after_the_delay():
     tl = timeline({"y": [(0, 0), (1.003, 1), (2.5, 0)], "n": [(0, 0), (0.25, 1), (3.333, 0)]})
     ms = [model(["y"], delay_s=0.02, stroke_time_s=(0.3, 0.2)),
           ConsumerModel("n", "nozzle", ["n"], "passive", flow_l_min=60.0)]
@@ -193,9 +193,10 @@ def test_each_edge_total_is_exact_whatever_the_grid_and_spread_over_delay_plus_s
     prof = demand_profile(tl, ms, 0.001)
     flow = prof.flow_l_min[0]
     on = np.nonzero(flow > 1e-9)[0] * 0.001
-    # extend: 1.0 NL over 0.32 s from 1.003 s; retract 0.5 NL over 0.22 s from 2.5 s
-    assert on.min() == pytest.approx(1.003, abs=0.0011) and on.max() == pytest.approx(2.72, abs=0.0011)
-    assert flow[1100] == pytest.approx(1.0 / 0.32 * 60)
+    # extend: 1.0 NL over 0.3 s from 1.003 + 0.02 s; retract 0.5 NL over 0.2 s from 2.52 s
+    assert on.min() == pytest.approx(1.023, abs=0.0011) and on.max() == pytest.approx(2.72, abs=0.0011)
+    assert flow[1100] == pytest.approx(1.0 / 0.3 * 60)
+    assert flow[1010:1022].max() == 0.0         # the valve has not opened yet
 
 
 def test_matrix_form_equals_the_exact_profile_on_a_fine_grid():
@@ -285,9 +286,10 @@ def test_every_sample_predicts_hand_totals_from_its_strokes_and_on_times(path):
     for m in res.models:    # strokes cut off by the horizon
         if m.role == "active" and m.stroke_time_s:
             t, ext = valve_transitions(tl, m, names)
-            dur = m.delay_s + np.where(ext, m.stroke_time_s[0], m.stroke_time_s[1])
+            dur = np.where(ext, m.stroke_time_s[0], m.stroke_time_s[1])
+            start = t / S + m.delay_s
             vol = np.where(ext, m.extend_nl, m.retract_nl)
-            late = (t / S + dur) > 120
-            tail += float((vol[late] * np.clip((t[late] / S + dur[late] - 120) / dur[late], 0, 1)).sum())
+            late = (start + dur) > 120
+            tail += float((vol[late] * np.clip((start[late] + dur[late] - 120) / dur[late], 0, 1)).sum())
     assert prof.total_nl == pytest.approx(expected - tail, rel=1e-9)
     assert prof.total_nl > 0

@@ -206,13 +206,12 @@ def test_valve_delay_and_stroke_time_move_air_not_volume(rig_model):
     nominal = rm.drive_cells(mm.nominal(), k)
     later = rm.drive_cells(_apply("valve_delay", mm, [0.1, 0, 0]), k)
     assert later.sum() == pytest.approx(nominal.sum())
-    # the air model spreads a stroke over [edge, edge + delay + stroke time]: 0.1 s more
-    # delay moves each rectangle's centre 0.05 s
+    # the valve opens 0.1 s later: each stroke's rectangle moves 0.1 s
     assert _centroid(later, rm.edges_s) - _centroid(nominal, rm.edges_s) == pytest.approx(
-        0.05, abs=1e-3)
+        0.1, abs=1e-3)
     slower = rm.drive_cells(_apply("stroke_time", mm, [2.0, 1, 1]), k)
     assert slower.sum() == pytest.approx(nominal.sum())
-    # rectangles twice as long: the volume-weighted mean of (st/2) doubles
+    # rectangles twice as long: the centre moves by the volume-weighted mean of st/2
     a = mm.models[mm.drives[0]]
     half = (a.extend_nl * a.stroke_time_s[0] + a.retract_nl * a.stroke_time_s[1]) / 2 / (
         a.extend_nl + a.retract_nl)

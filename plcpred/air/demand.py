@@ -9,9 +9,10 @@ section 2) evaluated on a regular time grid.
 * **Passive consumers** (nozzles, air knives) flow at their D2 rate while their output is
   on; **leaks** always.
 
-Shape of a stroke: its volume is spread evenly (a rectangle) over the valve's switching
-delay plus the stroke time in that direction, starting at the edge. Without a stroke time
-it is spread over the switching delay alone, and without either it lands at the edge
+Shape of a stroke: nothing flows during the valve's switching delay (domain.md section 4:
+flow starts t_sw after the command); then the volume is spread evenly (a rectangle) over
+the stroke time in that direction, while the piston moves. Without a stroke time it is
+spread over the switching delay from the edge, and without either it lands at the edge
 instant. Volumes are placed on the grid by integrating exactly, so each edge's total is
 the same whatever the grid (air that would flow after the horizon is not counted).
 
@@ -194,8 +195,8 @@ def stroke_cells(edges_s, t_s, extend, extend_nl: float, retract_nl: float,
                  delay_s: float = 0.0, stroke_time_s=None, exhaust_tau_s=None,
                  dead_fill_nl=(0.0, 0.0)) -> np.ndarray:
     """(D1, transition rule) normal litres per grid cell of one drive's strokes: each
-    transition's volume spread evenly over its switching delay plus stroke time (see the
-    module docstring), less the residual of an incomplete exhaust when
+    transition's volume spread evenly over its stroke time after its switching delay (see
+    the module docstring), less the residual of an incomplete exhaust when
     ``exhaust_tau_s`` is given (:func:`residual_fill_nl`)."""
     t_s = np.asarray(t_s, dtype=float)
     extend = np.asarray(extend, dtype=bool)
@@ -204,10 +205,14 @@ def stroke_cells(edges_s, t_s, extend, extend_nl: float, retract_nl: float,
         vol = np.clip(vol - residual_fill_nl(t_s, extend, delay_s, stroke_time_s,
                                              exhaust_tau_s, dead_fill_nl), 0.0, None)
     if stroke_time_s is not None:
-        dur = delay_s + np.where(extend, stroke_time_s[0], stroke_time_s[1])
+        # the valve opens a switching delay after the edge; the chamber fills while the
+        # piston moves (domain.md section 4: flow starts t_sw after the command)
+        start = t_s + delay_s
+        dur = np.where(extend, stroke_time_s[0], stroke_time_s[1])
     else:
+        start = t_s
         dur = np.full(len(t_s), float(delay_s))
-    return np.diff(_cumulative(edges_s, t_s, dur, vol))
+    return np.diff(_cumulative(edges_s, start, dur, vol))
 
 
 def interval_cells(edges_s, starts_s, ends_s, flow_l_min: float) -> np.ndarray:

@@ -125,7 +125,7 @@ class Diagnosis:
             src = rd.model.timeline.info.get("mode") == "recorded"
             lines.append(f"  {rd.run.name}: {len(rd.end_s)} samples every "
                          f"{rd.run.interval_s:g} s, clock offset {rd.offset_s:+.3f} s, "
-                         f"meter lag {rd.meter_tau_s:g} s, correlation {rd.correlation:.2f}"
+                         f"meter lag {rd.meter_tau_s:.2f} s, correlation {rd.correlation:.2f}"
                          f"{', edges from recorded I/O' if src else ''}")
         lines += ["", f"baseline: measured {b.measured_nl:.2f} NL, predicted "
                       f"{b.predicted_nl:.2f} NL, error {b.error_pct:+.1f} %, RMSE "
@@ -263,7 +263,8 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                  else "alternate blocks of the run (fit on one half, scored on the other)")
     ctx = {"mean_l_min": max(base_score.measured_nl, 1e-9) * 60.0 / max(
         sum(float(rd.weight_s.sum()) for rd in rds), 1e-9),
-        "meter_tau_s": meter_tau or 0.0}
+        "meter_tau_s": meter_tau or 0.0,
+        "fitted_tau_s": max(rd.fitted_tau_s for rd in rds)}
     base_heldout = heldout([], mm, rds, bases, ctx, fold_masks)
     names = effects or list(EFFECTS)
     unknown = [n for n in names if n not in EFFECTS]

@@ -414,22 +414,22 @@ class StrokeTime(Effect):
 
 class SensorLag(Effect):
     """The meter responds more slowly than assumed (a first-order lag of ``tau_s``;
-    thermal-mass meters are 0.1-0.6 s, some much slower). The clock alignment is refitted
-    with it, since a lag also delays every edge."""
+    thermal-mass meters are 0.1-0.6 s, some much slower). The clock alignment already
+    searched lag and offset together; this effect lets the lag go beyond a thermal
+    meter's (or away from the machine file's ``[meter] tau_s``)."""
     name, title = "sensor_lag", "a slower flow meter"
 
     def params(self, mm, ctx):
-        return [Param("tau_s", "s", 0.0, MAX_METER_TAU_S, max(1.0, ctx["meter_tau_s"])),
-                Param("clock_adjust_s", "s", -2.0, 2.0, 0.0)]
+        return [Param("tau_s", "s", 0.0, MAX_METER_TAU_S,
+                      max(ctx["fitted_tau_s"], ctx["meter_tau_s"]))]
 
     def apply(self, mm, p, theta):
         q = p.copy()
         q.meter_tau_s = float(theta[0])
-        q.clock_adjust_s = p.clock_adjust_s + float(theta[1])
         return q
 
     def physical(self, mm, theta):
-        return {"tau_s": float(theta[0]), "clock_adjust_s": float(theta[1])}
+        return {"tau_s": float(theta[0])}
 
     def to_machine(self, mm, data, theta):
         data.setdefault("meter", {})["tau_s"] = round(float(theta[0]), 4)

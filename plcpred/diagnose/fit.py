@@ -42,6 +42,7 @@ class RunData:
     end_s: np.ndarray
     measured_l_min: np.ndarray
     weight_s: np.ndarray = field(init=False)
+    fitted_tau_s: float = 0.0        # the lag the alignment found (may exceed meter_tau_s)
 
     def __post_init__(self):
         self.weight_s = self.end_s - self.start_s
@@ -64,66 +65,96 @@ def _pearson(a: np.ndarray, b: np.ndarray) -> float:
     return float(a @ b) / den if den > 0 else 0.0
 
 
+# lags tried when the meter's is not known; the baseline keeps at most the nuisance one
+ALIGN_TAUS_S = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0,
+                10.0)
+
+
 def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
           meter_tau_s: float | None = None, offset_s: float | None = None) -> RunData:
     """Tie ``run`` to its prediction ``rm``. The offset is the logger's clock reading at
     the prediction's time 0, searched within ``window_s`` of the log's first sample
-    unless ``offset_s`` is given; the meter lag is ``meter_tau_s`` when known, else the
-    one of 0, 0.1, ..., 0.6 s that correlates best."""
-    taus = [meter_tau_s] if meter_tau_s is not None else list(
-        np.round(np.arange(0.0, NUISANCE_METER_TAU_S + 1e-9, 0.1), 3))
+    unless ``offset_s`` is given. The meter lag is ``meter_tau_s`` when the machine file
+    gives it; else the lag and the offset that correlate best are searched together (a
+    lag delays every reading, so the two trade off) and the run keeps the lag up to the
+    0.6 s of a thermal-mass meter: a slower meter is the ``sensor_lag`` effect
+    (``RunData.fitted_tau_s`` keeps what the search found)."""
+    from scipy.optimize import minimize
+
+    taus = [meter_tau_s] if meter_tau_s is not None else list(ALIGN_TAUS_S)
     cells = rm.total_cells(params)
 
-    def readings_at(tau, offsets):
-        """Correlation of the readings with the log for each offset (samples valid for
-        all of them)."""
+    def correlations(tau, offsets):
+        """Correlation of the readings with the log for each offset (over the samples
+        valid for all of them)."""
         p = params.copy()
         p.meter_tau_s = tau
-        lo, hi = min(offsets), max(offsets)
-        idx, _, _ = _intervals(run, hi, rm.horizon_s)
-        idx2, _, _ = _intervals(run, lo, rm.horizon_s)
-        common = np.intersect1d(idx, idx2)
-        if len(common) < 5:
+        idx = np.intersect1d(_intervals(run, max(offsets), rm.horizon_s)[0],
+                             _intervals(run, min(offsets), rm.horizon_s)[0])
+        if len(idx) < 5:
             return None
-        starts = run.interval_starts_s()[common]
-        ends = run.time_s[common]
-        meas = run.flow_l_min[common]
-        out = []
-        for o in offsets:
-            r = rm.readings(p, starts - o, ends - o, cells)
-            out.append(_pearson(r, meas))
-        return np.array(out)
+        starts = run.interval_starts_s()[idx]
+        ends = run.time_s[idx]
+        meas = run.flow_l_min[idx]
+        return np.array([_pearson(rm.readings(p, starts - o, ends - o, cells), meas)
+                         for o in offsets])
 
+    g = max(run.interval_s, rm.dt_s)
     if offset_s is None:
-        offset_s = _coarse_offset(run, rm, cells, window_s)
-        g = max(run.interval_s, rm.dt_s)
-        step = max(rm.dt_s, g / 25.0)
-        reach = 1.5 * g + max(taus)          # a lag also delays the readings
-        fine = offset_s + np.arange(-reach, reach + step / 2, step)
-        best = (-2.0, offset_s, taus[0])
+        coarse = _coarse_offset(run, rm, cells, window_s)
+        best = (-2.0, coarse, taus[0])
         for tau in taus:
-            corr = readings_at(tau, list(fine))
+            # the lag-free coarse offset is late by about the lag
+            step = max(rm.dt_s, g / 25.0, tau / 50.0)
+            fine = np.arange(coarse - 1.5 * g - tau, coarse + 1.5 * g + step / 2, step)
+            corr = correlations(tau, list(fine))
             if corr is None:
                 continue
             k = int(np.argmax(corr))
             if corr[k] > best[0] + 1e-9:
                 best = (float(corr[k]), float(fine[k]), tau)
-        corr_best, offset_s, tau = best
+        _, offset_s, tau = best
+        lo_o, hi_o = offset_s - g, offset_s + g
     else:
-        best = (-2.0, taus[0])
-        for tau in taus:
-            corr = readings_at(tau, [offset_s])
-            if corr is not None and corr[0] > best[0]:
-                best = (float(corr[0]), tau)
-        corr_best, tau = best
+        corr = [correlations(tau, [offset_s]) for tau in taus]
+        k = int(np.argmax([-2.0 if c is None else c[0] for c in corr]))
+        tau = taus[k]
+        lo_o = hi_o = offset_s
+    fitted_tau = tau
+    if meter_tau_s is None or lo_o < hi_o:
+        # continuous refinement of (offset, lag)
+        tau_free = meter_tau_s is None
+
+        def objective(x):
+            o = min(max(x[0], lo_o), hi_o)
+            t = min(max(x[1], 0.0), ALIGN_TAUS_S[-1]) if tau_free else tau
+            c = correlations(t, [o])
+            return 2.0 if c is None else -float(c[0])
+
+        x0 = [offset_s, tau]
+        simplex = [x0, [offset_s + max(rm.dt_s, g / 10.0), tau],
+                   [offset_s, tau + max(0.02, 0.1 * tau)]]
+        res = minimize(objective, x0, method="Nelder-Mead",
+                       options={"initial_simplex": simplex, "xatol": rm.dt_s / 4,
+                                "fatol": 1e-7, "maxfev": 120})
+        if res.fun <= objective(x0):
+            offset_s = min(max(float(res.x[0]), lo_o), hi_o)
+            if tau_free:
+                fitted_tau = min(max(float(res.x[1]), 0.0), ALIGN_TAUS_S[-1])
+    tau = fitted_tau if meter_tau_s is not None else min(fitted_tau, NUISANCE_METER_TAU_S)
+    p = params.copy()
+    p.meter_tau_s = tau
     idx, start, end = _intervals(run, offset_s, rm.horizon_s)
     if len(idx) < 5:
         raise DiagnosisError(
             f"{run.name}: only {len(idx)} samples overlap the prediction at the clock "
             f"offset {offset_s:g} s; give the right one with --offset (the logger's time "
             "at the machine's start)")
-    return RunData(run, rm, float(offset_s), float(tau), float(corr_best), idx, start, end,
-                   run.flow_l_min[idx])
+    corr_best = _pearson(rm.readings(p, start, end, cells), run.flow_l_min[idx])
+    rd = RunData(run, rm, float(offset_s), float(tau), float(corr_best), idx, start, end,
+                 run.flow_l_min[idx])
+    rd.fitted_tau_s = float(fitted_tau)
+    return rd
 
 
 def _coarse_offset(run: MeasuredRun, rm: RunModel, cells: np.ndarray,
