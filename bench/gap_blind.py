@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 import plcpred
-from plcpred.diagnose import MeasuredRun, diagnose
+from plcpred.diagnose import DiagnosisError, MeasuredRun, diagnose
 
 ROOT = Path(__file__).resolve().parent.parent
 MACHINES = ["samples/prototype_rig/rig.toml", "samples/prototype_rig/rig_seq2.toml",
@@ -268,11 +268,20 @@ def main(argv=None) -> int:
     confusion = defaultdict(Counter)
     strong_hits = strong_n = none_hits = none_n = 0
     shrinks, volume_shrinks = [], []
+    errors = []
     t0 = time.perf_counter()
     for i in range(args.cases):
         case = make_case(i, rng, effects)
-        d = diagnose(plcpred.load_machine(ROOT / MACHINES[i % len(MACHINES)]), case["runs"])
         truth = case["effect"]
+        try:
+            d = diagnose(plcpred.load_machine(ROOT / MACHINES[i % len(MACHINES)]),
+                         case["runs"])
+        except DiagnosisError as e:     # counted as a miss, named in the output
+            confusion[truth]["error"] += 1
+            errors.append(f"case {i} ({case['machine']}, {truth}): {e}")
+            strong_n += truth != "none" and case["size"] > 3 * case["noise"]
+            none_n += truth == "none"
+            continue
         confusion[truth][d.verdict] += 1
         strong = case["size"] > 3 * case["noise"]
         if truth == "none":
@@ -294,7 +303,8 @@ def main(argv=None) -> int:
             print(f"{i:4d} {case['machine']:<20} {truth:<19} -> {d.verdict:<19} size/noise "
                   f"{case['size'] / case['noise']:5.1f} {case['desc']}", flush=True)
     wall = time.perf_counter() - t0
-    names = [e for e in EFFECTS if e in confusion or any(e in c for c in confusion.values())]
+    names = [e for e in EFFECTS + ["error"]
+             if e in confusion or any(e in c for c in confusion.values())]
     print(f"\nconfusion matrix ({args.cases} cases, rows: withheld effect, columns: verdict)")
     short = {e: e[:6] for e in names}
     print(f"{'':<19}" + "".join(f"{short[e]:>7}" for e in names))
@@ -313,6 +323,8 @@ def main(argv=None) -> int:
     if volume_shrinks:
         print(f"median held-out shrink of the NL gap (gaps > 2 %): "
               f"{100 * statistics.median(volume_shrinks):.0f} %")
+    for e in errors:
+        print(f"error: {e}")
     print(f"{args.cases} cases in {wall:.0f} s ({wall / max(args.cases, 1):.1f} s per case)")
     return 0
 

@@ -263,7 +263,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                  else "alternate blocks of the run (fit on one half, scored on the other)")
     ctx = {"mean_l_min": max(base_score.measured_nl, 1e-9) * 60.0 / max(
         sum(float(rd.weight_s.sum()) for rd in rds), 1e-9),
-        "meter_tau_s": meter_tau or 0.0,
+        "meter_tau_s": meter_tau,
         "fitted_tau_s": max(rd.fitted_tau_s for rd in rds)}
     base_heldout = heldout([], mm, rds, bases, ctx, fold_masks)
     names = effects or list(EFFECTS)

@@ -37,6 +37,14 @@ class Param:
     lower: float
     upper: float
     init: float
+    # values tried one parameter at a time before the least-squares fit, for parameters
+    # whose fit is not convex (a shift or a time constant can lock onto the wrong edge)
+    grid: tuple = ()
+
+
+DELAY_GRID_S = tuple(np.round(np.arange(0.0, 0.51, 0.05), 3))
+FACTOR_GRID = (0.25, 0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 2.8, 4.0)
+TAU_GRID_S = (0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0)
 
 
 class Effect:
@@ -285,7 +293,7 @@ class IncompleteExhaust(Effect):
 
     def params(self, mm, ctx):
         return [Param(f"{mm.models[mm.drives[k]].name}.exhaust_tau_s", "s", 0.002, 5.0,
-                      0.3) for k in self._drives(mm)]
+                      0.3, TAU_GRID_S) for k in self._drives(mm)]
 
     def apply(self, mm, p, theta):
         q = p.copy()
@@ -318,8 +326,8 @@ class SharedSupply(Effect):
         return len(mm.drives) >= 2
 
     def params(self, mm, ctx):
-        return [Param("refill_fraction", "", 0.0, 0.6, 0.1),
-                Param("refill_tau_s", "s", 0.02, 3.0, 0.3)]
+        return [Param("refill_fraction", "", 0.0, 0.6, 0.1, (0.05, 0.15, 0.3, 0.45)),
+                Param("refill_tau_s", "s", 0.02, 3.0, 0.3, (0.05, 0.1, 0.2, 0.4, 0.8, 1.5))]
 
     def apply(self, mm, p, theta):
         q = p.copy()
@@ -340,7 +348,7 @@ class ValveDelay(Effect):
 
     def params(self, mm, ctx):
         return [Param(f"{mm.models[r].name}.extra_delay_s", "s", -mm.models[r].delay_s, 0.5,
-                      0.0) for r in mm.drives]
+                      0.0, DELAY_GRID_S) for r in mm.drives]
 
     def apply(self, mm, p, theta):
         q = p.copy()
@@ -381,7 +389,8 @@ class StrokeTime(Effect):
         return (t, t)
 
     def params(self, mm, ctx):
-        return [Param(f"{mm.models[r].name}.factor", "", 0.2, 5.0, 1.0) for r in mm.drives]
+        return [Param(f"{mm.models[r].name}.factor", "", 0.2, 5.0, 1.0, FACTOR_GRID)
+                for r in mm.drives]
 
     def apply(self, mm, p, theta):
         q = p.copy()
@@ -421,7 +430,8 @@ class SensorLag(Effect):
 
     def params(self, mm, ctx):
         return [Param("tau_s", "s", 0.0, MAX_METER_TAU_S,
-                      max(ctx["fitted_tau_s"], ctx["meter_tau_s"]))]
+                      max(ctx["fitted_tau_s"], ctx["meter_tau_s"] or 0.0),
+                      (0.3, 0.6, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0))]
 
     def apply(self, mm, p, theta):
         q = p.copy()

@@ -19,8 +19,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import PlcpredError
-from .effects import NUISANCE_METER_TAU_S, Effect
+from .effects import NUISANCE_METER_TAU_S, Effect, Param
 from .io import MeasuredRun
+from .meter import first_order_lag
 from .model import MachineModel, ModelParams, RunModel
 
 
@@ -96,23 +97,31 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
         starts = run.interval_starts_s()[idx]
         ends = run.time_s[idx]
         meas = run.flow_l_min[idx]
-        return np.array([_pearson(rm.readings(p, starts - o, ends - o, cells), meas)
+        cum = lagged.get(tau)
+        if cum is None:
+            cum = lagged[tau] = rm.metered_cumulative_nl(p, cells)
+        return np.array([_pearson(rm.readings(p, starts - o, ends - o, cum_nl=cum), meas)
                          for o in offsets])
+
+    lagged: dict[float, np.ndarray] = {}
 
     g = max(run.interval_s, rm.dt_s)
     if offset_s is None:
-        coarse = _coarse_offset(run, rm, cells, window_s)
-        best = (-2.0, coarse, taus[0])
-        for tau in taus:
-            # the lag-free coarse offset is late by about the lag
-            step = max(rm.dt_s, g / 25.0, tau / 50.0)
-            fine = np.arange(coarse - 1.5 * g - tau, coarse + 1.5 * g + step / 2, step)
-            corr = correlations(tau, list(fine))
-            if corr is None:
-                continue
-            k = int(np.argmax(corr))
-            if corr[k] > best[0] + 1e-9:
-                best = (float(corr[k]), float(fine[k]), tau)
+        candidates = _coarse_offsets(run, rm, cells, window_s)
+        best = (-2.0, candidates[0], taus[0])
+        for coarse in candidates:
+            for tau in taus:
+                # a coarse offset may be late by up to the lag
+                step = max(rm.dt_s, g / 25.0, tau / 50.0)
+                fine = np.arange(coarse - 1.5 * g - tau, coarse + 1.5 * g + step / 2,
+                                 step)
+                corr = correlations(tau, list(fine))
+                if corr is None:
+                    continue
+                k = int(np.argmax(corr))
+                # the first candidate (the smallest shift) wins near-ties
+                if corr[k] > best[0] + 2e-3:
+                    best = (float(corr[k]), float(fine[k]), tau)
         _, offset_s, tau = best
         lo_o, hi_o = offset_s - g, offset_s + g
     else:
@@ -157,43 +166,73 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
     return rd
 
 
-def _coarse_offset(run: MeasuredRun, rm: RunModel, cells: np.ndarray,
-                   window_s: float) -> float:
-    """The offset (within ``window_s`` of the first sample) at which the changes of the
-    log and of the prediction, both on a grid of the log's sampling interval, correlate
-    best (Pearson over the overlap, at least half of the log)."""
+COARSE_TAUS_S = (0.0, 1.0, 3.0)    # lags the coarse search tries on the prediction
+COARSE_CANDIDATES = 4
+
+
+def _coarse_offsets(run: MeasuredRun, rm: RunModel, cells: np.ndarray,
+                    window_s: float) -> list[float]:
+    """Candidate offsets (within ``window_s`` of the first sample): where the changes of
+    the log and of the prediction (lagged by each of COARSE_TAUS_S), both on a grid of the
+    log's sampling interval, correlate best (Pearson over the overlap, at least half of
+    the log). The best peaks, the smallest shift among near-equal ones first (a cycling
+    machine correlates equally well a whole cycle later)."""
+    from scipy.signal import correlate
+
+    from .meter import cumulative_nl
+
     g = max(run.interval_s, rm.dt_s)
     t_first = float(run.time_s[0])
     n_meas = int(run.span_s / g) + 1
     grid = t_first + np.arange(n_meas) * g
-    meas = np.interp(grid, run.time_s, run.flow_l_min)
+    dm = np.diff(np.interp(grid, run.time_s, run.flow_l_min))
     n_pred = int(rm.horizon_s / g)
-    from .meter import cumulative_nl
-
-    cum = cumulative_nl(cells)
     pe = np.arange(n_pred + 1) * g
-    pred = np.diff(np.interp(pe, rm.edges_s, cum)) / g
-    dm = np.diff(meas)
-    dp = np.diff(pred)
     k_max = int(window_s / g)
-    shifts, corrs = [], []
-    for s in range(-k_max, k_max + 1):
-        # the log's sample i (at t_first + i g) averages the prediction's bin
-        # [(i + s - 1) g, (i + s) g] when offset = t_first - s g; in differences, step i
-        # of the log pairs with step i + s - 1 of the prediction
-        i0 = max(0, 1 - s)
-        i1 = min(len(dm), len(dp) - s + 1)
-        if i1 - i0 < max(5, len(dm) // 2):
+    scores: dict[int, float] = {}
+    flow = cells / rm.dt_s * 60.0
+    n = len(dm)
+    cx = np.concatenate([[0.0], np.cumsum(dm)])
+    cxx = np.concatenate([[0.0], np.cumsum(dm * dm)])
+    s_all = np.arange(-k_max, k_max + 1)
+    # the log's sample i (at t_first + i g) averages the prediction's bin
+    # [(i + s - 1) g, (i + s) g] when offset = t_first - s g; in differences, step i of
+    # the log pairs with step i + s - 1 of the prediction
+    i0 = np.maximum(0, 1 - s_all)
+    for tau in COARSE_TAUS_S:
+        lagged = first_order_lag(flow, rm.dt_s, tau) * rm.dt_s / 60.0
+        cum = cumulative_nl(lagged)
+        dp = np.diff(np.diff(np.interp(pe, rm.edges_s, cum)) / g)
+        i1 = np.minimum(n, len(dp) - s_all + 1)
+        ok = (i1 - i0) >= max(5, n // 2)
+        if not ok.any():
             continue
-        shifts.append(s)
-        corrs.append(_pearson(dm[i0:i1], dp[i0 + s - 1:i1 + s - 1]))
-    if not shifts:
-        return t_first
-    corrs = np.array(corrs)
-    # a cycling machine correlates equally well a whole cycle later: among the peaks
-    # within 0.02 of the best, the smallest shift (the log starting with the machine)
-    near = [s for s, c in zip(shifts, corrs) if c >= corrs.max() - 0.02]
-    return t_first - min(near, key=abs) * g
+        cy = np.concatenate([[0.0], np.cumsum(dp)])
+        cyy = np.concatenate([[0.0], np.cumsum(dp * dp)])
+        full = correlate(dp, dm, mode="full", method="fft")   # [k] = sum y[i+k-(n-1)] x[i]
+        s_ok, a, b = s_all[ok], i0[ok], i1[ok]
+        cross = full[s_ok - 1 + n - 1]
+        cnt = (b - a).astype(float)
+        sx, sxx = cx[b] - cx[a], cxx[b] - cxx[a]
+        sy = cy[b + s_ok - 1] - cy[a + s_ok - 1]
+        syy = cyy[b + s_ok - 1] - cyy[a + s_ok - 1]
+        den = np.sqrt(np.clip((sxx - sx * sx / cnt) * (syy - sy * sy / cnt), 0.0, None))
+        r = np.where(den > 0, (cross - sx * sy / cnt) / np.where(den > 0, den, 1.0), 0.0)
+        for s, c in zip(s_ok.tolist(), r.tolist()):
+            scores[s] = max(scores.get(s, -2.0), c)
+    if not scores:
+        return [t_first]
+    shifts = np.array(sorted(scores))
+    corrs = np.array([scores[s] for s in shifts])
+    best = corrs.max()
+    near = [int(s) for s, c in zip(shifts, corrs) if c >= best - 0.02]
+    picks = [min(near, key=abs)]
+    for k in np.argsort(-corrs):
+        if len(picks) >= COARSE_CANDIDATES:
+            break
+        if all(abs(int(shifts[k]) - p) * g > 2.0 * g + 1.0 for p in picks):
+            picks.append(int(shifts[k]))
+    return [t_first - p * g for p in picks]
 
 
 # ---------------------------------------------------------------------- fitting
@@ -228,37 +267,84 @@ def _apply(effects, mm, base: ModelParams, theta, sizes):
     return p
 
 
+CLOCK_REACH_S = 0.3                     # the clock nuisance every fit may move
+CLOCK_GRID_S = tuple(np.round(np.arange(-0.3, 0.301, 0.05), 3))
+
+
+def _clock(p: ModelParams, adjust_s: float) -> ModelParams:
+    q = p.copy()
+    q.clock_adjust_s = p.clock_adjust_s + adjust_s
+    return q
+
+
 def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
                 masks: list[np.ndarray], bases: list[ModelParams], ctx: dict) -> FitResult:
     """Fit ``effects`` jointly to the samples ``masks[r]`` of each run (bounded least
-    squares on the meter readings; each run keeps its own aligned base parameters)."""
+    squares on the meter readings; each run keeps its own aligned base parameters).
+
+    Every fit, the baseline's too (no effects), also refits a clock adjustment within
+    CLOCK_REACH_S: the alignment found the offset with the nominal model, and an effect
+    that moves air in time (a late valve on the largest drive) pulls it. Parameters with
+    a grid are first swept one at a time, each value with every clock adjustment of
+    CLOCK_GRID_S, so that a shift cannot lock onto the wrong edge."""
     from scipy.optimize import least_squares
 
     specs = [e.params(mm, ctx) for e in effects]
     sizes = [len(s) for s in specs]
     flat = [p for s in specs for p in s]
+    flat.append(Param("clock_adjust_s", "s", -CLOCK_REACH_S, CLOCK_REACH_S, 0.0))
+    # the meter's lag, when the machine file does not give it, is a nuisance within a
+    # thermal meter's range too (the alignment's estimate is pulled by the effect)
+    lag_free = ctx.get("meter_tau_s") is None and not any(
+        e.name == "sensor_lag" for e in effects)
+    if lag_free:
+        flat.append(Param("meter_tau_s", "s", 0.0, NUISANCE_METER_TAU_S,
+                          float(np.mean([b.meter_tau_s for b in bases]))))
     lo = np.array([p.lower for p in flat], dtype=float)
     hi = np.array([p.upper for p in flat], dtype=float)
     hi = np.where(hi > lo, hi, lo + 1e-9)
     x0 = np.clip(np.array([p.init for p in flat], dtype=float), lo, hi)
     span = hi - lo
     n = int(sum(int(m.sum()) for m in masks))
+    clock = sum(sizes)
+
+    def model_params(theta):
+        out = []
+        for base in bases:
+            p = _clock(_apply(effects, mm, base, theta, sizes), float(theta[clock]))
+            if lag_free:
+                p.meter_tau_s = float(theta[clock + 1])
+            out.append(p)
+        return out
 
     def residuals(u):
         theta = lo + u * span
         out = []
-        for rd, m, base in zip(rds, masks, bases):
-            if not m.any():
-                continue
-            p = _apply(effects, mm, base, theta, sizes)
-            out.append((rd.readings(p)[m] - rd.measured_l_min[m]) * np.sqrt(rd.weight_s[m]))
+        for rd, m, p in zip(rds, masks, model_params(theta)):
+            if m.any():
+                out.append((rd.readings(p)[m] - rd.measured_l_min[m])
+                           * np.sqrt(rd.weight_s[m]))
         return np.concatenate(out) if out else np.zeros(1)
 
-    if not flat:
-        r = residuals(np.zeros(0))
-        return FitResult(effects, np.zeros(0), np.zeros(0), [], [], bases, 0.5 * float(r @ r),
-                         n, True, "nothing to fit", sizes)
+    def cost(u) -> float:
+        r = residuals(u)
+        return float(r @ r)
+
     u0 = (x0 - lo) / span
+    if any(p.grid for p in flat):
+        best_cost, u_best = cost(u0), u0
+        for j, p in enumerate(flat):
+            for v in p.grid:
+                if not lo[j] <= v <= hi[j]:
+                    continue
+                for c in CLOCK_GRID_S:
+                    u = u0.copy()
+                    u[j] = (v - lo[j]) / span[j]
+                    u[clock] = (c - lo[clock]) / span[clock]
+                    trial = cost(u)
+                    if trial < best_cost:
+                        best_cost, u_best = trial, u
+            u0 = u_best
     res = least_squares(residuals, u0, bounds=(0.0, 1.0), diff_step=1e-4, x_scale=1.0,
                         max_nfev=40 * (len(flat) + 1))
     theta = lo + res.x * span
@@ -271,9 +357,9 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
         stderr = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * span
     except (ValueError, np.linalg.LinAlgError):
         pass
-    params = [_apply(effects, mm, base, theta, sizes) for base in bases]
     return FitResult(effects, theta, stderr, [p.name for p in flat], [p.unit for p in flat],
-                     params, float(res.cost), n, bool(res.success), str(res.message), sizes)
+                     model_params(theta), float(res.cost), n, bool(res.success),
+                     str(res.message), sizes)
 
 
 def folds(rds: list[RunData], period_s: float | None = None) -> list[list[np.ndarray]]:
@@ -350,11 +436,10 @@ def score(rds: list[RunData], params_per_run: list[ModelParams],
 def heldout(effects: list[Effect], mm: MachineModel, rds: list[RunData],
             bases: list[ModelParams], ctx: dict, fold_masks) -> Score:
     """Fit on each fold's samples, score on the rest, pooled over the folds (with no
-    effects: the baseline on the same samples)."""
+    effects: the baseline, its clock refitted, on the same samples)."""
     tally = _Tally()
     for masks in fold_masks:
-        params = fit_effects(effects, mm, rds, masks, bases, ctx).params if effects \
-            else bases
+        params = fit_effects(effects, mm, rds, masks, bases, ctx).params
         for rd, m, p in zip(rds, masks, params):
             tally.add(rd, p, ~m)
     return tally.score()

@@ -9,7 +9,7 @@ any such copy into what the meter would have logged for one run.
 """
 from __future__ import annotations
 
-import copy
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -38,7 +38,13 @@ class ModelParams:
     clock_adjust_s: float = 0.0       # added to the run's aligned offset
 
     def copy(self) -> "ModelParams":
-        return copy.deepcopy(self)
+        """A copy whose arrays an effect may change (called for every evaluation of a
+        fit, so field by field rather than ``copy.deepcopy``)."""
+        return dataclasses.replace(self, **{f: getattr(self, f).copy() for f in _ARRAYS})
+
+
+_ARRAYS = ("extend_nl", "retract_nl", "delay_s", "stroke_ext_s", "stroke_ret_s",
+           "exhaust_tau_s", "passive_l_min")
 
 
 @dataclass
@@ -166,14 +172,20 @@ class RunModel:
         return total
 
     # ------------------------------------------------------------------ readings
+    def metered_cumulative_nl(self, params: ModelParams,
+                              total_cells: np.ndarray | None = None) -> np.ndarray:
+        """Normal litres through the meter (its lag applied) by each grid edge."""
+        cells = self.total_cells(params) if total_cells is None else total_cells
+        if params.meter_tau_s > 0:
+            cells = first_order_lag(cells, self.dt_s, params.meter_tau_s)
+        return cumulative_nl(cells)
+
     def readings(self, params: ModelParams, start_s: np.ndarray, end_s: np.ndarray,
-                 total_cells: np.ndarray | None = None) -> np.ndarray:
+                 total_cells: np.ndarray | None = None,
+                 cum_nl: np.ndarray | None = None) -> np.ndarray:
         """What the meter logs (NL/min) over each ``[start, end]`` of the run's prediction
         time: the total flow through the meter's lag, averaged over the interval."""
-        cells = self.total_cells(params) if total_cells is None else total_cells
-        flow = cells / self.dt_s * 60.0
-        if params.meter_tau_s > 0:
-            flow = first_order_lag(flow, self.dt_s, params.meter_tau_s)
-        cum = cumulative_nl(flow * self.dt_s / 60.0)
+        if cum_nl is None:
+            cum_nl = self.metered_cumulative_nl(params, total_cells)
         shift = params.clock_adjust_s
-        return interval_means_l_min(cum, self.edges_s, start_s - shift, end_s - shift)
+        return interval_means_l_min(cum_nl, self.edges_s, start_s - shift, end_s - shift)
