@@ -244,19 +244,6 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     residuals = [rd.measured_l_min - rd.readings(p) for rd, p in zip(rds, bases)]
     noise = float(np.median([noise_level_l_min(r) for r in residuals]))
 
-    # where
-    labels = [sample_contexts(rd, p) for rd, p in zip(rds, bases)]
-    weights = [rd.weight_s for rd in rds]
-    ctx_list = contexts(labels, residuals, weights, noise)
-    named = {c.context for c in ctx_list if c.stands_out}
-    locations = []
-    for rd, lab, r in zip(rds, labels, residuals):
-        locations += windows(rd, lab, r, noise, named)
-    locations.sort(key=lambda x: -abs(x["residual_nl"]))
-    steps = [step_contexts(rd) for rd in rds]
-    step_list = contexts(steps, residuals, weights, noise) if all(
-        s is not None for s in steps) else []
-
     # which effect
     fold_masks = folds(rds, period_s)
     fold_kind = ("leave one run out" if len(rds) >= 2
@@ -277,7 +264,26 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
             continue
         results.append(_evaluate([effect], mm, rds, bases, ctx, fold_masks))
     results.sort(key=lambda e: e.heldout_score.rmse_l_min)
+    # differences of the residual overstate the noise when the log is too coarse for
+    # the strokes (1 Hz against 0.2 s strokes); no noise can exceed what the best fit
+    # leaves
+    if results:
+        noise = min(noise, min(e.fit_score.rmse_l_min for e in results))
     results = _tie_break(results, noise)
+
+    # where
+    labels = [sample_contexts(rd, p) for rd, p in zip(rds, bases)]
+    weights = [rd.weight_s for rd in rds]
+    ctx_list = contexts(labels, residuals, weights, noise)
+    named = {c.context for c in ctx_list if c.stands_out}
+    locations = []
+    for rd, lab, r in zip(rds, labels, residuals):
+        locations += windows(rd, lab, r, noise, named)
+    locations.sort(key=lambda x: -abs(x["residual_nl"]))
+    steps = [step_contexts(rd) for rd in rds]
+    step_list = contexts(steps, residuals, weights, noise) if all(
+        s is not None for s in steps) else []
+
     verdict = "none"
     combination = None
     if results and significant(base_heldout, results[0].heldout_score, noise):
@@ -307,7 +313,9 @@ def _evaluate(effects: list[Effect], mm, rds, bases, ctx, fold_masks) -> EffectR
     all_masks = [np.ones(len(rd.end_s), bool) for rd in rds]
     fit = fit_effects(effects, mm, rds, all_masks, bases, ctx)
     fit_score = score(rds, fit.params)
-    held = heldout(effects, mm, rds, bases, ctx, fold_masks)
+    # the folds start from the fit on all samples (their sweep would find the same
+    # basin; the held-out samples still never shape the fold's own fit)
+    held = heldout(effects, mm, rds, bases, ctx, fold_masks, start=fit.theta)
     physical = {}
     k = 0
     for e, n in zip(effects, fit.counts):

@@ -278,7 +278,8 @@ def _clock(p: ModelParams, adjust_s: float) -> ModelParams:
 
 
 def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
-                masks: list[np.ndarray], bases: list[ModelParams], ctx: dict) -> FitResult:
+                masks: list[np.ndarray], bases: list[ModelParams], ctx: dict,
+                start: np.ndarray | None = None) -> FitResult:
     """Fit ``effects`` jointly to the samples ``masks[r]`` of each run (bounded least
     squares on the meter readings; each run keeps its own aligned base parameters).
 
@@ -286,7 +287,9 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
     CLOCK_REACH_S: the alignment found the offset with the nominal model, and an effect
     that moves air in time (a late valve on the largest drive) pulls it. Parameters with
     a grid are first swept one at a time, each value with every clock adjustment of
-    CLOCK_GRID_S, so that a shift cannot lock onto the wrong edge."""
+    CLOCK_GRID_S, so that a shift cannot lock onto the wrong edge. ``start`` (the values
+    of an earlier fit of the same effects, such as the fit on all samples before the
+    folds') replaces the initial values and the sweep."""
     from scipy.optimize import least_squares
 
     specs = [e.params(mm, ctx) for e in effects]
@@ -330,8 +333,11 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
         r = residuals(u)
         return float(r @ r)
 
+    u_init = (x0 - lo) / span
+    if start is not None and len(start) == len(x0):
+        x0 = np.clip(np.asarray(start, dtype=float), lo, hi)
     u0 = (x0 - lo) / span
-    if any(p.grid for p in flat):
+    if start is None and any(p.grid for p in flat):
         best_cost, u_best = cost(u0), u0
         for j, p in enumerate(flat):
             for v in p.grid:
@@ -347,7 +353,14 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
             u0 = u_best
     res = least_squares(residuals, u0, bounds=(0.0, 1.0), diff_step=1e-4, x_scale=1.0,
                         max_nfev=40 * (len(flat) + 1))
-    theta = lo + res.x * span
+    u = res.x.copy()
+    if start is not None:
+        # a parameter these samples say nothing about (a nozzle never on in them) must
+        # not keep what the start learnt from other samples: back to its initial value
+        norms = np.linalg.norm(res.jac, axis=0)
+        blind = norms <= 1e-6 * max(float(norms.max()), 1e-300)
+        u[blind] = u_init[blind]
+    theta = lo + u * span
     stderr = np.full(len(theta), math.nan)
     try:
         J = res.jac
@@ -434,12 +447,13 @@ def score(rds: list[RunData], params_per_run: list[ModelParams],
 
 
 def heldout(effects: list[Effect], mm: MachineModel, rds: list[RunData],
-            bases: list[ModelParams], ctx: dict, fold_masks) -> Score:
+            bases: list[ModelParams], ctx: dict, fold_masks,
+            start: np.ndarray | None = None) -> Score:
     """Fit on each fold's samples, score on the rest, pooled over the folds (with no
     effects: the baseline, its clock refitted, on the same samples)."""
     tally = _Tally()
     for masks in fold_masks:
-        params = fit_effects(effects, mm, rds, masks, bases, ctx).params
+        params = fit_effects(effects, mm, rds, masks, bases, ctx, start).params
         for rd, m, p in zip(rds, masks, params):
             tally.add(rd, p, ~m)
     return tally.score()
