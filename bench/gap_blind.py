@@ -269,6 +269,7 @@ def main(argv=None) -> int:
     strong_hits = strong_n = none_hits = none_n = 0
     shrinks, volume_shrinks = [], []
     errors = []
+    per_effect = defaultdict(lambda: [0, 0])     # effect > 3x noise: [hits, cases]
     t0 = time.perf_counter()
     for i in range(args.cases):
         case = make_case(i, rng, effects)
@@ -279,7 +280,9 @@ def main(argv=None) -> int:
         except DiagnosisError as e:     # counted as a miss, named in the output
             confusion[truth]["error"] += 1
             errors.append(f"case {i} ({case['machine']}, {truth}): {e}")
-            strong_n += truth != "none" and case["size"] > 3 * case["noise"]
+            if truth != "none" and case["size"] > 3 * case["noise"]:
+                strong_n += 1
+                per_effect[truth][1] += 1
             none_n += truth == "none"
             continue
         confusion[truth][d.verdict] += 1
@@ -290,6 +293,8 @@ def main(argv=None) -> int:
         elif strong:
             strong_n += 1
             strong_hits += d.verdict == truth
+            per_effect[truth][0] += d.verdict == truth
+            per_effect[truth][1] += 1
         if truth != "none" and strong and d.effects:
             best = d.effects[0]
             base = d.baseline_heldout
@@ -314,6 +319,9 @@ def main(argv=None) -> int:
     if strong_n:
         print(f"top-1 accuracy, effect > 3x noise: {strong_hits}/{strong_n} = "
               f"{100 * strong_hits / strong_n:.1f} % (target >= 95 %)")
+    if strong_n:
+        print("  by effect: " + ", ".join(f"{e} {h}/{n}" for e, (h, n) in
+                                          sorted(per_effect.items())))
     if none_n:
         print(f"verdict none without an effect:    {none_hits}/{none_n} = "
               f"{100 * none_hits / none_n:.1f} % (target >= 90 %)")

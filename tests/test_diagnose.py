@@ -370,3 +370,52 @@ def test_cli_diagnose_bad_unit_exit_2(tmp_path, capsys):
         f"{t:.3f},{q:.4f}\n" for t, q in zip(run.time_s, run.flow_l_min)))
     assert main(["diagnose", str(RIG), "--measured", str(log), "--flow-unit", "l/s"]) == 2
     assert "check --flow-unit" in capsys.readouterr().err
+
+
+def test_recorded_io_replaces_the_sequencer(tmp_path):
+    # the real machine started its sequence 1.5 s later than the program model says (a
+    # slow operator): the log follows the trace, not the sequencer
+    pred = plcpred.predict(RIG, 25, dt=0.01)
+    rows = ["time_s,signal,value"]
+    df = pred.timeline.df
+    for t, sig, v in zip(df.time_s, df.signal, df.value):
+        rows.append(f"{t + 1.5 if t > 0 else 0},{sig},{int(v)}")
+    trace = tmp_path / "run.timeline.csv"
+    trace.write_text("\n".join(rows) + "\n")
+    tl = read_io_timeline(trace, horizon_s=25)
+    mm = MachineModel.of(plcpred.load_machine(RIG))
+    flow = RunModel(mm, tl, 0.01).total_cells(mm.nominal()) / 0.01 * 60
+    t, q = meter_log(flow, 0.01, 2.0, 0.3, 0.5, offset_s=0.0, seed=4, t_end=24)
+    run = MeasuredRun("late.csv", t, q)
+    with_io = diagnose(RIG, [run], io=[tl], offsets=[0.0], effects=["leak"])
+    without = diagnose(RIG, [run], offsets=[0.0], effects=["leak"])
+    assert with_io.summary()["runs"][0]["source"] == "recorded I/O"
+    assert with_io.baseline.rmse_l_min < 1.0 < without.baseline.rmse_l_min
+    assert with_io.verdict == "none"
+
+
+def test_cli_io_offset_and_json_to_stdout(tmp_path, capsys):
+    pred = plcpred.predict(RIG, 22, dt=0.01)
+    trace = tmp_path / "run.timeline.csv"
+    pred.timeline.to_csv(trace)
+    t, q = meter_log(pred.profile.total_flow_l_min, 0.01, 2.0, 0.3, 0.5, offset_s=100.0,
+                     seed=2, t_end=21)
+    log = tmp_path / "log.csv"
+    # another logger's file: its own column names, m3/h at DIN 1343
+    k = 60.0 / 1000.0 / (1.01325 * 293.15 / 273.15)
+    log.write_text("Zeit;Durchfluss [m3/h]\n" + "".join(
+        f"{a:.2f};{str(round(b * k, 5)).replace('.', ',')}\n" for a, b in zip(t, q)))
+    code = main(["diagnose", str(RIG), "--measured", str(log), "--io", str(trace),
+                 "--offset", "100", "--time-col", "Zeit", "--flow-col", "2",
+                 "--flow-unit", "m3/h", "--reference", "din1343", "--effects",
+                 "leak,passive_flow", "--json", "-"])
+    out = capsys.readouterr()
+    assert code == 0
+    data = json.loads(out.out)
+    assert data["runs"][0]["offset_s"] == 100.0
+    assert data["runs"][0]["source"] == "recorded I/O"
+    assert abs(data["baseline"]["error_pct"]) < 1.0
+    assert data["verdict"] == "none"
+    assert "verdict: none" in out.err
+    assert main(["diagnose", str(RIG), "--measured", str(log), "--io", str(trace),
+                 "--io", str(trace)]) == 2

@@ -134,7 +134,7 @@ class Diagnosis:
         for c in self.contexts[:8]:
             mark = "  <- stands out" if c.stands_out else ""
             lines.append(f"  {c.context:<28} {c.residual_nl:+9.3f} NL  "
-                         f"({100 * c.share:5.1f} % of the gap, +/- {c.uncertainty_nl:.3f})"
+                         f"({100 * c.share:+6.1f} % of the gap, +/- {c.uncertainty_nl:.3f})"
                          f"{mark}")
         lines += ["", f"which effect (held-out: {self.fold_kind}):",
                   f"  {'effect':<20} {'error after':>11} {'held-out':>9} {'RMSE held-out':>14}"

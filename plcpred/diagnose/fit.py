@@ -85,13 +85,14 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
     taus = [meter_tau_s] if meter_tau_s is not None else list(ALIGN_TAUS_S)
     cells = rm.total_cells(params)
 
-    def correlations(tau, offsets):
+    def correlations(tau, offsets, span=None):
         """Correlation of the readings with the log for each offset (over the samples
-        valid for all of them)."""
+        valid for all offsets of ``span``, default ``offsets``: comparable values)."""
         p = params.copy()
         p.meter_tau_s = tau
-        idx = np.intersect1d(_intervals(run, max(offsets), rm.horizon_s)[0],
-                             _intervals(run, min(offsets), rm.horizon_s)[0])
+        lo_s, hi_s = span or (min(offsets), max(offsets))
+        idx = np.intersect1d(_intervals(run, hi_s, rm.horizon_s)[0],
+                             _intervals(run, lo_s, rm.horizon_s)[0])
         if len(idx) < 5:
             return None
         starts = run.interval_starts_s()[idx]
@@ -109,13 +110,18 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
     if offset_s is None:
         candidates = _coarse_offsets(run, rm, cells, window_s)
         best = (-2.0, candidates[0], taus[0])
+        # every candidate is scored on the same samples, when enough of them are common
+        common = (min(candidates) - 1.5 * g - max(taus), max(candidates) + 1.5 * g)
+        n_common = len(np.intersect1d(_intervals(run, common[0], rm.horizon_s)[0],
+                                      _intervals(run, common[1], rm.horizon_s)[0]))
+        shared = common if n_common >= 0.75 * len(run.time_s) else None
         for coarse in candidates:
             for tau in taus:
                 # a coarse offset may be late by up to the lag
                 step = max(rm.dt_s, g / 25.0, tau / 50.0)
                 fine = np.arange(coarse - 1.5 * g - tau, coarse + 1.5 * g + step / 2,
                                  step)
-                corr = correlations(tau, list(fine))
+                corr = correlations(tau, list(fine), shared)
                 if corr is None:
                     continue
                 k = int(np.argmax(corr))
@@ -159,7 +165,10 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
             f"{run.name}: only {len(idx)} samples overlap the prediction at the clock "
             f"offset {offset_s:g} s; give the right one with --offset (the logger's time "
             "at the machine's start)")
-    corr_best = _pearson(rm.readings(p, start, end, cells), run.flow_l_min[idx])
+    p_fit = params.copy()
+    p_fit.meter_tau_s = fitted_tau
+    # how well the log matches the machine at all: with the lag the search found
+    corr_best = _pearson(rm.readings(p_fit, start, end, cells), run.flow_l_min[idx])
     rd = RunData(run, rm, float(offset_s), float(tau), float(corr_best), idx, start, end,
                  run.flow_l_min[idx])
     rd.fitted_tau_s = float(fitted_tau)
@@ -168,6 +177,7 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
 
 COARSE_TAUS_S = (0.0, 1.0, 3.0)    # lags the coarse search tries on the prediction
 COARSE_CANDIDATES = 4
+COARSE_MARGIN = 0.1                # other peaks are candidates if this close to the best
 
 
 def _coarse_offsets(run: MeasuredRun, rm: RunModel, cells: np.ndarray,
@@ -228,7 +238,7 @@ def _coarse_offsets(run: MeasuredRun, rm: RunModel, cells: np.ndarray,
     near = [int(s) for s, c in zip(shifts, corrs) if c >= best - 0.02]
     picks = [min(near, key=abs)]
     for k in np.argsort(-corrs):
-        if len(picks) >= COARSE_CANDIDATES:
+        if len(picks) >= COARSE_CANDIDATES or corrs[k] < best - COARSE_MARGIN:
             break
         if all(abs(int(shifts[k]) - p) * g > 2.0 * g + 1.0 for p in picks):
             picks.append(int(shifts[k]))

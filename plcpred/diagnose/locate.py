@@ -25,7 +25,7 @@ STANDS_OUT_SIGMA = 3.0
 class Context:
     context: str
     residual_nl: float
-    share: float            # of the run's whole residual
+    share: float            # of the gross gap (sum of |residual| over contexts), signed
     samples: int
     duration_s: float
     uncertainty_nl: float   # one standard deviation of the residual from noise alone
@@ -78,18 +78,22 @@ def step_contexts(rd) -> np.ndarray | None:
 
 def contexts(labels_per_run, residual_per_run, weight_per_run, noise_l_min: float
              ) -> list[Context]:
-    """Residual NL (measured - predicted) per context over all runs, with its noise
-    uncertainty ``sigma * sqrt(sum w^2) / 60``; sorted by the size of the residual."""
+    """Residual NL (measured - predicted) per context over all runs, its signed share of
+    the gross gap, and its noise uncertainty ``sigma * sqrt(sum w^2) / 60``; sorted by
+    the size of the residual."""
     labels = np.concatenate(labels_per_run)
     r = np.concatenate(residual_per_run)
     w = np.concatenate(weight_per_run)
-    total = float(r @ w) / 60.0
     out = []
+    per = {}
     for c in sorted(set(labels.tolist())):
         m = labels == c
-        res = float(r[m] @ w[m]) / 60.0
+        per[c] = (m, float(r[m] @ w[m]) / 60.0)
+    # shares of the gross gap: contexts of opposite sign do not cancel into a tiny total
+    gross = sum(abs(res) for _, res in per.values())
+    for c, (m, res) in per.items():
         unc = noise_l_min * math.sqrt(float(w[m] @ w[m])) / 60.0
-        out.append(Context(c, res, res / total if total else 0.0, int(m.sum()),
+        out.append(Context(c, res, res / gross if gross else 0.0, int(m.sum()),
                            float(w[m].sum()), unc,
                            abs(res) > STANDS_OUT_SIGMA * max(unc, 1e-12)))
     out.sort(key=lambda c: -abs(c.residual_nl))
