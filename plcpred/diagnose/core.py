@@ -210,6 +210,10 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     offsets = list(offsets or [None] * len(runs))
     if len(io) != len(runs) or len(offsets) != len(runs):
         raise DiagnosisError("give one --io (and one --offset) per measured run, or none")
+    names = effects or list(EFFECTS)
+    unknown = [n for n in names if n not in EFFECTS]
+    if unknown:
+        raise DiagnosisError(f"unknown effect {unknown[0]!r} (known: {', '.join(EFFECTS)})")
     mm = MachineModel.of(machine)
     meter_tau = machine.meter.tau_s if machine.meter and machine.meter.tau_s is not None \
         else None
@@ -253,10 +257,6 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
         "meter_tau_s": meter_tau,
         "fitted_tau_s": max(rd.fitted_tau_s for rd in rds)}
     base_heldout = heldout([], mm, rds, bases, ctx, fold_masks)
-    names = effects or list(EFFECTS)
-    unknown = [n for n in names if n not in EFFECTS]
-    if unknown:
-        raise DiagnosisError(f"unknown effect {unknown[0]!r} (known: {', '.join(EFFECTS)})")
     results = []
     for name in names:
         effect = EFFECTS[name]
@@ -292,7 +292,9 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
         best = results[0]
         candidates = [e for e in results[1:] if significant(base_heldout, e.heldout_score,
                                                              noise)]
-        while len(chosen) < max_combination and candidates:
+        # nothing is left to explain once the held-out error is down to the noise
+        while (len(chosen) < max_combination and candidates
+               and best.heldout_score.rmse_l_min > 1.1 * noise):
             trials = [_evaluate(chosen + [EFFECTS[c.name]], mm, rds, bases, ctx, fold_masks)
                       for c in candidates]
             trial = min(trials, key=lambda e: e.heldout_score.rmse_l_min)
