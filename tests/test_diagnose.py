@@ -419,3 +419,20 @@ def test_cli_io_offset_and_json_to_stdout(tmp_path, capsys):
     assert "verdict: none" in out.err
     assert main(["diagnose", str(RIG), "--measured", str(log), "--io", str(trace),
                  "--io", str(trace)]) == 2
+
+
+def test_indistinguishable_effects_are_named():
+    # the sorter's only drive takes 25 % more air on every stroke; its blow-off has its
+    # own 4 bar regulator. A higher supply and a larger dead volume both explain that:
+    # the diagnosis must say it cannot tell them apart
+    sorter = ROOT / "samples" / "sorter.toml"
+
+    def more_air(pred, flow):
+        k = pred.profile.names.index("pusher")
+        return flow.sum(axis=0) + 0.25 * flow[k]
+    runs = [run_of(sorter, 30, noise=0.5, offset_s=1.0 + s, seed=s, transform=more_air,
+                   name=f"r{s}.csv") for s in range(2)]
+    d = diagnose(sorter, runs, effects=["dead_volume", "supply_pressure", "leak"])
+    assert {d.verdict, *d.alternatives} >= {"dead_volume", "supply_pressure"}, d.report()
+    assert "leak" not in d.alternatives
+    assert "cannot tell them apart" in d.report()

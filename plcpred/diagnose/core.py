@@ -76,6 +76,7 @@ class Diagnosis:
     warnings: list[str] = field(default_factory=list)
     fixed_machine: str | None = None
     bases: list = field(default_factory=list)       # per run: the aligned nominal model
+    alternatives: list[str] = field(default_factory=list)   # as good as the verdict
     machine_model: MachineModel | None = None
 
     def best_params(self):
@@ -103,6 +104,7 @@ class Diagnosis:
             "locations": self.locations,
             "effects": [e.summary() for e in self.effects],
             "verdict": self.verdict,
+            "alternatives": self.alternatives,
             "combination": None if not self.combination else {
                 "effects": self.combination["effects"],
                 "heldout_error_pct_after": _num(self.combination["heldout"].error_pct),
@@ -147,6 +149,9 @@ class Diagnosis:
                          f"{e.heldout_score.error_pct:>+8.1f}% "
                          f"{e.heldout_score.rmse_l_min:>14.2f}  {_short(e.physical)}")
         lines += ["", f"verdict: {self.verdict}"]
+        if self.alternatives:
+            lines.append(f"  as good on held-out samples (the data cannot tell them apart): "
+                         f"{', '.join(self.alternatives)}")
         if self.combination and len(self.combination["effects"]) > 1:
             c = self.combination
             lines.append(f"combination: {' + '.join(c['effects'])}: held-out error "
@@ -286,8 +291,15 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
 
     verdict = "none"
     combination = None
+    alternatives = []
     if results and significant(base_heldout, results[0].heldout_score, noise):
         verdict = results[0].name
+        # effects the held-out samples cannot tell from the verdict (a dead volume and an
+        # incomplete exhaust when every dwell is the same)
+        alternatives = [e.name for e in results[1:]
+                        if significant(base_heldout, e.heldout_score, noise)
+                        and not significant(e.heldout_score, results[0].heldout_score,
+                                            noise)]
         chosen = [EFFECTS[verdict]]
         best = results[0]
         candidates = [e for e in results[1:] if significant(base_heldout, e.heldout_score,
@@ -308,7 +320,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                        "physical": best.physical}
     return Diagnosis(machine, rds, base_score, base_heldout, noise, ctx_list, step_list,
                      locations, results, verdict, combination, fold_kind, warnings,
-                     bases=bases, machine_model=mm)
+                     bases=bases, machine_model=mm, alternatives=alternatives)
 
 
 def _evaluate(effects: list[Effect], mm, rds, bases, ctx, fold_masks) -> EffectResult:
