@@ -293,3 +293,21 @@ def test_every_sample_predicts_hand_totals_from_its_strokes_and_on_times(path):
             tail += float((vol[late] * np.clip((start[late] + dur[late] - 120) / dur[late], 0, 1)).sum())
     assert prof.total_nl == pytest.approx(expected - tail, rel=1e-9)
     assert prof.total_nl > 0
+
+
+def test_cell_volumes_equal_the_differences_of_the_exact_cumulative():
+    # the linear-time placement onto the grid against the exact cumulative volume, for
+    # rectangles and steps anywhere: inside cells, on edges, past the horizon
+    from plcpred.air.demand import _cell_volumes, _cumulative, grid_edges_s
+
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        horizon = rng.uniform(1, 100)
+        edges = grid_edges_s(horizon, rng.choice([0.001, 0.01, 0.37, 1.0, 7.0]))
+        n = int(rng.integers(0, 60))
+        start = rng.uniform(0, horizon * 1.1, n)
+        start[: n // 3] = edges[rng.integers(0, len(edges), n // 3)]
+        dur = np.where(rng.random(n) < 0.3, 0.0, rng.uniform(0, 5, n))
+        amount = rng.uniform(0, 3, n)
+        assert _cell_volumes(edges, start, dur, amount) == pytest.approx(
+            np.diff(_cumulative(edges, start, dur, amount)), rel=1e-9, abs=1e-9)

@@ -212,7 +212,7 @@ def stroke_cells(edges_s, t_s, extend, extend_nl: float, retract_nl: float,
     else:
         start = t_s
         dur = np.full(len(t_s), float(delay_s))
-    return np.diff(_cumulative(edges_s, start, dur, vol))
+    return _cell_volumes(edges_s, start, dur, vol)
 
 
 def interval_cells(edges_s, starts_s, ends_s, flow_l_min: float) -> np.ndarray:
@@ -220,7 +220,41 @@ def interval_cells(edges_s, starts_s, ends_s, flow_l_min: float) -> np.ndarray:
     over the given periods."""
     starts_s = np.asarray(starts_s, dtype=float)
     dur = np.asarray(ends_s, dtype=float) - starts_s
-    return np.diff(_cumulative(edges_s, starts_s, dur, flow_l_min / 60.0 * dur))
+    return _cell_volumes(edges_s, starts_s, dur, flow_l_min / 60.0 * dur)
+
+
+def _cell_volumes(edges_s, start_s, duration_s, amount) -> np.ndarray:
+    """The volume of each grid cell under the same rectangles (and steps) as
+    :func:`_cumulative`, i.e. ``np.diff(_cumulative(edges_s, ...))``, in time linear in
+    cells plus items: each rectangle's rate is switched on and off at its two
+    breakpoints, a cell takes the rate in force over its whole width plus the part of
+    each breakpoint inside it."""
+    edges_s = np.asarray(edges_s, dtype=float)
+    start_s = np.asarray(start_s, dtype=float)
+    duration_s = np.asarray(duration_s, dtype=float)
+    amount = np.asarray(amount, dtype=float)
+    n = len(edges_s) - 1
+    out = np.zeros(n)
+    step = duration_s <= 0
+    if step.any():
+        k = np.searchsorted(edges_s, start_s[step], side="right") - 1
+        ok = (k >= 0) & (k < n)
+        out += np.bincount(k[ok], weights=amount[step][ok], minlength=n)
+    ramp = ~step
+    if ramp.any():
+        rate = amount[ramp] / duration_s[ramp]
+        bp = np.concatenate([start_s[ramp], start_s[ramp] + duration_s[ramp]])
+        change = np.concatenate([rate, -rate])
+        k = np.searchsorted(edges_s, bp, side="right") - 1
+        inside = (k >= 0) & (k < n)
+        before = k < 0                      # in force from the first cell on
+        full = np.bincount(k[inside] + 1, weights=change[inside], minlength=n + 1)
+        full[0] += change[before].sum()
+        rate_full = np.cumsum(full)[:n]
+        part = np.bincount(k[inside], weights=change[inside] * (
+            edges_s[k[inside] + 1] - bp[inside]), minlength=n)
+        out += rate_full * np.diff(edges_s) + part
+    return out
 
 
 def grid_edges_s(horizon_s: float, dt_s: float) -> np.ndarray:

@@ -278,7 +278,7 @@ def _apply(effects, mm, base: ModelParams, theta, sizes):
 
 
 CLOCK_REACH_S = 0.3                     # the clock nuisance every fit may move
-CLOCK_GRID_S = tuple(np.round(np.arange(-0.3, 0.301, 0.05), 3))
+CLOCK_GRID_S = tuple(np.round(np.arange(-0.3, 0.301, 0.1), 3))
 
 
 def _clock(p: ModelParams, adjust_s: float) -> ModelParams:
