@@ -436,3 +436,37 @@ def test_indistinguishable_effects_are_named():
     assert {d.verdict, *d.alternatives} >= {"dead_volume", "supply_pressure"}, d.report()
     assert "leak" not in d.alternatives
     assert "cannot tell them apart" in d.report()
+
+
+@pytest.mark.parametrize("machine_file", [RIG, PICK, ROOT / "samples" / "cleaning.toml",
+                                          ROOT / "samples" / "press.toml"])
+def test_every_effect_writes_a_machine_file_that_loads_and_carries_it(tmp_path, machine_file):
+    from plcpred.diagnose.io import dump_machine_toml
+    from plcpred.machine import machine_from_data, read_machine_data
+
+    m = plcpred.load_machine(machine_file)
+    mm = MachineModel.of(m)
+    ctx = {"mean_l_min": 50.0, "meter_tau_s": None, "fitted_tau_s": 0.3}
+    for name, effect in EFFECTS.items():
+        if not effect.applies(mm) or not effect.expressible:
+            continue
+        params = effect.params(mm, ctx)
+        # a value away from neutral, inside the bounds
+        theta = np.array([p.lower + 0.37 * (p.upper - p.lower) for p in params])
+        data = read_machine_data(machine_file)
+        data["machine"]["program"] = str(m.program_path)
+        changes = effect.to_machine(mm, data, theta)
+        assert changes, name
+        path = tmp_path / f"{name}.toml"
+        path.write_text(dump_machine_toml(data, f"{name}\nsecond line"))
+        fixed = machine_from_data(read_machine_data(path), path)
+        if name == "sensor_lag":                    # the meter, not the air
+            assert fixed.meter.tau_s == pytest.approx(theta[0], abs=1e-4)
+            continue
+        # the fixed file's own prediction is the effect's (to the rounding of the file)
+        tl = plcpred.unfold(m, 12)
+        expected = RunModel(mm, tl, 0.01).total_cells(
+            effect.apply(mm, mm.nominal(), theta))
+        mm_fixed = MachineModel.of(fixed)
+        got = RunModel(mm_fixed, tl, 0.01).total_cells(mm_fixed.nominal())
+        assert got == pytest.approx(expected, rel=2e-3, abs=1e-9), name

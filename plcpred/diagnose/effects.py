@@ -117,7 +117,7 @@ class Leak(Effect):
             name, k = f"diagnosed leak {k}", k + 1
         C = self.conductance(mm, theta[0])
         data.setdefault("consumer", []).append(
-            {"name": name, "kind": "leak", "C": float(f"{C:.4g}"), "b": LEAK_B, "m": LEAK_M})
+            {"name": name, "kind": "leak", "C": float(f"{C:.6g}"), "b": LEAK_B, "m": LEAK_M})
         return [f'added consumer "{name}" (leak, C = {C:.3g} m^3/(s Pa), '
                 f'{theta[0]:.3g} NL/min)']
 
@@ -168,7 +168,7 @@ class PassiveFlow(Effect):
             C = self._C(mm, k) * float(f)
             for key in ("orifice_mm", "Cd"):
                 t.pop(key, None)
-            t["C"] = float(f"{C:.4g}")
+            t["C"] = float(f"{C:.6g}")
             t.setdefault("b", mm.machine.consumers[mm.passives[k]].b)
             changes.append(f'consumer "{m.name}": C = {C:.3g} m^3/(s Pa) (x{f:.3g})')
         return changes
@@ -211,7 +211,7 @@ class SupplyPressure(Effect):
         return {"supply_bar_g": float(theta[0])}
 
     def to_machine(self, mm, data, theta):
-        data["machine"]["supply_bar_g"] = round(float(theta[0]), 4)
+        data["machine"]["supply_bar_g"] = round(float(theta[0]), 6)
         return [f"[machine] supply_bar_g = {theta[0]:.4g} (was "
                 f"{mm.machine.supply_bar_g:g})"]
 
@@ -272,7 +272,7 @@ class DeadVolume(Effect):
             t = _consumer_table(data, c.name)
             if not c.tube_id_mm:
                 t["tube_id_mm"] = DEFAULT_TUBE_ID_MM
-            lengths = [max(0.0, round(x + dl, 4)) for x in c.tube_length_m]
+            lengths = [max(0.0, round(x + dl, 6)) for x in c.tube_length_m]
             t["tube_length_m"] = lengths
             changes.append(f'consumer "{c.name}": tube_length_m = {lengths} '
                            f"({v:+.3g} cm^3 per chamber)")
@@ -309,7 +309,7 @@ class IncompleteExhaust(Effect):
         changes = []
         for k, tau in zip(self._drives(mm), theta):
             name = mm.models[mm.drives[k]].name
-            _consumer_table(data, name)["exhaust_tau_s"] = float(f"{tau:.4g}")
+            _consumer_table(data, name)["exhaust_tau_s"] = float(f"{tau:.6g}")
             changes.append(f'consumer "{name}": exhaust_tau_s = {tau:.3g}')
         return changes
 
@@ -365,7 +365,7 @@ class ValveDelay(Effect):
             if abs(d) < 1e-4:
                 continue
             m = mm.models[r]
-            new = round(max(0.0, m.delay_s + float(d)), 4)
+            new = round(max(0.0, m.delay_s + float(d)), 6)
             _consumer_table(data, m.name)["switch_delay_s"] = new
             changes.append(f'consumer "{m.name}": switch_delay_s = {new:g}')
         return changes
@@ -414,7 +414,7 @@ class StrokeTime(Effect):
             if abs(f - 1.0) < 1e-3:
                 continue
             ext, ret = self._reference(mm, k)
-            new = [round(max(1e-4, ext * float(f)), 4), round(max(1e-4, ret * float(f)), 4)]
+            new = [round(max(1e-4, ext * float(f)), 6), round(max(1e-4, ret * float(f)), 6)]
             name = mm.models[mm.drives[k]].name
             _consumer_table(data, name)["stroke_time_s"] = new
             changes.append(f'consumer "{name}": stroke_time_s = {new}')
@@ -442,7 +442,7 @@ class SensorLag(Effect):
         return {"tau_s": float(theta[0])}
 
     def to_machine(self, mm, data, theta):
-        data.setdefault("meter", {})["tau_s"] = round(float(theta[0]), 4)
+        data.setdefault("meter", {})["tau_s"] = round(float(theta[0]), 6)
         return [f"[meter] tau_s = {theta[0]:.3g}"]
 
 
