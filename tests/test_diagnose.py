@@ -470,3 +470,32 @@ def test_every_effect_writes_a_machine_file_that_loads_and_carries_it(tmp_path, 
         mm_fixed = MachineModel.of(fixed)
         got = RunModel(mm_fixed, tl, 0.01).total_cells(mm_fixed.nominal())
         assert got == pytest.approx(expected, rel=2e-3, abs=1e-9), name
+
+
+def test_a_gap_in_the_log_is_not_averaged_over():
+    run = run_of(RIG, 40, rate_hz=2.0, noise=0.5, offset_s=3.0, seed=8,
+                 transform=lambda pred, flow: flow.sum(axis=0) + 6.0)
+    keep = (run.time_s < 15) | (run.time_s > 30)        # the logger lost 15 s
+    gappy = MeasuredRun("gap.csv", run.time_s[keep], run.flow_l_min[keep])
+    starts = gappy.interval_starts_s()
+    assert np.max(gappy.time_s - starts) == pytest.approx(0.5)
+    d = diagnose(RIG, [gappy], effects=["leak", "passive_flow"])
+    assert d.verdict == "leak"
+    assert d.effects[0].physical["flow_l_min"] == pytest.approx(6.0, rel=0.05)
+
+
+def test_meter_table_offset_and_full_scale(tmp_path):
+    run = run_of(RIG, 20, rate_hz=5.0, noise=0.3, offset_s=2.0, seed=3)
+    clipped = MeasuredRun("clipped.csv", run.time_s,
+                          np.minimum(run.flow_l_min, 150.0) + 4.0)     # zero offset 4
+    text = RIG.read_text().replace('program = "rig.st"', f'program = "{RIG.parent / "rig.st"}"')
+    plain = tmp_path / "plain.toml"
+    plain.write_text(text)
+    metered = tmp_path / "metered.toml"
+    metered.write_text(text + "\n[meter]\noffset_l_min = 4.0\nfull_scale_l_min = 150.0\n")
+    without = diagnose(plain, [clipped], effects=["leak"])
+    with_meter = diagnose(metered, [clipped], effects=["leak"])
+    assert abs(without.baseline.error_pct) > 5
+    assert abs(with_meter.baseline.error_pct) < 1.5
+    assert with_meter.verdict == "none"
+    assert any("full scale" in w for w in with_meter.warnings)

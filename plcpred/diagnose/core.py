@@ -209,6 +209,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
 
     if not isinstance(machine, Machine):
         machine = load_machine(machine)
+    warnings = list(machine.warnings)
     if not runs:
         raise DiagnosisError("no measured runs given")
     io = list(io or [None] * len(runs))
@@ -219,10 +220,11 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     unknown = [n for n in names if n not in EFFECTS]
     if unknown:
         raise DiagnosisError(f"unknown effect {unknown[0]!r} (known: {', '.join(EFFECTS)})")
+    runs = [_meter_corrected(run, machine.meter, warnings) for run in runs] \
+        if machine.meter else list(runs)
     mm = MachineModel.of(machine)
     meter_tau = machine.meter.tau_s if machine.meter and machine.meter.tau_s is not None \
         else None
-    warnings = list(machine.warnings)
     rds: list[RunData] = []
     period_s = None
     for run, tl, off in zip(runs, io, offsets):
@@ -351,6 +353,24 @@ def _tie_break(results: list[EffectResult], noise: float) -> list[EffectResult]:
     rest = [e for e in results if e not in near]
     near.sort(key=lambda e: e.fit.bic)
     return near + rest
+
+
+def _meter_corrected(run: MeasuredRun, meter, warnings: list[str]) -> MeasuredRun:
+    """A run as the machine file's ``[meter]`` says to read it: its zero offset taken
+    off, and readings at full scale (clipped, so they say only "at least this much")
+    left out as if the logger had missed them."""
+    flow = run.flow_l_min - (meter.offset_l_min or 0.0)
+    keep = np.ones(len(flow), bool)
+    if meter.full_scale_l_min:
+        keep = run.flow_l_min < 0.999 * meter.full_scale_l_min
+        if not keep.all():
+            warnings.append(f"{run.name}: {int((~keep).sum())} readings at the meter's full "
+                            f"scale ({meter.full_scale_l_min:g} NL/min) left out")
+    if keep.sum() < 3:
+        raise DiagnosisError(f"{run.name}: (almost) every reading is at the meter's full "
+                             "scale")
+    return MeasuredRun(run.name, run.time_s[keep], flow[keep], None if run.supply_bar_g is
+                       None else run.supply_bar_g[keep], dict(run.source))
 
 
 def _check_run(rd: RunData, machine_name: str, given_offset: bool,

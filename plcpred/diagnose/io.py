@@ -55,9 +55,14 @@ class MeasuredRun:
         return float(np.median(np.diff(self.time_s)))
 
     def interval_starts_s(self) -> np.ndarray:
-        """Start of each sample's averaging interval (the first one as long as the next)."""
+        """Start of each sample's averaging interval: the previous sample, except after a
+        gap in the log (longer than 1.5 sampling intervals), where a reading still
+        averages only one sampling interval (the first one as long as the median)."""
         t = self.time_s
-        return np.concatenate([[t[0] - (t[1] - t[0])], t[:-1]])
+        start = np.concatenate([[t[0] - self.interval_s], t[:-1]])
+        gap = (t - start) > 1.5 * self.interval_s
+        start[gap] = t[gap] - self.interval_s
+        return start
 
 
 def reference_factor(reference: str) -> float:
