@@ -521,17 +521,17 @@ def cmd_diagnose(args) -> int:
     for w in d.warnings:
         print(f"warning: {w}", file=sys.stderr)
     print(d.report(), file=sys.stderr if args.json == "-" else sys.stdout)
-    if args.json:
-        if args.json == "-":
-            import json
-            print(json.dumps(d.summary(), indent=2, allow_nan=False))
-        else:
-            write_json(args.json, d.summary())
+    summary = d.summary()
+    if args.json == "-":
+        import json
+        print(json.dumps(summary, indent=2, allow_nan=False))
+    elif args.json:
+        write_json(args.json, summary)
     if out is not None:
         from .report import diagnosis_html, plot_diagnosis
 
         with output_dir(out, _command_line(args)) as staging:
-            write_json(staging / "diagnose.json", d.summary())
+            write_json(staging / "diagnose.json", summary)
             plot_diagnosis(d, staging / "diagnose.png")
             atomic_write_text(staging / "diagnose.html",
                               diagnosis_html(d, (staging / "diagnose.png").read_bytes()))

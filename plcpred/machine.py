@@ -80,9 +80,14 @@ class Consumer:
         AUTO_SPEED_MM_S (a mid-range piston speed between metered-out and free-running
         cylinders), and the machine warns about it."""
         if self.stroke_time_s == "auto":
-            t = (self.stroke_mm or 0.0) / AUTO_SPEED_MM_S
-            return (t, t) if t > 0 else None
+            t = self.auto_stroke_times()
+            return t if t[0] > 0 else None
         return self.stroke_time_s
+
+    def auto_stroke_times(self) -> tuple[float, float]:
+        """(extend, retract) of ``stroke_mm`` at AUTO_SPEED_MM_S."""
+        t = (self.stroke_mm or 0.0) / AUTO_SPEED_MM_S
+        return (t, t)
 
     @property
     def bistable(self) -> bool:

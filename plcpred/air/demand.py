@@ -78,13 +78,19 @@ def consumer_models(machine) -> list[ConsumerModel]:
                                          c, p_pa, p_atm_pa, t_supply_k)))
         else:
             p_bar_g = c.pressure_bar_g if c.pressure_bar_g is not None else machine.supply_bar_g
-            C = c.C if c.C is not None else orifice_conductance(c.orifice_mm, c.Cd)
-            q = float(flow_nl_min(C, c.b, c.m, c.a, bar_g_to_pa(p_bar_g, machine.atmosphere_kpa),
+            q = float(flow_nl_min(sonic_conductance(c), c.b, c.m, c.a, bar_g_to_pa(p_bar_g, machine.atmosphere_kpa),
                                   p_atm_pa, t_supply_k, c.flow_model))
             out.append(ConsumerModel(c.name, c.kind, list(c.valve),
                                      "leak" if c.kind == "leak" else "passive",
                                      flow_l_min=q, pressure_bar_g=p_bar_g))
     return out
+
+
+def sonic_conductance(consumer) -> float:
+    """A nozzle's or leak's C (m^3/(s Pa)): given, or from its orifice and Cd."""
+    if consumer.C is not None:
+        return consumer.C
+    return orifice_conductance(consumer.orifice_mm, consumer.Cd)
 
 
 # ---------------------------------------------------------------------- edges

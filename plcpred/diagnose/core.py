@@ -175,13 +175,13 @@ def _short(physical: dict, depth: int = 0) -> str:
     return text if depth or len(text) <= 90 else text[:87] + "..."
 
 
-def _grid_dt(span_s: float, interval_s: float) -> float:
-    """A grid fine enough for the meter's intervals and lag, at most MAX_CELLS_PER_RUN."""
+def _grid_dt(span_s: float) -> float:
+    """10 ms (fine for any meter's intervals and lag), doubled until the run has at most
+    MAX_CELLS_PER_RUN cells."""
     dt = 0.01
     while span_s / dt > MAX_CELLS_PER_RUN:
         dt *= 2.0
-    return min(dt, max(0.01, interval_s / 10.0)) if span_s / 0.01 <= MAX_CELLS_PER_RUN \
-        else dt
+    return dt
 
 
 def significant(base: Score, new: Score, noise_l_min: float) -> bool:
@@ -226,12 +226,15 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     meter_tau = machine.meter.tau_s if machine.meter and machine.meter.tau_s is not None \
         else None
     rds: list[RunData] = []
+    bases: list = []            # per run: the nominal model with the run's meter lag
+    residuals: list = []        # per run: measured - predicted readings
     period_s = None
     for run, tl, off in zip(runs, io, offsets):
         window = max_offset_s if max_offset_s is not None else min(
             120.0, max(2.0, 0.5 * run.span_s))
-        horizon = run.span_s + (window if off is None else 0.0) + 3.0
-        if off is not None:
+        if off is None:
+            horizon = run.span_s + window + 3.0
+        else:
             horizon = max(1.0, float(run.time_s[-1]) - off + 1.0)
         if tl is None:
             tl = unfold(machine, horizon, program=program)
@@ -241,18 +244,15 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                     raise DiagnosisError(
                         f"{run.name}: the log covers {run.span_s:g} s, less than one cycle "
                         f"of {machine.name} ({period_s:g} s)")
-        dt = _grid_dt(tl.horizon_ns / 1e9, run.interval_s)
-        rm = RunModel(mm, tl, dt)
-        nominal = mm.nominal(meter_tau or 0.0)
-        rd = align(run, rm, nominal, window, meter_tau, off)
-        _check_run(rd, machine.name, off is not None, warnings)
+        rm = RunModel(mm, tl, _grid_dt(tl.horizon_ns / 1e9))
+        rd = align(run, rm, mm.nominal(meter_tau or 0.0), window, meter_tau, off)
+        base = mm.nominal(rd.meter_tau_s)
+        predicted = rd.readings(base)
+        _check_run(rd, predicted, machine.name, off is not None, warnings)
         rds.append(rd)
-    bases = []
-    for rd in rds:
-        p = mm.nominal(rd.meter_tau_s)
-        bases.append(p)
+        bases.append(base)
+        residuals.append(rd.measured_l_min - predicted)
     base_score = score(rds, bases)
-    residuals = [rd.measured_l_min - rd.readings(p) for rd, p in zip(rds, bases)]
     noise = float(np.median([noise_level_l_min(r) for r in residuals]))
 
     # which effect
@@ -333,11 +333,9 @@ def _evaluate(effects: list[Effect], mm, rds, bases, ctx, fold_masks) -> EffectR
     # basin; the held-out samples still never shape the fold's own fit)
     held = heldout(effects, mm, rds, bases, ctx, fold_masks, start=fit.theta)
     physical = {}
-    k = 0
-    for e, n in zip(effects, fit.counts):
-        ph = e.physical(mm, fit.theta[k:k + n])
+    for e, theta in fit.by_effect():
+        ph = e.physical(mm, theta)
         physical.update(ph if len(effects) == 1 else {e.name: ph})
-        k += n
     name = "+".join(e.name for e in effects)
     return EffectResult(name, " + ".join(e.title for e in effects), fit, fit_score, held,
                         dict(zip(fit.names, map(float, fit.theta))), physical)
@@ -373,10 +371,10 @@ def _meter_corrected(run: MeasuredRun, meter, warnings: list[str]) -> MeasuredRu
                        None else run.supply_bar_g[keep], dict(run.source))
 
 
-def _check_run(rd: RunData, machine_name: str, given_offset: bool,
+def _check_run(rd: RunData, pred: np.ndarray, machine_name: str, given_offset: bool,
                warnings: list[str]) -> None:
+    """Units, flow and likeness of a run against its nominal readings ``pred``."""
     run = rd.run
-    pred = rd.readings(rd.model.mm.nominal(rd.meter_tau_s))
     meas_mean = float(rd.measured_l_min @ rd.weight_s) / float(rd.weight_s.sum())
     pred_mean = float(pred @ rd.weight_s) / float(rd.weight_s.sum())
     if pred_mean > 0 and meas_mean > 0:
@@ -416,17 +414,11 @@ def write_fixed_machine(d: Diagnosis, path) -> list[str]:
     changes: list[str] = []
     skipped: list[str] = []
     if d.combination:
-        fit = d.combination["fit"]
-        mm = d.machine_model
-        ctx_sizes = [len(n) for n in _param_groups(fit)]
-        k = 0
-        for e, n in zip(fit.effects, ctx_sizes):
-            theta = fit.theta[k:k + n]
-            k += n
+        for e, theta in d.combination["fit"].by_effect():
             if not e.expressible:
                 skipped.append(e.name)
                 continue
-            changes += e.to_machine(mm, data, theta)
+            changes += e.to_machine(d.machine_model, data, theta)
     rel = Path(os.path.relpath(machine.program_path, path.resolve().parent)).as_posix()
     # beside or near the original: relative, so the pair can move together; else absolute
     data["machine"]["program"] = rel if rel.count("../") <= 2 else \
@@ -440,12 +432,3 @@ def write_fixed_machine(d: Diagnosis, path) -> list[str]:
     atomic_write_text(path, text)
     d.fixed_machine = str(path)
     return changes
-
-
-def _param_groups(fit: FitResult) -> list[list[str]]:
-    """The fitted parameter names per effect (contiguous slices of ``fit.names``)."""
-    groups, k = [], 0
-    for n in fit.counts:
-        groups.append(fit.names[k:k + n])
-        k += n
-    return groups

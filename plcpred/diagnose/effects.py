@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..air.demand import sonic_conductance
 from ..air.flow import P0_PA, T0_K, bar_g_to_pa, celsius_to_k, flow_nl_min
-from ..machine import AUTO_SPEED_MM_S
 from .model import MachineModel, ModelParams
 
 # a diagnosed leak is written as an orifice-like restriction: ISO 6358 with b and m of a
@@ -78,10 +78,6 @@ def _consumer_table(data: dict, name: str) -> dict:
         if t.get("name") == name:
             return t
     raise KeyError(name)
-
-
-def _drive_names(mm: MachineModel) -> list[str]:
-    return [mm.models[i].name for i in mm.drives]
 
 
 class Leak(Effect):
@@ -145,10 +141,7 @@ class PassiveFlow(Effect):
         return q
 
     def _C(self, mm, k) -> float:
-        from ..air.flow import orifice_conductance
-
-        c = mm.machine.consumers[mm.passives[k]]
-        return c.C if c.C is not None else orifice_conductance(c.orifice_mm, c.Cd)
+        return sonic_conductance(mm.machine.consumers[mm.passives[k]])
 
     def physical(self, mm, theta):
         out = {}
@@ -201,7 +194,7 @@ class SupplyPressure(Effect):
             old_pa = bar_g_to_pa(model.pressure_bar_g, m.atmosphere_kpa)
             up_pa = new_pa if c.pressure_bar_g is None else min(
                 new_pa, bar_g_to_pa(c.pressure_bar_g, m.atmosphere_kpa))
-            args = (c.b if c.b is not None else 0.528, c.m or 0.5, c.a or 1.0)
+            args = (c.b, c.m, c.a)         # the loader fills in their defaults
             f_new = flow_nl_min(1.0, *args, up_pa, p_atm, t_k, c.flow_model)     # D2
             f_old = flow_nl_min(1.0, *args, old_pa, p_atm, t_k, c.flow_model)
             q.passive_l_min[k] = p.passive_l_min[k] * float(f_new) / float(f_old)
@@ -384,9 +377,7 @@ class StrokeTime(Effect):
         m = mm.models[mm.drives[k]]
         if m.stroke_time_s is not None:
             return m.stroke_time_s
-        c = mm.machine.consumers[mm.drives[k]]
-        t = (c.stroke_mm or 0.0) / AUTO_SPEED_MM_S
-        return (t, t)
+        return mm.machine.consumers[mm.drives[k]].auto_stroke_times()
 
     def params(self, mm, ctx):
         return [Param(f"{mm.models[r].name}.factor", "", 0.2, 5.0, 1.0, FACTOR_GRID)

@@ -21,7 +21,7 @@ import numpy as np
 from ..errors import PlcpredError
 from .effects import NUISANCE_METER_TAU_S, Effect, Param
 from .io import MeasuredRun
-from .meter import first_order_lag
+from .meter import cumulative_nl, first_order_lag
 from .model import MachineModel, ModelParams, RunModel
 
 
@@ -37,13 +37,12 @@ class RunData:
     model: RunModel
     offset_s: float                 # logger clock at the prediction's time 0
     meter_tau_s: float
+    fitted_tau_s: float             # the lag the alignment found (may exceed meter_tau_s)
     correlation: float
-    index: np.ndarray               # samples of ``run`` used
     start_s: np.ndarray             # prediction time
     end_s: np.ndarray
     measured_l_min: np.ndarray
     weight_s: np.ndarray = field(init=False)
-    fitted_tau_s: float = 0.0        # the lag the alignment found (may exceed meter_tau_s)
 
     def __post_init__(self):
         self.weight_s = self.end_s - self.start_s
@@ -84,6 +83,7 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
 
     taus = [meter_tau_s] if meter_tau_s is not None else list(ALIGN_TAUS_S)
     cells = rm.total_cells(params)
+    lagged: dict[float, np.ndarray] = {}       # metered cumulative NL per lag
 
     def correlations(tau, offsets, span=None):
         """Correlation of the readings with the log for each offset (over the samples
@@ -103,8 +103,6 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
             cum = lagged[tau] = rm.metered_cumulative_nl(p, cells)
         return np.array([_pearson(rm.readings(p, starts - o, ends - o, cum_nl=cum), meas)
                          for o in offsets])
-
-    lagged: dict[float, np.ndarray] = {}
 
     g = max(run.interval_s, rm.dt_s)
     if offset_s is None:
@@ -157,8 +155,6 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
             if tau_free:
                 fitted_tau = min(max(float(res.x[1]), 0.0), ALIGN_TAUS_S[-1])
     tau = fitted_tau if meter_tau_s is not None else min(fitted_tau, NUISANCE_METER_TAU_S)
-    p = params.copy()
-    p.meter_tau_s = tau
     idx, start, end = _intervals(run, offset_s, rm.horizon_s)
     if len(idx) < 5:
         raise DiagnosisError(
@@ -169,10 +165,8 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
     p_fit.meter_tau_s = fitted_tau
     # how well the log matches the machine at all: with the lag the search found
     corr_best = _pearson(rm.readings(p_fit, start, end, cells), run.flow_l_min[idx])
-    rd = RunData(run, rm, float(offset_s), float(tau), float(corr_best), idx, start, end,
-                 run.flow_l_min[idx])
-    rd.fitted_tau_s = float(fitted_tau)
-    return rd
+    return RunData(run, rm, float(offset_s), float(tau), float(fitted_tau), float(corr_best),
+                   start, end, run.flow_l_min[idx])
 
 
 COARSE_TAUS_S = (0.0, 1.0, 3.0)    # lags the coarse search tries on the prediction
@@ -188,8 +182,6 @@ def _coarse_offsets(run: MeasuredRun, rm: RunModel, cells: np.ndarray,
     the log). The best peaks, the smallest shift among near-equal ones first (a cycling
     machine correlates equally well a whole cycle later)."""
     from scipy.signal import correlate
-
-    from .meter import cumulative_nl
 
     g = max(run.interval_s, rm.dt_s)
     t_first = float(run.time_s[0])
@@ -261,6 +253,10 @@ class FitResult:
     message: str
     counts: list[int] = field(default_factory=list)   # parameters per effect
 
+    def by_effect(self):
+        """(effect, its slice of ``theta``) for each effect, in order."""
+        return _by_effect(self.effects, self.counts, self.theta)
+
     @property
     def bic(self) -> float:
         n = max(self.n_samples, 1)
@@ -268,23 +264,16 @@ class FitResult:
         return n * math.log(rss / n) + len(self.theta) * math.log(n)
 
 
-def _apply(effects, mm, base: ModelParams, theta, sizes):
-    p = base
-    k = 0
-    for e, n in zip(effects, sizes):
-        p = e.apply(mm, p, theta[k:k + n])
+def _by_effect(effects, counts, theta):
+    out, k = [], 0
+    for e, n in zip(effects, counts):
+        out.append((e, theta[k:k + n]))
         k += n
-    return p
+    return out
 
 
 CLOCK_REACH_S = 0.3                     # the clock nuisance every fit may move
 CLOCK_GRID_S = tuple(np.round(np.arange(-0.3, 0.301, 0.1), 3))
-
-
-def _clock(p: ModelParams, adjust_s: float) -> ModelParams:
-    q = p.copy()
-    q.clock_adjust_s = p.clock_adjust_s + adjust_s
-    return q
 
 
 def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
@@ -324,7 +313,12 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
     def model_params(theta):
         out = []
         for base in bases:
-            p = _clock(_apply(effects, mm, base, theta, sizes), float(theta[clock]))
+            p = base
+            for e, t in _by_effect(effects, sizes, theta):
+                p = e.apply(mm, p, t)
+            if p is base:           # effects return copies; the nuisances need one too
+                p = base.copy()
+            p.clock_adjust_s += float(theta[clock])
             if lag_free:
                 p.meter_tau_s = float(theta[clock + 1])
             out.append(p)
@@ -388,8 +382,8 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
 def folds(rds: list[RunData], period_s: float | None = None) -> list[list[np.ndarray]]:
     """Fit masks, one list (per run) per fold: leave one run out when there are several
     runs; with one run, alternate blocks (at least two cycles long when the cycle is
-    known, at least ten samples, up to twenty blocks) fitted on the even blocks and scored on the odd ones, then
-    the other way round."""
+    known, at least ten samples, up to twenty blocks) fitted on the even blocks and
+    scored on the odd ones, then the other way round."""
     if len(rds) >= 2:
         return [[np.full(len(rd.end_s), k != j) for k, rd in enumerate(rds)]
                 for j in range(len(rds))]
@@ -447,12 +441,11 @@ class _Tally:
         return Score(self.meas, self.pred, rmse, self.n)
 
 
-def score(rds: list[RunData], params_per_run: list[ModelParams],
-          masks: list[np.ndarray] | None = None) -> Score:
-    """Measured and predicted NL and the RMSE of the readings over the masked samples."""
+def score(rds: list[RunData], params_per_run: list[ModelParams]) -> Score:
+    """Measured and predicted NL and the RMSE of the readings over all samples."""
     tally = _Tally()
-    for k, (rd, p) in enumerate(zip(rds, params_per_run)):
-        tally.add(rd, p, np.ones(len(rd.end_s), bool) if masks is None else masks[k])
+    for rd, p in zip(rds, params_per_run):
+        tally.add(rd, p, np.ones(len(rd.end_s), bool))
     return tally.score()
 
 

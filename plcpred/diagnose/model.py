@@ -100,14 +100,12 @@ class RunModel:
             self.transitions.append((t_ns / NS, ext))
         # a passive consumer's cells per NL/min of flow (its cells scale with the flow)
         self.unit_cells = np.zeros((len(mm.passives), self.n_cells))
-        self.on_intervals = []
         for k, m in enumerate(mm.passive_models()):
             if m.role == "leak":
                 s, e = np.array([0.0]), np.array([self.horizon_s])
             else:
                 s_ns, e_ns = passive_intervals(timeline, m, signal_map)
                 s, e = s_ns / NS, e_ns / NS
-            self.on_intervals.append((s, e))
             self.unit_cells[k] = interval_cells(self.edges_s, s, e, 1.0)
         self.leak_unit = interval_cells(self.edges_s, [0.0], [self.horizon_s], 1.0)
         self._drive_cache: dict[tuple, np.ndarray] = {}
