@@ -487,7 +487,76 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--program", metavar="PROGRAM",
                    help="run this program instead of the one the machine file names")
     p.set_defaults(func=cmd_diagnose)
+
+    p = sub.add_parser("emulate", help="run a machine in closed loop with the physics plant "
+                                       "(a virtual flow meter log)",
+                       description="Run the machine's program against the physics plant "
+                                   "(chamber thermodynamics, ISO 6358 flows, valve delays, "
+                                   "friction and load, supply lines, the flow meter) and "
+                                   "write what a flow meter on it would log. --truth applies "
+                                   "a partial machine file of the real machine's deviations "
+                                   "(a hidden leak, a longer tube, a slow meter) that the "
+                                   "prediction does not see.")
+    _machine_args(p, "output directory (measured.csv, timeline.csv, plant.csv, "
+                     "emulate.png)", dt=False)
+    p.add_argument("--truth", metavar="T.toml",
+                   help="the real machine's deviations from MACHINE (a partial machine file)")
+    p.add_argument("--seed", type=int, metavar="N", help="seed of the meter's noise")
+    p.add_argument("--no-plot", action="store_true", help="do not draw emulate.png")
+    p.set_defaults(func=cmd_emulate)
     return ap
+
+
+def cmd_emulate(args) -> int:
+    from .air import predict
+    from .machine import load_machine
+    from .output import OutputError, check_out_dir, output_dir
+    from .plant import emulate
+
+    try:
+        horizon_s, _ = _durations(args)
+        out = check_out_dir(args.out)
+    except (ValueError, OutputError) as e:
+        return _fail(str(e))
+    try:
+        em = emulate(args.machine, horizon_s, truth=args.truth, seed=args.seed,
+                     program=args.program)
+        nominal = load_machine(args.machine)
+        predicted = predict(nominal, horizon_s, program=args.program,
+                            max_events=args.max_events).profile
+    except PlcpredError as e:
+        print(e, file=sys.stderr)
+        return 1
+    with output_dir(out, _command_line(args)) as staging:
+        written = [out / f.name for f in em.write(staging, plot=not args.no_plot)]
+    for w in em.machine.warnings:
+        print(f"warning: {w}", file=sys.stderr)
+    print(f"{em.machine.name}: emulated {horizon_s:g} s at {em.machine.supply_bar_g:g} bar(g)"
+          + (f" with the deviations of {args.truth}" if args.truth else ""))
+    print()
+    pred = dict(zip(predicted.names, (float(v) for v in predicted.consumer_nl)))
+    width = max([len("consumer")] + [len(c.name) for c in em.machine.consumers])
+    print(f"{'consumer':<{width}}  {'emulated NL':>11}  {'predicted NL':>12}  {'diff':>7}")
+    for name, nl in em.consumer_nl().items():
+        p = pred.get(name)
+        if p is None:
+            print(f"{name:<{width}}  {nl:11.3f}  {'(hidden)':>12}  {'':>7}")
+        else:
+            diff = f"{100 * (nl - p) / p:+6.1f}%" if p > 0 else ""
+            print(f"{name:<{width}}  {nl:11.3f}  {p:12.3f}  {diff:>7}")
+    total_p = float(predicted.total_nl)
+    print(f"{'total':<{width}}  {em.total_nl:11.3f}  {total_p:12.3f}  "
+          f"{100 * (em.total_nl - total_p) / total_p if total_p else 0.0:+6.1f}%")
+    print()
+    m = em.meter
+    print(f"meter: {m.reference}, tau {m.tau_s:g} s, {m.rate_hz:g} Hz: "
+          f"{len(em.measured_time_s)} readings, {em.measured_nl():.3f} NL ({m.reference})")
+    info = em.info
+    print(f"plant: {info['integrated_pieces']} pieces integrated, {info['reused_pieces']} "
+          f"reused; {info['wall_s']:.1f} s ({horizon_s / max(info['wall_s'], 1e-9):.1f}x "
+          "real time)")
+    print(f"wrote {', '.join(str(p) for p in written)}")
+    return 0
 
 
 def cmd_diagnose(args) -> int:

@@ -18,7 +18,6 @@ CYLINDER_KINDS = ("single_acting", "double_acting", "double_rod", "rodless", "se
 PASSIVE_KINDS = ("nozzle", "leak")
 KINDS = CYLINDER_KINDS + PASSIVE_KINDS
 FLOW_MODELS = ("iso6358", "choked")
-AUTO_SPEED_MM_S = 300.0  # stroke_time_s = "auto" until the plant model exists
 
 
 class MachineError(PlcpredError):
@@ -69,25 +68,28 @@ class Consumer:
     Cd: float | None = None
     flow_model: str = "iso6358"
     exhaust_tau_s: float | None = None  # air-model option: incomplete exhaust (off)
+    line: str | None = None             # the [[line]] it hangs on (plant only)
+    # (supply Pa, atmosphere Pa, ambient K, file) for stroke times from the plant
+    supply_context: tuple = (701_325.0, 101_325.0, 293.15, "")
+    plant: dict = field(default_factory=dict)  # plant-only keys (emulate), validated
 
     @property
     def is_cylinder(self) -> bool:
         return self.kind in CYLINDER_KINDS
 
     def stroke_times(self) -> tuple[float, float] | None:
-        """(extend, retract) stroke times in s. ``"auto"`` asks the plant model, which
-        does not exist yet: until it does, the stroke takes ``stroke_mm`` at
-        AUTO_SPEED_MM_S (a mid-range piston speed between metered-out and free-running
-        cylinders), and the machine warns about it."""
+        """(extend, retract) stroke times in s; ``"auto"`` asks the physics plant."""
         if self.stroke_time_s == "auto":
-            t = self.auto_stroke_times()
-            return t if t[0] > 0 else None
+            return self.auto_stroke_times()
         return self.stroke_time_s
 
     def auto_stroke_times(self) -> tuple[float, float]:
-        """(extend, retract) of ``stroke_mm`` at AUTO_SPEED_MM_S."""
-        t = (self.stroke_mm or 0.0) / AUTO_SPEED_MM_S
-        return (t, t)
+        """(extend, retract) seconds from valve switch to end of stroke, by the physics
+        plant at the machine's supply pressure with this drive's load and circuit
+        (:mod:`plcpred.plant.strokes`; cached per configuration)."""
+        from .plant.strokes import auto_stroke_times
+
+        return auto_stroke_times(self, *self.supply_context)
 
     @property
     def bistable(self) -> bool:
@@ -107,6 +109,21 @@ class Meter:
 
 
 @dataclass
+class Line:
+    """A supply line (``[[line]]``, plant only): a regulator from the network into a
+    volume that the consumers naming it draw from."""
+    name: str
+    volume_l: float = 1.0
+    pressure_bar_g: float | None = None   # regulator set point (default: the machine's)
+    network_bar_g: float | None = None    # upstream of the regulator (default set + 1 bar)
+    C: float | None = None                # regulator's sonic conductance (default: ample)
+    b: float = 0.3
+    m: float = 0.5
+    droop_bar: float = 0.3                # pressure drop from no flow to wide open
+    check_valves: bool = False            # every drive on the line has a supply check valve
+
+
+@dataclass
 class Machine:
     name: str
     path: Path
@@ -120,6 +137,7 @@ class Machine:
     consumers: list[Consumer] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     meter: Meter | None = None
+    lines: list[Line] = field(default_factory=list)
 
     def consumer(self, name: str) -> Consumer:
         for c in self.consumers:
@@ -134,7 +152,20 @@ _INPUT_KEYS = {"signal", "pulses_s", "pulse_ms", "period_s", "offset_s", "jitter
 _CONSUMER_KEYS = {"name", "kind", "valve", "bore_mm", "rod_mm", "stroke_mm", "tube_id_mm",
                   "tube_length_m", "stroke_time_s", "switch_delay_s", "switches", "initial",
                   "pressure_bar_g", "C", "b", "m", "a", "orifice_mm", "Cd", "flow_model",
-                  "exhaust_tau_s"}
+                  "exhaust_tau_s", "line"}
+# plant-only keys of a drive (emulate; the activation model ignores them): name -> kind
+PLANT_DRIVE_KEYS = {
+    "payload_kg": "number", "mount_angle_deg": "number", "moving_mass_kg": "number",
+    "supply_C": "pair", "supply_b": "pair", "supply_m": "pair",
+    "exhaust_C": "pair", "exhaust_b": "pair", "exhaust_m": "pair",
+    "check_valve": "bool", "friction_static_n": "number", "friction_coulomb_n": "number",
+    "friction_viscous_ns_m": "number", "stribeck_velocity_m_s": "number",
+    "spring_n": "pair", "switch_ramp_s": "number", "heat_transfer_w_m2k": "number",
+    "dead_volume_cm3": "pair",
+}
+_CONSUMER_KEYS |= set(PLANT_DRIVE_KEYS)
+_LINE_KEYS = {"name", "volume_l", "pressure_bar_g", "network_bar_g", "C", "b", "m",
+              "droop_bar", "check_valves"}
 _METER_KEYS = {"tau_s", "rate_hz", "reference", "noise_l_min", "offset_l_min",
                "full_scale_l_min"}
 METER_REFERENCES = ("iso8778", "din1343", "iso2533")
@@ -156,6 +187,14 @@ RANGES = {
     "jitter_s": (0.0, 1e8), "pulses_s": (0.0, 1e9), "exhaust_tau_s": (1e-4, 60.0),
     "tau_s": (0.0, 600.0), "rate_hz": (1e-4, 1e5), "noise_l_min": (0.0, 1e7),
     "offset_l_min": (-1e6, 1e6), "full_scale_l_min": (0.0, 1e8),
+    "payload_kg": (0.0, 1e5), "mount_angle_deg": (-90.0, 90.0), "moving_mass_kg": (0.0, 1e5),
+    "supply_C": (1e-15, 1e-3), "exhaust_C": (1e-15, 1e-3), "supply_b": (-1.0, 0.99),
+    "exhaust_b": (-1.0, 0.99), "supply_m": (0.05, 10.0), "exhaust_m": (0.05, 10.0),
+    "friction_static_n": (0.0, 1e6), "friction_coulomb_n": (0.0, 1e6),
+    "friction_viscous_ns_m": (0.0, 1e7), "stribeck_velocity_m_s": (1e-5, 10.0),
+    "spring_n": (0.0, 1e6), "switch_ramp_s": (0.0, 10.0), "heat_transfer_w_m2k": (0.0, 1e4),
+    "dead_volume_cm3": (0.0, 1e7), "volume_l": (1e-4, 1e6), "network_bar_g": (0.0, 100.0),
+    "droop_bar": (1e-3, 50.0),
 }
 MAX_PULSES = 1_000_000
 
@@ -272,8 +311,6 @@ def _consumer(file: str, index: int, table: dict, warnings: list) -> Consumer:
         st = table.get("stroke_time_s")
         if st == "auto":
             c.stroke_time_s = "auto"
-            warnings.append(f"{file}: {label}: stroke_time_s = \"auto\" is estimated at "
-                            f"{AUTO_SPEED_MM_S:g} mm/s until the plant model exists")
         else:
             c.stroke_time_s = r.pair("stroke_time_s", None, positive=True)
         c.switch_delay_s = r.number("switch_delay_s", 0.0, nonneg=True)
@@ -284,13 +321,14 @@ def _consumer(file: str, index: int, table: dict, warnings: list) -> Consumer:
         c.switches = {k: _signal_name(r, f"switches.{k}", v) for k, v in sw.items()}
         c.initial = r.string("initial", "retracted", choices=("retracted", "extended"))
         c.exhaust_tau_s = r.number("exhaust_tau_s", positive=True)
+        c.plant = _plant_keys(r, table, kind)
         for key in ("C", "b", "m", "a", "orifice_mm", "Cd", "pressure_bar_g", "flow_model"):
             if key in table:
                 raise r.error(f"'{key}' applies to nozzles and leaks, not to a {kind}")
     else:
         for key in ("bore_mm", "rod_mm", "stroke_mm", "stroke_time_s", "switches",
                     "tube_length_m", "tube_id_mm", "switch_delay_s", "initial",
-                    "exhaust_tau_s"):
+                    "exhaust_tau_s", *PLANT_DRIVE_KEYS):
             if key in table:
                 raise r.error(f"'{key}' applies to cylinders, not to a {kind}")
         c.C = r.number("C", positive=True)
@@ -315,7 +353,52 @@ def _consumer(file: str, index: int, table: dict, warnings: list) -> Consumer:
             raise r.error("a (cracking pressure ratio) must be > b and <= 1")
         c.pressure_bar_g = r.number("pressure_bar_g", nonneg=True)
         c.flow_model = r.string("flow_model", "iso6358", choices=FLOW_MODELS)
+    c.line = r.string("line")
     return c
+
+
+def _plant_keys(r: _Reader, table: dict, kind: str) -> dict:
+    """The plant-only keys of a drive, checked (numbers in range, pairs as [cap, rod])."""
+    out = {}
+    for key, form in PLANT_DRIVE_KEYS.items():
+        if key not in table:
+            continue
+        if form == "bool":
+            if not isinstance(table[key], bool):
+                raise r.error(f"{key} must be true or false")
+            out[key] = table[key]
+        elif form == "pair":
+            out[key] = r.pair(key, None, positive=key.endswith("_C"), nonneg=True) \
+                if not key.endswith("_b") else r.pair(key, None)
+        else:
+            out[key] = r.number(key, nonneg=True)
+    if "spring_n" in out and kind != "single_acting":
+        raise r.error("spring_n applies to single-acting cylinders")
+    if "friction_static_n" in out and "friction_coulomb_n" in out and \
+            out["friction_static_n"] < out["friction_coulomb_n"]:
+        raise r.error("friction_static_n must be >= friction_coulomb_n (breakaway is the "
+                      "larger force)")
+    return out
+
+
+def _line(file: str, index: int, table: dict) -> Line:
+    label = f'line "{table.get("name")}"' if isinstance(table, dict) and table.get(
+        "name") else f"line #{index + 1}"
+    r = _Reader(file, label, table, _LINE_KEYS)
+    line = Line(r.string("name", required=True),
+                volume_l=r.number("volume_l", 1.0, positive=True),
+                pressure_bar_g=r.number("pressure_bar_g", nonneg=True),
+                network_bar_g=r.number("network_bar_g", nonneg=True),
+                C=r.number("C", positive=True), b=r.number("b", 0.3),
+                m=r.number("m", 0.5, positive=True),
+                droop_bar=r.number("droop_bar", 0.3, positive=True))
+    if not -1.0 < line.b < 1.0:
+        raise r.error("b must lie between -1 and 1")
+    if "check_valves" in table:
+        if not isinstance(table["check_valves"], bool):
+            raise r.error("check_valves must be true or false")
+        line.check_valves = table["check_valves"]
+    return line
 
 
 def _input(file: str, index: int, table: dict) -> InputSchedule:
@@ -388,10 +471,11 @@ def machine_from_data(data: dict, path) -> Machine:
     is relative to it and errors name it."""
     path = Path(path)
     file = str(path)
-    unknown = sorted(set(data) - {"machine", "signals", "input", "consumer", "meter"})
+    unknown = sorted(set(data) - {"machine", "signals", "input", "consumer", "meter", "line"})
     if unknown:
         raise MachineError(file, "", f"unknown table [{unknown[0]}] (known: [machine], "
-                                     "[signals], [[input]], [[consumer]], [meter])")
+                                     "[signals], [[input]], [[consumer]], [[line]], "
+                                     "[meter])")
     if "machine" not in data:
         raise MachineError(file, "", "missing the [machine] table")
     r = _Reader(file, "[machine]", data["machine"], _MACHINE_KEYS)
@@ -417,7 +501,8 @@ def machine_from_data(data: dict, path) -> Machine:
         raise MachineError(file, "[signals]", 'entries must look like "%IX0.0" = "PB1"')
     machine.signals = dict(signals)
     for key, what, builder, out in (("input", "[[input]]", _input, machine.inputs),
-                                    ("consumer", "[[consumer]]", _consumer, machine.consumers)):
+                                    ("consumer", "[[consumer]]", _consumer, machine.consumers),
+                                    ("line", "[[line]]", _line, machine.lines)):
         tables = data.get(key, [])
         if not isinstance(tables, list):
             raise MachineError(file, what, f"write it as {what} (an array of tables)")
@@ -431,6 +516,19 @@ def machine_from_data(data: dict, path) -> Machine:
         if c.name in seen:
             raise MachineError(file, f'consumer "{c.name}"', "name is used twice")
         seen.add(c.name)
+    supply_context = ((machine.supply_bar_g * 1e5 + machine.atmosphere_kpa * 1e3),
+                      machine.atmosphere_kpa * 1e3, machine.ambient_c + 273.15, file)
+    for c in machine.consumers:
+        c.supply_context = supply_context
+        if c.stroke_time_s == "auto":
+            c.auto_stroke_times()   # fails here, naming the drive, if it cannot move
+    lines = {ln.name for ln in machine.lines}
+    if len(lines) != len(machine.lines):
+        raise MachineError(file, "[[line]]", "a line name is used twice")
+    for c in machine.consumers:
+        if c.line is not None and c.line not in lines:
+            raise MachineError(file, f'consumer "{c.name}"', f"line '{c.line}' is not a "
+                               f"[[line]] of the file (lines: {', '.join(sorted(lines)) or 'none'})")
     seen = set()
     for s in machine.inputs:
         if s.signal in seen:

@@ -380,3 +380,48 @@ def diagnosis_html(d, png: bytes | None) -> str:
                      f"{base64.b64encode(png).decode()}'></p>")
     parts.append("</body></html>")
     return "\n".join(parts)
+
+
+# ---------------------------------------------------------------------- emulate
+
+def plot_emulation(em, path) -> None:
+    """``emulate.png``: the meter's log against the plant's true total flow; each drive's
+    position; each drive's chamber pressures."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    header, rows = em.plant_table()
+    k = _bin_width(len(rows))
+    t = _bins(rows[:, 0], k)
+    col = {h: i for i, h in enumerate(header)}
+    drives = [c.name for c in em.machine.consumers if c.is_cylinder]
+    fig, axes = plt.subplots(3 if drives else 1, 1, figsize=(11, 8 if drives else 3.5),
+                             sharex=True, constrained_layout=True, squeeze=False)
+    axes = axes[:, 0]
+    ax = axes[0]
+    ax.plot(t, _bins(rows[:, col["total_l_min"]], k), color="tab:blue", lw=0.8,
+            label="true total (ISO 8778)")
+    ax.step(em.measured_time_s, em.measured_flow_l_min, where="pre", color="black", lw=1.0,
+            label=f"meter ({em.meter.reference}, tau {em.meter.tau_s:g} s, "
+                  f"{em.meter.rate_hz:g} Hz)")
+    ax.set_ylabel("NL/min")
+    ax.set_title(_plain(f"{em.machine.name}: emulated flow, {em.total_nl:.2f} NL true"),
+                 fontsize=10)
+    ax.legend(loc="upper right", fontsize=8)
+    if drives:
+        for name in drives:
+            ax = axes[1]
+            ax.plot(t, _bins(rows[:, col[f"{name}_position_mm"]], k), lw=0.9,
+                    label=_plain(name))
+            axes[2].plot(t, _bins(rows[:, col[f"{name}_p_cap_bar_g"]], k), lw=0.8,
+                         label=_plain(f"{name} cap"))
+            axes[2].plot(t, _bins(rows[:, col[f"{name}_p_rod_bar_g"]], k), lw=0.8, ls="--",
+                         label=_plain(f"{name} rod"))
+        axes[1].set_ylabel("position, mm")
+        axes[1].legend(loc="upper right", fontsize=8, ncol=min(6, len(drives)))
+        axes[2].set_ylabel("chamber, bar(g)")
+        axes[2].legend(loc="upper right", fontsize=7, ncol=min(6, 2 * len(drives)))
+    axes[-1].set_xlabel("time, s")
+    _save_fig(fig, path)

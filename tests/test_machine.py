@@ -131,20 +131,35 @@ def test_not_toml_is_a_clear_error(tmp_path):
         load_machine(f)
 
 
-def test_auto_stroke_time_is_estimated_with_a_warning(tmp_path):
+def test_auto_stroke_time_comes_from_the_plant(tmp_path):
     (tmp_path / "p.st").write_text("PROGRAM P VAR_OUTPUT y : BOOL; END_VAR END_PROGRAM")
-    (tmp_path / "m.toml").write_text('''[machine]
+    base = '''[machine]
 program = "p.st"
-supply_bar_g = 6
+supply_bar_g = {p}
 [[consumer]]
 name = "c"
 kind = "double_acting"
 bore_mm = 20
 rod_mm = 8
 stroke_mm = 150
+tube_id_mm = 4
+tube_length_m = 1.0
 valve = "y"
 stroke_time_s = "auto"
-''')
-    m = load_machine(tmp_path / "m.toml")
-    assert m.consumer("c").stroke_times() == (0.5, 0.5)
-    assert any("auto" in w and "300 mm/s" in w for w in m.warnings)
+{extra}
+'''
+
+    def times(p=6, extra=""):
+        (tmp_path / "m.toml").write_text(base.format(p=p, extra=extra))
+        return load_machine(tmp_path / "m.toml").consumer("c").stroke_times()
+
+    ext, ret = times()
+    assert 0.01 < ext < 1.0 and 0.01 < ret < 1.0
+    # lifting 8 kg straight up slows the extend; lowering it is quicker than lifting
+    ext_up, ret_up = times(extra="payload_kg = 8\nmount_angle_deg = 90")
+    assert ext_up > 1.2 * ext and ret_up < ext_up
+    # a lower supply pressure is slower
+    assert times(p=3)[0] > ext
+    # a load the pressure cannot lift is an error naming the drive
+    with pytest.raises(MachineError, match='consumer "c".*does not extend'):
+        times(p=1, extra="payload_kg = 50\nmount_angle_deg = 90")

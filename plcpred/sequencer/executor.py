@@ -399,12 +399,14 @@ class Schedule:
 class Cylinder:
     """A cylinder of the machine file driving its end switches."""
 
-    def __init__(self, consumer, valve_slots, switch_slots):
-        st = consumer.stroke_times()
+    def __init__(self, consumer, valve_slots, switch_slots, plant=None):
         self.name = consumer.name
-        self.plant = CylinderPlant(round(st[0] * NS), round(st[1] * NS),
-                                   round(consumer.switch_delay_s * NS),
-                                   consumer.initial == "extended")
+        if plant is None:
+            st = consumer.stroke_times()
+            plant = CylinderPlant(round(st[0] * NS), round(st[1] * NS),
+                                  round(consumer.switch_delay_s * NS),
+                                  consumer.initial == "extended")
+        self.plant = plant
         self.valves = valve_slots       # [(obj, attr)]
         self.switches = switch_slots    # {"retracted"|"extended": (obj, attr)}
         self.prev = [False] * len(valve_slots)
@@ -455,12 +457,17 @@ class Sequencer:
     """Run a program against a machine's plant I/O model.
 
     ``machine`` may be None (a bare program: inputs hold their declared initial values).
+    ``plant`` replaces the piecewise-linear cylinder model: an object whose
+    ``adapter(consumer)`` gives, for every consumer with a valve, something with
+    :class:`CylinderPlant`'s ``extend_cmd``, ``command``, ``switches``, ``next_event_ns``
+    and ``forget_before`` (the physics plant of ``plcpred.plant``). Runs with it do not tile.
     """
 
     def __init__(self, program: ir.Program, machine=None, scan_ms: float | None = None,
-                 compiled: Compiled | None = None):
+                 compiled: Compiled | None = None, plant=None):
         self.program = program
         self.machine = machine
+        self.plant_model = plant
         self.scan_ns = round((scan_ms if scan_ms is not None else
                               (machine.scan_ms if machine is not None else 10.0)) * 1e6)
         if self.scan_ns <= 0:
@@ -578,6 +585,13 @@ class Sequencer:
                 sch = Schedule(spec, horizon_ns)
                 schedules.append((sch, obj, attr))
             for cons in machine.consumers:
+                if self.plant_model is not None:
+                    if cons.valve:
+                        cylinders.append(Cylinder(
+                            cons, [self._locate(inst, v)[:2] for v in cons.valve],
+                            {role: self._locate(inst, s)[:2] for role, s in
+                             cons.switches.items()}, self.plant_model.adapter(cons)))
+                    continue
                 if not cons.is_cylinder or not cons.switches:
                     continue
                 if cons.stroke_times() is None:
@@ -643,6 +657,7 @@ class Sequencer:
         et_thresholds = self.compiled.et_thresholds or ()
         always_step = scan_stepping or self.compiled.reads_clock
         can_tile = tiling and not scan_stepping and not self.compiled.reads_clock \
+            and self.plant_model is None \
             and not any(s.random for s, _, _ in schedules)
         seen: dict = {}
         prev_snap = None

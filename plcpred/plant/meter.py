@@ -1,0 +1,62 @@
+"""What a real flow meter reports of a true flow (domain.md sections 5 and 7): its
+reference condition, first-order response, logging intervals (each reading the mean over
+its interval), noise, zero offset and full-scale clipping."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..diagnose.io import reference_factor
+from ..diagnose.meter import first_order_lag
+
+DEFAULT_TAU_S = 0.2      # a thermal-mass meter's response (0.1-0.6 s)
+DEFAULT_RATE_HZ = 10.0
+
+
+@dataclass
+class MeterSettings:
+    tau_s: float = DEFAULT_TAU_S
+    rate_hz: float = DEFAULT_RATE_HZ
+    reference: str = "iso8778"
+    noise_l_min: float = 0.0
+    offset_l_min: float = 0.0
+    full_scale_l_min: float | None = None
+
+    @classmethod
+    def from_machine(cls, meter) -> "MeterSettings":
+        """The machine file's ``[meter]`` with this module's defaults for what it leaves
+        out."""
+        if meter is None:
+            return cls()
+        return cls(tau_s=DEFAULT_TAU_S if meter.tau_s is None else meter.tau_s,
+                   rate_hz=meter.rate_hz or DEFAULT_RATE_HZ, reference=meter.reference,
+                   noise_l_min=meter.noise_l_min, offset_l_min=meter.offset_l_min,
+                   full_scale_l_min=meter.full_scale_l_min)
+
+
+def meter_readings(edges_s: np.ndarray, cum_nl: np.ndarray, settings: MeterSettings,
+                   horizon_s: float, rng: np.random.Generator | None = None):
+    """(times, readings in l/min at the meter's reference) of a true flow given as its
+    cumulative ISO 8778 normal litres at the fine grid's edges.
+
+    The flow of each fine cell (its mean) goes through the first-order response (exact
+    for piecewise-constant input), each reading is the mean of the response over its
+    logging interval ending at its time stamp, then converted to the meter's reference
+    (V_ref2 = V_ref1 (P1/P2)(T2/T1), domain.md section 1), offset, noise and clipping."""
+    dt = np.diff(edges_s)
+    cell_flow = np.diff(cum_nl) / dt * 60.0
+    lagged = first_order_lag(cell_flow, float(np.median(dt)), settings.tau_s)
+    lag_cum = np.concatenate([[0.0], np.cumsum(lagged * dt / 60.0)])
+    period = 1.0 / settings.rate_hz
+    times = np.arange(period, horizon_s + 1e-9, period)
+    c1 = np.interp(times, edges_s, lag_cum)
+    c0 = np.interp(times - period, edges_s, lag_cum)
+    flow = (c1 - c0) / period * 60.0 / reference_factor(settings.reference)
+    if settings.noise_l_min > 0:
+        rng = rng or np.random.default_rng()
+        flow = flow + rng.normal(0.0, settings.noise_l_min, len(flow))
+    flow = flow + settings.offset_l_min
+    if settings.full_scale_l_min is not None:
+        flow = np.minimum(flow, settings.full_scale_l_min)
+    return times, flow
