@@ -504,7 +504,110 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, metavar="N", help="seed of the meter's noise")
     p.add_argument("--no-plot", action="store_true", help="do not draw emulate.png")
     p.set_defaults(func=cmd_emulate)
+
+    p = sub.add_parser("identify", help="ISO 6358 C, b, m (a) of a component from test data",
+                       description="Identify the extended ISO 6358 parameters (C, b, m, a) "
+                                   "of a valve, nozzle, circuit or leak from steady-flow "
+                                   "points (p_up_bar_g, p_down_bar_g, flow_l_min) or a tank's "
+                                   "pressure curve (time_s, p_bar_g with --volume-l). Prints "
+                                   "them with 95 %% confidence intervals.")
+    p.add_argument("what", choices=("flow",), help="what to identify (flow)")
+    p.add_argument("data", metavar="DATA.csv", help="the test data (CSV)")
+    p.add_argument("--method", choices=("improved", "iso6358"), default="improved",
+                   help="steady flow: improved (C from choked points, b and m by least "
+                        "squares; default) or iso6358 (ISO 6358:1989, m = 0.5)")
+    p.add_argument("--fit-a", action="store_true",
+                   help="also fit the cracking pressure ratio a (check valves)")
+    p.add_argument("--volume-l", type=float, metavar="L",
+                   help="tank data: the tank's volume in litres")
+    p.add_argument("--mode", choices=("discharge", "charge"), default="discharge",
+                   help="tank data: emptying to atmosphere (default) or filling")
+    p.add_argument("--supply-bar-g", type=float, metavar="P",
+                   help="tank charge: the supply pressure (gauge)")
+    p.add_argument("--atmosphere-kpa", type=float, default=101.325)
+    p.add_argument("--temperature-c", type=float, default=20.0,
+                   help="air temperature when the data have no t_up_c column")
+    p.add_argument("--plot", metavar="FIT.png", help="write the fit plot")
+    p.add_argument("--json", metavar="OUT", help="write the result as JSON (- for stdout)")
+    p.add_argument("--machine", metavar="MACHINE.toml",
+                   help="with --write-machine: the machine file to put the result into")
+    p.add_argument("--consumer", metavar="NAME",
+                   help="with --write-machine: the nozzle or leak that gets C, b, m, a")
+    p.add_argument("--write-machine", metavar="OUT.toml",
+                   help="write MACHINE with the identified C, b, m, a in CONSUMER")
+    p.set_defaults(func=cmd_identify)
     return ap
+
+
+def cmd_identify(args) -> int:
+    from .identify import (FlowData, IdentifyError, identify_steady, identify_tank,
+                           plot_fit, read_flow_data)
+    from pathlib import Path
+
+    from .machine import MachineError, load_machine, read_machine_data, save_machine
+    from .output import atomic_write_text, dumps_json
+
+    if args.write_machine and not (args.machine and args.consumer):
+        return _fail("--write-machine needs --machine and --consumer")
+    if not 50.0 <= args.atmosphere_kpa <= 120.0:
+        return _fail("--atmosphere-kpa must lie between 50 and 120")
+    atm = args.atmosphere_kpa * 1e3
+    try:
+        data = read_flow_data(args.data, args.atmosphere_kpa, args.temperature_c)
+        if isinstance(data, FlowData):
+            fit = identify_steady(data, args.method, args.fit_a)
+        else:
+            if not args.volume_l or args.volume_l <= 0:
+                return _fail(f"{args.data}: tank data need --volume-l (the tank's volume)")
+            supply = args.supply_bar_g * 1e5 + atm if args.supply_bar_g is not None else None
+            fit = identify_tank(data, args.volume_l, args.mode, supply, atm,
+                                args.temperature_c + 273.15)
+        machine_text = None
+        if args.write_machine:
+            nominal = load_machine(args.machine)
+            target = next((c for c in nominal.consumers if c.name == args.consumer), None)
+            if target is None or target.is_cylinder:
+                return _fail(f"{args.machine}: no nozzle or leak named {args.consumer!r}")
+            raw = read_machine_data(args.machine)
+            for t in raw["consumer"]:
+                if t.get("name") == args.consumer:
+                    for k in ("orifice_mm", "Cd"):
+                        t.pop(k, None)
+                    t.update({"C": float(f"{fit.C:.4g}"), "b": round(fit.b, 4),
+                              "m": round(fit.m, 4), "a": round(fit.a, 4)})
+            machine_text = (raw, nominal)
+    except (IdentifyError, MachineError) as e:
+        print(e, file=sys.stderr)
+        return 2
+    print(f"{args.data}: {fit.method}, {fit.n_points} points, residual RMS "
+          f"{fit.rms:.3g} {fit.rms_unit}")
+    print()
+    print(f"{'parameter':<10} {'value':>12} {'95 % interval':>16}")
+    for name, unit in (("C", "m^3/(s Pa)"), ("b", ""), ("m", ""), ("a", "")):
+        value = getattr(fit, name)
+        half = fit.ci.get(name)
+        shown = f"{value:.4g}" if name == "C" else f"{value:.4f}"
+        ci = (f"+/- {half:.2g}" if name == "C" else f"+/- {half:.4f}") if half is not None \
+            else "(fixed)"
+        print(f"{name:<10} {shown:>12} {ci:>16}  {unit}")
+    if args.plot:
+        plot_fit(data, fit, args.plot, args.volume_l, args.mode,
+                 args.supply_bar_g * 1e5 + atm if args.supply_bar_g is not None else None,
+                 atm, args.temperature_c + 273.15)
+        print(f"wrote {args.plot}")
+    if args.json:
+        text = dumps_json(fit.as_dict())
+        if args.json == "-":
+            print(text)
+        else:
+            atomic_write_text(args.json, text + "\n")
+    if machine_text is not None:
+        raw, nominal = machine_text
+        save_machine(raw, nominal, args.write_machine,
+                     f"{nominal.name}: {args.consumer} identified by plcpred identify flow "
+                     f"from {Path(args.data).name}")
+        print(f"wrote {args.write_machine}")
+    return 0
 
 
 def cmd_emulate(args) -> int:

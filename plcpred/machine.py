@@ -620,3 +620,20 @@ def check_against_program(machine: Machine, program) -> list[str]:
         warnings.append(f"{file}: output '{out}' of {program_file} drives no consumer")
     machine.warnings.extend(warnings)
     return warnings
+
+
+def save_machine(data: dict, source: Machine, path, header: str = "") -> None:
+    """Write machine-file data derived from ``source`` to ``path``: the program path made
+    relative to the new file when it is near (else absolute), the data checked by
+    loading it first (a file that does not load is a bug), written atomically."""
+    import os
+
+    from .diagnose.io import dump_machine_toml
+    from .output import atomic_write_text
+
+    path = Path(path)
+    rel = Path(os.path.relpath(source.program_path, path.resolve().parent)).as_posix()
+    data["machine"]["program"] = rel if rel.count("../") <= 2 else \
+        source.program_path.as_posix()
+    machine_from_data(data, path)
+    atomic_write_text(path, dump_machine_toml(data, header))

@@ -401,12 +401,9 @@ def write_fixed_machine(d: Diagnosis, path) -> list[str]:
     in the machine file's own keys, so that ``plcpred predict`` on it carries them.
     Returns what was changed. The file is checked by loading it before it is renamed
     into place."""
-    import os
     from pathlib import Path
 
-    from ..machine import machine_from_data, read_machine_data
-    from ..output import atomic_write_text
-    from .io import dump_machine_toml
+    from ..machine import read_machine_data, save_machine
 
     path = Path(path)
     machine = d.machine
@@ -419,16 +416,10 @@ def write_fixed_machine(d: Diagnosis, path) -> list[str]:
                 skipped.append(e.name)
                 continue
             changes += e.to_machine(d.machine_model, data, theta)
-    rel = Path(os.path.relpath(machine.program_path, path.resolve().parent)).as_posix()
-    # beside or near the original: relative, so the pair can move together; else absolute
-    data["machine"]["program"] = rel if rel.count("../") <= 2 else \
-        machine.program_path.as_posix()
     header = [f"{machine.name}, corrected by plcpred diagnose from {machine.path.name}",
               f"verdict: {d.verdict}"]
     header += [f"changed: {c}" for c in changes] or ["changed: nothing"]
     header += [f"not written (the air model cannot express it yet): {s}" for s in skipped]
-    text = dump_machine_toml(data, "\n".join(header))
-    machine_from_data(data, path)       # a fixed file that does not load is a bug
-    atomic_write_text(path, text)
+    save_machine(data, machine, path, "\n".join(header))
     d.fixed_machine = str(path)
     return changes

@@ -1,0 +1,365 @@
+"""``plcpred identify flow``: the ISO 6358 parameters (C, b, m, a of D2) of a component
+from test data.
+
+Two kinds of data (a CSV, columns by name):
+
+- **Steady flow**: upstream and downstream pressures and the flow through the component
+  (``p_up_bar_g`` or ``p_up_bar`` (absolute) or ``p_up_kpa`` (absolute); the same for
+  ``p_down``, default atmospheric; ``flow_l_min`` in normal litres per minute at ISO 8778;
+  optional ``t_up_c``). Two methods:
+
+  - ``improved`` (the thesis' method): C from the choked points (a regression of the
+    flow on the upstream pressure through the origin over the points with r <= b), then
+    b, m (and a, with ``--fit-a``) by bounded least squares on the flow ratio
+    ``phi = q / (C P_u sqrt(T0/T_u))`` against the pressure ratio r, in relative terms
+    (a meter's error is a share of its reading);
+  - ``iso6358`` (ISO 6358:1989): m = 0.5, a = 1; C as above; b the mean over the
+    subsonic points of ``b_i = (r - s)/(1 - s)``, ``s = sqrt(1 - phi^2)``.
+
+- **Tank discharge or charge**: ``time_s`` and the tank's pressure (``p_bar_g``,
+  ``p_bar`` or ``p_kpa``) for a tank of known volume (``--volume-l``) emptying through
+  the component to atmosphere, or filling through it from ``--supply-bar-g``. The tank is
+  taken isothermal (ISO 6358-2's tanks are filled with copper wool for that), so
+  ``dP/dt = -/+ R T / V * qm(P)``; C, b, m are fitted by integrating this and least
+  squares on the pressure curve, up to a pressure ratio of 0.98.
+
+Confidence intervals are 95 %: 1.96 standard errors from the fit's Jacobian and residual
+variance.
+"""
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .air.flow import R_J_KG_K, RHO0_KG_M3, T0_K
+from .errors import PlcpredError
+
+Z95 = 1.96
+R_FIT_MAX = 0.98       # tank curves: points nearer equilibrium than this are not fitted
+
+
+class IdentifyError(PlcpredError):
+    pass
+
+
+@dataclass
+class FlowFit:
+    """Identified D2 parameters with 95 % half-widths."""
+    C: float
+    b: float
+    m: float
+    a: float
+    ci: dict = field(default_factory=dict)     # name -> half-width (95 %)
+    method: str = "improved"
+    n_points: int = 0
+    rms: float = 0.0                            # residual RMS, in the data's unit
+    rms_unit: str = "l/min"
+
+    def as_dict(self) -> dict:
+        return {"C": self.C, "b": self.b, "m": self.m, "a": self.a,
+                "ci95": dict(self.ci), "method": self.method, "n_points": self.n_points,
+                "rms": self.rms, "rms_unit": self.rms_unit}
+
+
+def phi_d2(r, b, m, a=1.0):
+    """(D2) the flow function, vectorised, without the plant's laminar tail."""
+    r = np.asarray(r, dtype=float)
+    x = np.clip((r - b) / (a - b), 0.0, 1.0)
+    return np.where(r <= b, 1.0, np.where(r >= a, 0.0, (1.0 - x * x) ** m))
+
+
+# ---------------------------------------------------------------------- reading
+
+@dataclass
+class FlowData:
+    p_up_pa: np.ndarray
+    p_down_pa: np.ndarray
+    flow_l_min: np.ndarray
+    t_up_k: np.ndarray
+
+
+@dataclass
+class TankData:
+    time_s: np.ndarray
+    p_pa: np.ndarray
+
+
+def _pressure(row_get, stem, atm_pa, default=None):
+    for suffix, to_pa in (("_bar_g", lambda v: v * 1e5 + atm_pa), ("_bar", lambda v: v * 1e5),
+                          ("_kpa", lambda v: v * 1e3)):
+        v = row_get(stem + suffix)
+        if v is not None:
+            return to_pa(v)
+    return default
+
+
+def read_flow_data(path, atmosphere_kpa: float = 101.325, temperature_c: float = 20.0):
+    """Steady-flow or tank data from a CSV (see the module note). Errors name the file,
+    line and column."""
+    path = Path(path)
+    atm = atmosphere_kpa * 1e3
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except OSError as e:
+        raise IdentifyError(f"{path}: cannot read: {e.strerror}") from None
+    except UnicodeDecodeError:
+        raise IdentifyError(f"{path}: not UTF-8 text") from None
+    rows = list(csv.reader(line for line in text.splitlines() if line.strip()
+                           and not line.lstrip().startswith("#")))
+    if len(rows) < 2:
+        raise IdentifyError(f"{path}: needs a header and data rows")
+    header = [h.strip().lower() for h in rows[0]]
+    col = {h: i for i, h in enumerate(header)}
+    values: list[dict] = []
+    for k, row in enumerate(rows[1:], start=2):
+        parsed = {}
+        for name, i in col.items():
+            if i >= len(row) or not row[i].strip():
+                continue
+            try:
+                v = float(row[i])
+            except ValueError:
+                raise IdentifyError(f"{path}:{k}:{i + 1}: {name}: not a number: "
+                                    f"{row[i]!r}") from None
+            if not math.isfinite(v):
+                raise IdentifyError(f"{path}:{k}:{i + 1}: {name}: not a finite number")
+            parsed[name] = v
+        values.append(parsed)
+    if "flow_l_min" in col:
+        pu, pd, q, tk = [], [], [], []
+        for k, v in enumerate(values, start=2):
+            p_up = _pressure(v.get, "p_up", atm)
+            if p_up is None or "flow_l_min" not in v:
+                raise IdentifyError(f"{path}:{k}: needs p_up_bar_g (or p_up_bar, "
+                                    "p_up_kpa) and flow_l_min")
+            p_down = _pressure(v.get, "p_down", atm, default=atm)
+            if p_up <= 0 or p_down <= 0:
+                raise IdentifyError(f"{path}:{k}: pressures must be above absolute zero")
+            pu.append(p_up)
+            pd.append(p_down)
+            q.append(v["flow_l_min"])
+            tk.append(v.get("t_up_c", temperature_c) + 273.15)
+        return FlowData(*(np.array(x) for x in (pu, pd, q, tk)))
+    if "time_s" in col:
+        t, p = [], []
+        for k, v in enumerate(values, start=2):
+            pk = _pressure(v.get, "p", atm)
+            if pk is None or "time_s" not in v:
+                raise IdentifyError(f"{path}:{k}: needs time_s and p_bar_g (or p_bar, p_kpa)")
+            t.append(v["time_s"])
+            p.append(pk)
+        t, p = np.array(t), np.array(p)
+        if np.any(np.diff(t) <= 0):
+            raise IdentifyError(f"{path}: time_s must increase")
+        return TankData(t, p)
+    raise IdentifyError(f"{path}: columns {', '.join(header)}: expected steady-flow data "
+                        "(p_up_bar_g, p_down_bar_g, flow_l_min) or a tank's pressure "
+                        "(time_s, p_bar_g)")
+
+
+# ---------------------------------------------------------------------- steady flow
+
+def _ci(jac, resid, n_params):
+    """95 % half-widths from a least-squares Jacobian and residuals."""
+    dof = max(1, len(resid) - n_params)
+    s2 = float(resid @ resid) / dof
+    try:
+        cov = np.linalg.inv(jac.T @ jac) * s2
+    except np.linalg.LinAlgError:
+        return [math.inf] * n_params
+    return [Z95 * math.sqrt(max(v, 0.0)) for v in np.diag(cov)]
+
+
+def _choked_c(k_vals, weights, r, b):
+    """C from the points with r <= b: weighted regression through the origin, i.e. the
+    mean of q/(P_u sqrt(T0/T_u)) weighted by P_u^2; with its 95 % half-width."""
+    sel = r <= b
+    if sel.sum() < 2:
+        return None
+    w = weights[sel]
+    c = float(np.sum(w * k_vals[sel]) / np.sum(w))
+    resid = (k_vals[sel] - c) * np.sqrt(w)
+    se = math.sqrt(float(resid @ resid) / max(1, sel.sum() - 1) / float(np.sum(w)))
+    return c, Z95 * se
+
+
+def identify_steady(data: FlowData, method: str = "improved", fit_a: bool = False
+                    ) -> FlowFit:
+    """C, b, m (a) from steady-flow points (see the module note)."""
+    from scipy.optimize import least_squares
+
+    n = len(data.flow_l_min)
+    if n < 4:
+        raise IdentifyError(f"steady-flow data needs at least 4 points, not {n}")
+    forward = data.p_up_pa > data.p_down_pa
+    if not np.all(forward):
+        raise IdentifyError("every point needs the upstream pressure above the downstream")
+    r = data.p_down_pa / data.p_up_pa
+    scale = data.p_up_pa * np.sqrt(T0_K / data.t_up_k)            # q = C * scale * phi
+    q_m3_s = data.flow_l_min / 60_000.0
+    k_vals = q_m3_s / scale                                       # C * phi per point
+    weights = scale ** 2
+    c0 = float(np.max(k_vals))
+    if c0 <= 0:
+        raise IdentifyError("no positive flow in the data")
+    # a joint fit first, for where the choked points end
+    lo = [c0 * 0.5, -0.5, 0.1] + ([0.5] if fit_a else [])
+    hi = [c0 * 2.0, 0.95, 3.0] + ([1.0] if fit_a else [])
+    x0 = [c0, min(0.3, float(np.median(r))), 0.5] + ([0.999] if fit_a else [])
+
+    def model(x, rr, sc):
+        a = x[3] if fit_a else 1.0
+        return x[0] * sc * phi_d2(rr, x[1], x[2], max(a, x[1] + 1e-3))
+
+    joint = least_squares(lambda x: (model(x, r, scale) - q_m3_s) / c0 / scale.mean(),
+                          x0, bounds=(lo, hi), x_scale=[c0, 0.1, 0.1] + ([0.01] if fit_a else []))
+    b_joint = float(joint.x[1])
+    choked = _choked_c(k_vals, weights, r, b_joint)
+    if choked is None:      # no point choked: C from the joint fit
+        C, C_ci = float(joint.x[0]), _ci(joint.jac, joint.fun, len(x0))[0]
+    else:
+        C, C_ci = choked
+    phi_meas = k_vals / C
+    if method == "iso6358":
+        sub = (r > b_joint) & (phi_meas < 0.999) & (phi_meas > 0.05)
+        if sub.sum() < 1:
+            raise IdentifyError("the ISO 6358 method needs subsonic points (pressure ratios "
+                                "above the critical one)")
+        s = np.sqrt(1.0 - np.minimum(phi_meas[sub], 1.0) ** 2)
+        b_i = (r[sub] - s) / (1.0 - s)
+        b = float(np.mean(b_i))
+        b_ci = Z95 * float(np.std(b_i, ddof=1)) / math.sqrt(sub.sum()) if sub.sum() > 1 \
+            else math.inf
+        fitted = C * scale * phi_d2(r, b, 0.5)
+        rms = float(np.sqrt(np.mean((fitted - q_m3_s) ** 2))) * 60_000.0
+        return FlowFit(C, b, 0.5, 1.0, {"C": C_ci, "b": b_ci}, "iso6358", n, rms)
+    # improved: b, m (a) on the flow ratio against the pressure ratio
+    lo2 = [-0.5, 0.1] + ([0.5] if fit_a else [])
+    hi2 = [0.95, 3.0] + ([1.0] if fit_a else [])
+    x02 = [min(max(b_joint, -0.49), 0.94), min(max(float(joint.x[2]), 0.11), 2.9)] + \
+        ([float(joint.x[3])] if fit_a else [])
+
+    # relative residuals: a meter's error is a share of its reading, so the small flows
+    # near r = 1 are as precise, relatively, as the choked ones
+    use = phi_meas > 0.02
+
+    def resid2(x):
+        a = x[2] if fit_a else 1.0
+        return phi_d2(r[use], x[0], x[1], max(a, x[0] + 1e-3)) / phi_meas[use] - 1.0
+    fit = least_squares(resid2, x02, bounds=(lo2, hi2))
+    ci = _ci(fit.jac, fit.fun, len(x02))
+    b, m = float(fit.x[0]), float(fit.x[1])
+    a = float(fit.x[2]) if fit_a else 1.0
+    fitted = C * scale * phi_d2(r, b, m, a)
+    rms = float(np.sqrt(np.mean((fitted - q_m3_s) ** 2))) * 60_000.0
+    out = {"C": C_ci, "b": ci[0], "m": ci[1]}
+    if fit_a:
+        out["a"] = ci[2]
+    return FlowFit(C, b, m, a, out, "improved", n, rms)
+
+
+# ---------------------------------------------------------------------- tank
+
+def tank_pressure_pa(time_s, p_start_pa, C, b, m, volume_m3, mode="discharge",
+                     supply_pa=None, atmosphere_pa=101_325.0, temperature_k=T0_K, a=1.0):
+    """An isothermal tank's pressure emptying through (C, b, m) to atmosphere, or filling
+    from ``supply_pa``: ``dP/dt = -/+ (R T / V) rho0 C P_u sqrt(T0/T) phi(P_d/P_u)``."""
+    from scipy.integrate import solve_ivp
+
+    k = R_J_KG_K * temperature_k / volume_m3 * RHO0_KG_M3 * C * math.sqrt(T0_K / temperature_k)
+
+    def rate(t, p):
+        if mode == "discharge":
+            r = atmosphere_pa / p[0]
+            return [-k * p[0] * float(phi_d2(r, b, m, a))] if r < 1 else [0.0]
+        r = p[0] / supply_pa
+        return [k * supply_pa * float(phi_d2(r, b, m, a))] if r < 1 else [0.0]
+    t = np.asarray(time_s, dtype=float)
+    sol = solve_ivp(rate, (t[0], t[-1]), [p_start_pa], t_eval=t, method="LSODA",
+                    rtol=1e-8, atol=1.0)
+    return sol.y[0]
+
+
+def identify_tank(data: TankData, volume_l: float, mode: str = "discharge",
+                  supply_pa: float | None = None, atmosphere_pa: float = 101_325.0,
+                  temperature_k: float = T0_K) -> FlowFit:
+    """C, b, m from a tank's pressure curve (see the module note)."""
+    from scipy.optimize import least_squares
+
+    if mode not in ("discharge", "charge"):
+        raise IdentifyError("mode must be discharge or charge")
+    if mode == "charge" and supply_pa is None:
+        raise IdentifyError("a charge needs the supply pressure (--supply-bar-g)")
+    if len(data.time_s) < 6:
+        raise IdentifyError("a tank curve needs at least 6 points")
+    v = volume_l / 1000.0
+    p = data.p_pa
+    # a first C from the start of the curve (choked there in a discharge from high pressure)
+    dp0 = abs(p[1] - p[0]) / (data.time_s[1] - data.time_s[0])
+    p_up0 = p[0] if mode == "discharge" else supply_pa
+    c0 = dp0 * v / (R_J_KG_K * temperature_k * RHO0_KG_M3 * p_up0)
+    span = float(np.ptp(p)) or 1.0
+    # the last 2 % of the way to equilibrium is left out of the fit: there the flow is tiny,
+    # laminar rather than D2, and a pressure sensor's offset or the tank's last cooling
+    # weigh more than the component
+    r = atmosphere_pa / p if mode == "discharge" else p / supply_pa
+    use = r < R_FIT_MAX
+    if use.sum() < 6:
+        raise IdentifyError("a tank curve needs at least 6 points with the pressure ratio "
+                            f"below {R_FIT_MAX}")
+
+    def resid(x):
+        model = tank_pressure_pa(data.time_s, p[0], x[0] * c0, x[1], x[2], v, mode,
+                                 supply_pa, atmosphere_pa, temperature_k)
+        return (model - p)[use] / span
+
+    fit = least_squares(resid, [1.0, 0.3, 0.5], bounds=([0.1, -0.5, 0.1], [10.0, 0.95, 3.0]),
+                        diff_step=1e-4)
+    ci = _ci(fit.jac, fit.fun, 3)
+    rms = float(np.sqrt(np.mean(fit.fun ** 2))) * span / 1e5
+    return FlowFit(float(fit.x[0] * c0), float(fit.x[1]), float(fit.x[2]), 1.0,
+                   {"C": ci[0] * c0, "b": ci[1], "m": ci[2]}, f"tank {mode}",
+                   len(p), rms, "bar")
+
+
+def plot_fit(data, fit: FlowFit, path, volume_l=None, mode="discharge", supply_pa=None,
+             atmosphere_pa=101_325.0, temperature_k=T0_K) -> None:
+    """The fit plot: the flow ratio against the pressure ratio (steady flow), or the
+    tank's pressure against time, with the fitted curve."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from .report import _save_fig
+
+    fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
+    if isinstance(data, FlowData):
+        r = data.p_down_pa / data.p_up_pa
+        phi = data.flow_l_min / 60_000.0 / (fit.C * data.p_up_pa * np.sqrt(T0_K / data.t_up_k))
+        rr = np.linspace(0, 1, 400)
+        ax.plot(r, phi, "o", ms=3, color="black", label="data")
+        ax.plot(rr, phi_d2(rr, fit.b, fit.m, fit.a), color="tab:red",
+                label=f"D2: b {fit.b:.3f}, m {fit.m:.3f}")
+        ax.set_xlabel("pressure ratio P_d / P_u")
+        ax.set_ylabel("flow ratio q / (C P_u)")
+    else:
+        model = tank_pressure_pa(data.time_s, data.p_pa[0], fit.C, fit.b, fit.m,
+                                 volume_l / 1000.0, mode, supply_pa, atmosphere_pa,
+                                 temperature_k)
+        ax.plot(data.time_s, data.p_pa / 1e5, "o", ms=3, color="black", label="data")
+        ax.plot(data.time_s, model / 1e5, color="tab:red", label="fit")
+        ax.set_xlabel("time, s")
+        ax.set_ylabel("tank pressure, bar (absolute)")
+    ax.set_title(f"{fit.method}: C {fit.C:.3e} m^3/(s Pa), b {fit.b:.3f}, m {fit.m:.3f}",
+                 fontsize=10)
+    ax.legend()
+    _save_fig(fig, path)
+
+
+__all__ = ["FlowData", "FlowFit", "IdentifyError", "TankData", "identify_steady",
+           "identify_tank", "phi_d2", "plot_fit", "read_flow_data", "tank_pressure_pa"]
