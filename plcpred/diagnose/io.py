@@ -331,12 +331,12 @@ def dump_machine_toml(data: dict, header: str = "") -> str:
             lines.append(f"[{table}]")
             lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in data[table].items()]
             lines.append("")
-    for array in ("input", "consumer"):
+    for array in ("input", "line", "consumer"):
         for t in data.get(array, []):
             lines.append(f"[[{array}]]")
             lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in t.items()]
             lines.append("")
     for table, v in data.items():
-        if table not in ("machine", "signals", "meter", "input", "consumer"):
+        if table not in ("machine", "signals", "meter", "input", "line", "consumer"):
             raise ValueError(f"cannot write the table [{table}]")
     return "\n".join(lines)

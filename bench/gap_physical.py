@@ -1,0 +1,198 @@
+"""A blind benchmark of ``plcpred diagnose`` on the physics plant (physical tier).
+
+Each case takes a sample machine, writes a truth file that withholds one effect of random
+size (a hidden leak, stronger or weaker knives, another supply pressure, longer tubes, a
+shared supply line without check valves, slower valves, throttled flow controls, a slow
+meter), and emulates the real machine with ``plcpred emulate`` through a random meter
+(0.1-0.6 s, 1-10 Hz, noise, a random clock offset): two runs. The diagnosis sees only the
+nominal machine file and the logs. Here nothing is painted on: the effects emerge from
+the plant's physics, and so does everything D1 leaves out on *every* machine (the tube's
+air at atmospheric pressure, heat, incomplete exhaust at speed), which is why ``none``
+cases need not come out ``none``.
+
+``incomplete_exhaust`` is not withheld: in the plant it is not a deviation one adds but
+what fast cycling does to any drive; it shows in the ``none`` row.
+
+    python bench/gap_physical.py [--cases 40] [--seed 1] [--effects leak,stroke_time]
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import tempfile
+import time
+from collections import Counter, defaultdict
+from pathlib import Path
+
+import numpy as np
+
+import plcpred
+from plcpred.diagnose import DiagnosisError, MeasuredRun, diagnose
+from plcpred.diagnose.io import dump_machine_toml
+from plcpred.machine import read_machine_data
+from plcpred.plant import emulate
+
+ROOT = Path(__file__).resolve().parent.parent
+MACHINES = ["samples/prototype_rig/rig.toml", "samples/pick_place.toml",
+            "samples/clamp_station.toml", "samples/press.toml", "samples/sorter.toml",
+            "samples/prototype_rig/rig_seq2.toml"]
+EFFECTS = ["none", "leak", "passive_flow", "supply_pressure", "dead_volume",
+           "shared_supply", "valve_delay", "stroke_time", "sensor_lag"]
+
+
+def truth_for(effect, data, rng):
+    """(truth tables, description) withholding ``effect`` from machine data ``data``."""
+    consumers = data.get("consumer", [])
+    drives = [c for c in consumers if c["kind"] not in ("nozzle", "leak")]
+    nozzles = [c for c in consumers if c["kind"] == "nozzle"]
+    t: dict = {}
+    if effect == "leak":
+        C = float(rng.uniform(3e-10, 1.5e-9))
+        t["consumer"] = [{"name": "hidden leak", "kind": "leak", "C": C, "b": 0.15,
+                          "m": 0.7}]
+        return t, f"leak C {C:.2e}"
+    if effect == "passive_flow":
+        n = nozzles[int(rng.integers(len(nozzles)))]
+        f = float(rng.choice([rng.uniform(1.2, 1.5), rng.uniform(0.6, 0.8)]))
+        key = "C" if "C" in n else "Cd"
+        value = n[key] * f if key == "C" else min(1.0, n[key] * f)
+        t["consumer"] = [{"name": n["name"], key: value}]
+        return t, f"{n['name']} {key} x{f:.2f}"
+    if effect == "supply_pressure":
+        dp = float(rng.choice([-1, 1]) * rng.uniform(0.4, 1.0))
+        t["machine"] = {"supply_bar_g": data["machine"]["supply_bar_g"] + dp}
+        return t, f"supply {dp:+.2f} bar"
+    if effect == "dead_volume":
+        d = drives[int(rng.integers(len(drives)))]
+        f = float(rng.uniform(2.0, 4.0))
+        lengths = d.get("tube_length_m", 0.5)
+        lengths = lengths if isinstance(lengths, list) else [lengths, lengths]
+        extra = {"tube_length_m": [max(x, 0.3) * f for x in lengths]}
+        if not d.get("tube_id_mm"):
+            extra["tube_id_mm"] = 4.0
+        t["consumer"] = [{"name": d["name"], **extra}]
+        return t, f"{d['name']} tubes x{f:.1f}"
+    if effect == "shared_supply":
+        vol = float(rng.uniform(0.05, 0.3))
+        t["line"] = [{"name": "drop", "volume_l": vol, "C": float(rng.uniform(1e-8, 3e-8))}]
+        t["consumer"] = [{"name": d["name"], "line": "drop"} for d in drives]
+        return t, f"line {vol:.2f} L"
+    if effect == "valve_delay":
+        dd = float(rng.uniform(0.03, 0.08))
+        t["consumer"] = [{"name": d["name"], "switch_delay_s":
+                          d.get("switch_delay_s", 0.0) + dd} for d in drives]
+        return t, f"delay +{dd * 1000:.0f} ms"
+    if effect == "stroke_time":
+        timed = [d for d in drives if isinstance(d.get("stroke_time_s"), list)]
+        d = timed[int(rng.integers(len(timed)))]
+        f = float(rng.uniform(1.5, 2.5))
+        t["consumer"] = [{"name": d["name"], "stroke_time_s":
+                          [x * f for x in d["stroke_time_s"]]}]
+        return t, f"{d['name']} strokes x{f:.1f}"
+    if effect == "sensor_lag":
+        return t, "slow meter"
+    return t, "nothing"
+
+
+def usable_effects(data, effects):
+    consumers = data.get("consumer", [])
+    drives = [c for c in consumers if c["kind"] not in ("nozzle", "leak")]
+    out = []
+    for e in effects:
+        if e == "passive_flow" and not any(c["kind"] == "nozzle" for c in consumers):
+            continue
+        if e in ("dead_volume", "valve_delay") and not drives:
+            continue
+        if e == "stroke_time" and not any(isinstance(d.get("stroke_time_s"), list)
+                                          for d in drives):
+            continue
+        if e == "shared_supply" and len(drives) < 2:
+            continue
+        out.append(e)
+    return out
+
+
+def make_case(case_id, rng, effects, workdir):
+    path = ROOT / MACHINES[case_id % len(MACHINES)]
+    data = read_machine_data(path)
+    usable = usable_effects(data, effects)
+    effect = usable[int(rng.integers(len(usable)))]
+    truth, desc = truth_for(effect, copy.deepcopy(data), rng)
+    tau = float(rng.uniform(1.2, 4.0) if effect == "sensor_lag" else rng.uniform(0.1, 0.6))
+    rate = float(rng.choice([1.0, 2.0, 5.0, 10.0]))
+    truth["meter"] = {"tau_s": tau, "rate_hz": rate}
+    horizon = 20.0 if path.name == "rig.toml" else 40.0
+    truth_path = workdir / f"case{case_id}.toml"
+    truth_path.write_text(dump_machine_toml(truth))
+    real = emulate(path, horizon, truth=truth_path)
+    # the same meter on the machine without the effect: the effect's size
+    base_truth = workdir / f"case{case_id}_base.toml"
+    base_meter = {"tau_s": rng.uniform(0.1, 0.6) if effect == "sensor_lag" else tau,
+                  "rate_hz": rate}
+    base_truth.write_text(dump_machine_toml({"meter": base_meter}))
+    base = emulate(path, horizon, truth=base_truth)
+    clean = real.measured_flow_l_min
+    size = float(np.sqrt(np.mean((clean - base.measured_flow_l_min) ** 2)))
+    noise = max(0.5, float(np.mean(clean)) * rng.uniform(0.01, 0.03))
+    runs = []
+    for r in range(2):
+        offset = float(rng.uniform(0.0, 20.0))
+        q = clean + rng.normal(0.0, noise, len(clean))
+        runs.append(MeasuredRun(f"case{case_id}_run{r}.csv", real.measured_time_s + offset, q))
+    return {"id": case_id, "machine": path.name, "path": path, "effect": effect,
+            "desc": desc, "runs": runs, "noise": noise, "size": size}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cases", type=int, default=40)
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--effects", help="withhold only these (comma-separated)")
+    ap.add_argument("--verbose", action="store_true")
+    args = ap.parse_args(argv)
+    effects = args.effects.split(",") if args.effects else EFFECTS
+    rng = np.random.default_rng(args.seed)
+    confusion = defaultdict(Counter)
+    strong_hits = strong_n = none_hits = none_n = 0
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(args.cases):
+            case = make_case(i, rng, effects, Path(tmp))
+            truth = case["effect"]
+            try:
+                d = diagnose(plcpred.load_machine(case["path"]), case["runs"])
+                verdict = d.verdict
+            except DiagnosisError as e:
+                verdict = "error"
+                print(f"case {i}: {e}")
+            confusion[truth][verdict] += 1
+            strong = case["size"] > 3 * case["noise"]
+            if truth == "none":
+                none_n += 1
+                none_hits += verdict == "none"
+            elif strong:
+                strong_n += 1
+                strong_hits += verdict == truth
+            if args.verbose:
+                print(f"{i:4d} {case['machine']:<16} {truth:<16} -> {verdict:<18} size/noise "
+                      f"{case['size'] / case['noise']:5.1f} {case['desc']}", flush=True)
+    wall = time.perf_counter() - t0
+    names = [e for e in EFFECTS + ["incomplete_exhaust", "error"]
+             if e in confusion or any(e in c for c in confusion.values())]
+    print(f"\nconfusion matrix ({args.cases} cases, rows: withheld effect, columns: verdict)")
+    print(f"{'':<16}" + "".join(f"{e[:6]:>7}" for e in names))
+    for e in names:
+        if e in confusion:
+            print(f"{e:<16}" + "".join(f"{confusion[e][v]:>7}" for v in names))
+    print()
+    if strong_n:
+        print(f"top-1 accuracy, effect > 3x noise: {strong_hits}/{strong_n} = "
+              f"{100 * strong_hits / strong_n:.1f} %")
+    if none_n:
+        print(f"verdict none without an effect: {none_hits}/{none_n}")
+    print(f"{args.cases} cases in {wall:.0f} s ({wall / max(args.cases, 1):.1f} s per case)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
