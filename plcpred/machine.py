@@ -106,6 +106,7 @@ class Meter:
     noise_l_min: float = 0.0
     offset_l_min: float = 0.0           # reading at zero flow
     full_scale_l_min: float | None = None
+    line: str | None = None             # on one [[line]] (after its regulator); default: the drop
 
 
 @dataclass
@@ -158,8 +159,8 @@ PLANT_DRIVE_KEYS = {
     "payload_kg": "number", "mount_angle_deg": "number", "moving_mass_kg": "number",
     "supply_C": "pair", "supply_b": "pair", "supply_m": "pair",
     "exhaust_C": "pair", "exhaust_b": "pair", "exhaust_m": "pair",
-    "check_valve": "bool", "friction_static_n": "number", "friction_coulomb_n": "number",
-    "friction_viscous_ns_m": "number", "stribeck_velocity_m_s": "number",
+    "check_valve": "bool", "friction_static_n": "pair", "friction_coulomb_n": "pair",
+    "friction_viscous_ns_m": "pair", "stribeck_velocity_m_s": "pair",
     "spring_n": "pair", "switch_ramp_s": "number", "heat_transfer_w_m2k": "number",
     "dead_volume_cm3": "pair",
 }
@@ -167,7 +168,7 @@ _CONSUMER_KEYS |= set(PLANT_DRIVE_KEYS)
 _LINE_KEYS = {"name", "volume_l", "pressure_bar_g", "network_bar_g", "C", "b", "m",
               "droop_bar", "check_valves"}
 _METER_KEYS = {"tau_s", "rate_hz", "reference", "noise_l_min", "offset_l_min",
-               "full_scale_l_min"}
+               "full_scale_l_min", "line"}
 METER_REFERENCES = ("iso8778", "din1343", "iso2533")
 
 
@@ -374,8 +375,8 @@ def _plant_keys(r: _Reader, table: dict, kind: str) -> dict:
             out[key] = r.number(key, nonneg=True)
     if "spring_n" in out and kind != "single_acting":
         raise r.error("spring_n applies to single-acting cylinders")
-    if "friction_static_n" in out and "friction_coulomb_n" in out and \
-            out["friction_static_n"] < out["friction_coulomb_n"]:
+    if "friction_static_n" in out and "friction_coulomb_n" in out and any(
+            s < c for s, c in zip(out["friction_static_n"], out["friction_coulomb_n"])):
         raise r.error("friction_static_n must be >= friction_coulomb_n (breakaway is the "
                       "larger force)")
     return out
@@ -439,7 +440,8 @@ def _meter(file: str, table: dict) -> Meter:
                  reference=r.string("reference", "iso8778", choices=METER_REFERENCES),
                  noise_l_min=r.number("noise_l_min", 0.0, nonneg=True),
                  offset_l_min=r.number("offset_l_min", 0.0),
-                 full_scale_l_min=r.number("full_scale_l_min", positive=True))
+                 full_scale_l_min=r.number("full_scale_l_min", positive=True),
+                 line=r.string("line"))
 
 
 def load_machine(path) -> Machine:
@@ -529,6 +531,10 @@ def machine_from_data(data: dict, path) -> Machine:
         if c.line is not None and c.line not in lines:
             raise MachineError(file, f'consumer "{c.name}"', f"line '{c.line}' is not a "
                                f"[[line]] of the file (lines: {', '.join(sorted(lines)) or 'none'})")
+    if machine.meter is not None and machine.meter.line is not None and \
+            machine.meter.line not in lines:
+        raise MachineError(file, "[meter]", f"line '{machine.meter.line}' is not a [[line]] "
+                           f"of the file (lines: {', '.join(sorted(lines)) or 'none'})")
     seen = set()
     for s in machine.inputs:
         if s.signal in seen:

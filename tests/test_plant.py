@@ -407,3 +407,33 @@ def test_diagnose_names_a_leak_hidden_in_the_plant(tmp_path, capsys):
     assert best["name"] == "leak" and abs(best["heldout_error_pct_after"]) < 2.0
     # 8e-10 at 5 bar absolute, all but choked (phi 0.997): C P = 24.0 NL/min
     assert best["parameters"]["flow_l_min"] == pytest.approx(8e-10 * 5e5 * 60_000, rel=0.05)
+
+
+def test_friction_differs_by_direction():
+    from plcpred.plant.strokes import stroke_times_s
+    c, m = _rig_drive("A")
+    supply = m.supply_bar_g * 1e5 + P_ATM
+    even = stroke_times_s(drive_params(c), supply, P_ATM, T_AMB)
+    c.plant = dict(c.plant, friction_coulomb_n=[10.0, 60.0], friction_static_n=[15.0, 90.0])
+    uneven = stroke_times_s(drive_params(c), supply, P_ATM, T_AMB)
+    assert uneven[1] > 1.1 * even[1]           # the retract's seals rub harder
+    assert uneven[0] == pytest.approx(even[0], rel=0.1)
+
+
+def test_a_meter_on_a_line_sees_only_that_line(tmp_path):
+    truth = tmp_path / "t.toml"
+    truth.write_text('[meter]\nline = "drop"\ntau_s = 0.2\n'
+                     '[[consumer]]\nname = "off the line"\nkind = "leak"\nC = 1e-9\nb = 0.2\n')
+    em = emulate(DATA / "shared.toml", "3s", truth=truth)
+    line_nl = em.cumulative_nl["line:drop"][-1]
+    assert em.total_nl == pytest.approx(line_nl)
+    assert em.consumer_nl()["off the line"] > 0.5
+    assert em.measured_nl() == pytest.approx(line_nl, rel=0.02)
+    # through the regulator the line delivers what its drives took (and what it lost
+    # in pressure): within 1 %
+    drives = em.consumer_nl()["A"] + em.consumer_nl()["B"]
+    assert line_nl == pytest.approx(drives, rel=0.01)
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[meter]\nline = "nowhere"\n')
+    with pytest.raises(MachineError, match=r"\[meter\]: line 'nowhere'"):
+        emulate(DATA / "shared.toml", "3s", truth=bad)

@@ -58,6 +58,14 @@ class MachineModel:
     @classmethod
     def of(cls, machine) -> "MachineModel":
         models = consumer_models(machine)
+        meter = machine.meter
+        if meter is not None and meter.line is not None:
+            # the meter sits on one line: it sees only the consumers on that line
+            models = [m for m, c in zip(models, machine.consumers) if c.line == meter.line]
+            if not models:
+                from .fit import DiagnosisError
+                raise DiagnosisError(f"{machine.path}: [meter] line '{meter.line}' feeds no "
+                                     "consumer: nothing the meter sees can be predicted")
         return cls(machine, models, [i for i, m in enumerate(models) if m.role == "active"],
                    [i for i, m in enumerate(models) if m.role != "active"])
 

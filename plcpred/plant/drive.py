@@ -15,7 +15,8 @@ Defaults (each overridable by the key named):
   rod as long as the stroke plus a bore; the payload (``payload_kg``) adds to it, and
   ``mount_angle_deg`` (0 horizontal, 90 extending straight up) adds its weight's share.
 - **Friction** (``friction_coulomb_n``, ``friction_static_n``, ``friction_viscous_ns_m``,
-  ``stribeck_velocity_m_s``): Coulomb friction 4 % of the cap side's force at 6 bar gauge
+  ``stribeck_velocity_m_s``, each a number or [extending, retracting]: seals rub
+  differently each way): Coulomb friction 4 % of the cap side's force at 6 bar gauge
   (seals of standard cylinders: 3-6 %), breakaway 1.5 x Coulomb, Stribeck velocity
   0.02 m/s, viscous friction equal to Coulomb at 1 m/s.
 - **Spring** of a single-acting cylinder (``spring_n`` = [retracted, extended]): the force
@@ -65,10 +66,10 @@ class DriveParams:
     m_exhaust: tuple[float, float]
     mass_kg: float
     load_n: float               # constant force against extension (gravity)
-    F_coulomb_n: float
-    F_static_n: float
-    beta_ns_m: float
-    v_stribeck_m_s: float
+    F_coulomb_n: tuple[float, float]    # (extending, retracting): seals differ by direction
+    F_static_n: tuple[float, float]
+    beta_ns_m: tuple[float, float]
+    v_stribeck_m_s: tuple[float, float]
     spring_n: tuple[float, float]   # (at retracted, at extended), against extension
     vented2: bool               # single-acting: the rod end breathes atmosphere
     delay_s: float
@@ -120,12 +121,9 @@ def drive_params(consumer, line_check_valves: bool = False) -> DriveParams:
             mass *= 3.0  # a carriage, vane or jaws instead of a rod
     mass += p.get("payload_kg", 0.0)
     load = mass * G_M_S2 * math.sin(math.radians(p.get("mount_angle_deg", 0.0)))
-    fc = p.get("friction_coulomb_n")
-    if fc is None:
-        fc = 0.04 * area1 * SLOT_PRESSURE_PA
-    fs = p.get("friction_static_n", 1.5 * fc)
-    if fs < fc:
-        fc = fs
+    fc = _pair(p.get("friction_coulomb_n"), 0.04 * area1 * SLOT_PRESSURE_PA)
+    fs = _pair(p.get("friction_static_n"), tuple(1.5 * x for x in fc))
+    fc = tuple(min(c, s) for c, s in zip(fc, fs))
     spring = (0.0, 0.0)
     if kind == "single_acting":
         spring = _pair(p.get("spring_n"), (0.5e5 * area1, 1.0e5 * area1))
@@ -146,8 +144,8 @@ def drive_params(consumer, line_check_valves: bool = False) -> DriveParams:
         b_exhaust=_pair(p.get("exhaust_b"), 0.3), m_exhaust=_pair(p.get("exhaust_m"), 0.5),
         mass_kg=max(mass, 1e-3), load_n=load,
         F_coulomb_n=fc, F_static_n=fs,
-        beta_ns_m=p.get("friction_viscous_ns_m", fc / 1.0),
-        v_stribeck_m_s=p.get("stribeck_velocity_m_s", 0.02),
+        beta_ns_m=_pair(p.get("friction_viscous_ns_m"), tuple(x / 1.0 for x in fc)),
+        v_stribeck_m_s=_pair(p.get("stribeck_velocity_m_s"), 0.02),
         spring_n=spring, vented2=kind == "single_acting",
         delay_s=consumer.switch_delay_s or 0.0, ramp_s=p.get("switch_ramp_s", 0.0),
         heat_w_m2k=p.get("heat_transfer_w_m2k", 30.0),

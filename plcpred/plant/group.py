@@ -199,8 +199,7 @@ class Group:
         self.Cs, self.bs, self.ms = pair("C_supply"), pair("b_supply"), pair("m_supply")
         self.Ce, self.be, self.me = pair("C_exhaust"), pair("b_exhaust"), pair("m_exhaust")
         self.mass, self.load = f("mass_kg"), f("load_n")
-        self.Fc, self.Fs = f("F_coulomb_n"), f("F_static_n")
-        self.beta, self.vs = f("beta_ns_m"), f("v_stribeck_m_s")
+        self.Fs = pair("F_static_n")           # (n, 2): extending, retracting
         spring = pair("spring_n")
         self.spring0, self.spring1 = spring[:, 0], spring[:, 1]
         self.vented2 = np.array([x.vented2 for x in d], dtype=bool)
@@ -217,6 +216,7 @@ class Group:
                       dr.heat_w_m2k, dr.vented2, dr.check_valve, math.pi * dr.bore_m,
                       dr.F_coulomb_n, dr.F_static_n, dr.v_stribeck_m_s, dr.beta_ns_m,
                       dr.mass_kg] for dr in d]
+        # friction by direction: P[27..30] are (extending, retracting) pairs
         if self.passives:
             self.pC = np.array([p.C for p in self.passives])
             self.pb = np.array([p.b for p in self.passives])
@@ -307,7 +307,8 @@ class Group:
                 dp2, dt2 = chamber_rates(p2, t2, v2, -P[1] * vel, qs2 - qe2, h2, heat2)
             if moving[i]:
                 force = self._force(i, p1, p2, y)
-                fr = friction_n(v, direction[i], P[27], P[28], P[29], P[30])
+                k = 0 if direction[i] > 0 else 1
+                fr = friction_n(v, direction[i], P[27][k], P[28][k], P[29][k], P[30][k])
                 acc = (force - fr) / P[31]
             else:
                 acc = 0.0
@@ -332,10 +333,11 @@ class Group:
         return (bool(still and y <= POS_EPS_M), bool(still and y >= self.stroke[i] - POS_EPS_M))
 
     def _push(self, i, force, y):
-        """The force that could start drive i moving (towards a free direction)."""
-        out = force if y < self.stroke[i] - POS_EPS_M else -np.inf
+        """How far the force on drive i exceeds breakaway towards a free direction (> 0:
+        it starts moving), with each direction's static friction."""
+        out = force - self.Fs[i, 0] if y < self.stroke[i] - POS_EPS_M else -np.inf
         if y > POS_EPS_M:
-            out = max(out, -force)
+            out = max(out, -force - self.Fs[i, 1])
         return out
 
     def _update_modes(self, t, x) -> None:
@@ -359,7 +361,7 @@ class Group:
                         c.moving[i] = False
                         changed = True
                 if not c.moving[i] and self._push(i, force[i], x[4 * n + i]) > \
-                        self.Fs[i] * (1.0 - 1e-9) + 1e-12:
+                        -1e-9 * self.Fs[i].max() + 1e-12:
                     c.moving[i] = True
                     c.direction[i] = 1.0 if force[i] > 0 else -1.0
                     x[5 * n + i] = 0.0
@@ -626,7 +628,7 @@ class Group:
             else:
                 def breakaway(tr, x, i=i):
                     y = x[4 * n + i]
-                    return self._push(i, self._force(i, x[i], x[n + i], y), y) - self.Fs[i]
+                    return self._push(i, self._force(i, x[i], x[n + i], y), y)
                 breakaway.terminal, breakaway.direction = True, 1
                 events.append(breakaway)
         if not np.any(c.moving):

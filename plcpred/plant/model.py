@@ -161,6 +161,8 @@ class PlantModel:
         for g in self.groups:
             if g.has_line:
                 out[f"line:{g.supply.line}"] = mass_to_nl(states[id(g)][:, 7 * g.n + 1])
+        for ln in self.machine.lines:       # a line nobody draws from
+            out.setdefault(f"line:{ln.name}", np.zeros(len(edges_s)))
         return out
 
     def passive_flow_kg_s(self, c) -> float:
@@ -189,7 +191,12 @@ class PlantModel:
         return q * on_time
 
     def metered_names(self) -> list[str]:
-        """The series whose sum the machine's flow meter sees (at the machine drop)."""
+        """The series whose sum the machine's flow meter sees: at the machine drop
+        (default) everything, a line's drives through its regulator; on a line
+        (``[meter] line``) that line's regulator flow."""
+        meter = self.machine.meter
+        if meter is not None and meter.line is not None:
+            return [f"line:{meter.line}"]
         names = [c.name for c in self.machine.consumers if c.line is None]
         names += [f"line:{g.supply.line}" for g in self.groups if g.has_line]
         return names
@@ -204,9 +211,11 @@ class PlantModel:
                 "p_rod_bar_g": to_bar_g(x[:, n + i])}
 
     def line_pressure_bar_g(self, times_s: np.ndarray) -> np.ndarray:
-        """The supply pressure the meter's neighbourhood sees: the first line's pressure,
-        or the machine's regulated supply."""
+        """The supply pressure the meter's neighbourhood sees: its line's pressure (the
+        first line's when it sits at the drop), or the machine's regulated supply."""
+        meter = self.machine.meter
+        wanted = meter.line if meter is not None else None
         for g in self.groups:
-            if g.has_line:
+            if g.has_line and wanted in (None, g.supply.line):
                 return (g.state_at(times_s)[:, 7 * g.n] - self.atm_pa) / 1e5
         return np.full(len(times_s), self.machine.supply_bar_g)
