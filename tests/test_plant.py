@@ -453,3 +453,13 @@ def test_every_cylinder_kind_and_a_bistable_valve_emulate():
     # the bistable drive starts extended, is pulsed back at 0 s, out at 2 s, back at 4 s
     pos = em.plant.drive_states("bi", np.array([0.0, 1.9, 3.9, 5.9]))["position_mm"]
     assert list(pos) == pytest.approx([100.0, 0.0, 100.0, 0.0], abs=1e-6)
+
+
+def test_too_long_an_emulation_stops_with_a_clear_error(tmp_path, capsys, monkeypatch):
+    import plcpred.plant.group as group
+    monkeypatch.setattr(group, "MAX_PIECES", 50)
+    out = tmp_path / "o"
+    assert main(["emulate", str(PICK), "--horizon", "60s", "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "more than 50 integration pieces" in err and "shorter horizon" in err
+    assert "Traceback" not in err and not out.exists()

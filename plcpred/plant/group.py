@@ -44,6 +44,7 @@ TIME_EPS_S = 1e-10        # switch times are compared with the sequencer's whole
 
 
 MAX_TINY_PIECES = 10_000  # consecutive pieces shorter than a microsecond: chattering
+MAX_PIECES = 200_000      # per group held in memory (about 1 KB each)
 
 
 class PlantError(PlcpredError):
@@ -572,6 +573,10 @@ class Group:
             raise PlantError(f"the plant cannot integrate drive(s) {self._names()} at "
                              f"{self.t:.6g} s: events follow each other without end (check "
                              "friction, mass and load for values far outside real drives)")
+        if len(self.pieces) >= MAX_PIECES:
+            raise PlantError(f"drive(s) {self._names()}: more than {MAX_PIECES:,} integration "
+                             f"pieces by {self.t:.6g} s; emulate a shorter horizon (the "
+                             "physics plant keeps every piece for its outputs)")
         self.pieces.append(piece)
         self.x, self.t = x_end, t_end
         self._settle_or_start()

@@ -740,7 +740,7 @@ class Sequencer:
                 if nxt is None:
                     break  # nothing will ever change again
                 t = max(t + scan, -(-nxt // scan) * scan)
-        except (rtm.ExecutionError, SequencerError):
+        except PlcpredError:    # ours, with its own message (the plant's among them)
             raise
         except Exception as e:  # a fault inside the compiled program
             raise inst.positioned(e) from None
