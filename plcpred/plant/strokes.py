@@ -133,7 +133,13 @@ def auto_stroke_times(consumer, supply_pa: float, atmosphere_pa: float, ambient_
     from ..machine import MachineError
     from .drive import drive_params
 
-    times = stroke_times_s(drive_params(consumer), supply_pa, atmosphere_pa, ambient_k)
+    from .group import PlantError
+
+    try:
+        times = stroke_times_s(drive_params(consumer), supply_pa, atmosphere_pa, ambient_k)
+    except PlantError as e:
+        raise MachineError(file, f'consumer "{consumer.name}"',
+                           f'stroke_time_s = "auto": {e}') from None
     for t, what in zip(times, ("extend", "retract")):
         if t is None:
             raise MachineError(file, f'consumer "{consumer.name}"',
