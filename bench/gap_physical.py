@@ -13,7 +13,10 @@ cases need not come out ``none``.
 ``incomplete_exhaust`` is not withheld: in the plant it is not a deviation one adds but
 what fast cycling does to any drive; it shows in the ``none`` row.
 
-    python bench/gap_physical.py [--cases 40] [--seed 1] [--effects leak,stroke_time]
+    python bench/gap_physical.py [--cases 40] [--seed 1] [--effects leak,stroke_time] [--io]
+
+``--io`` gives the diagnosis each run's recorded I/O (the emulated timeline, as a PLC
+trace would record it), so that it sees when the valves really switched.
 """
 from __future__ import annotations
 
@@ -140,7 +143,8 @@ def make_case(case_id, rng, effects, workdir):
         q = clean + rng.normal(0.0, noise, len(clean))
         runs.append(MeasuredRun(f"case{case_id}_run{r}.csv", real.measured_time_s + offset, q))
     return {"id": case_id, "machine": path.name, "path": path, "effect": effect,
-            "desc": desc, "runs": runs, "noise": noise, "size": size}
+            "desc": desc, "runs": runs, "noise": noise, "size": size,
+            "io": [real.timeline, real.timeline]}
 
 
 def main(argv=None) -> int:
@@ -148,6 +152,8 @@ def main(argv=None) -> int:
     ap.add_argument("--cases", type=int, default=40)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--effects", help="withhold only these (comma-separated)")
+    ap.add_argument("--io", action="store_true",
+                    help="give the diagnosis the recorded I/O of each run (diagnose --io)")
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args(argv)
     effects = args.effects.split(",") if args.effects else EFFECTS
@@ -160,7 +166,8 @@ def main(argv=None) -> int:
             case = make_case(i, rng, effects, Path(tmp))
             truth = case["effect"]
             try:
-                d = diagnose(plcpred.load_machine(case["path"]), case["runs"])
+                d = diagnose(plcpred.load_machine(case["path"]), case["runs"],
+                             io=case["io"] if args.io else None)
                 verdict = d.verdict
             except DiagnosisError as e:
                 verdict = "error"
