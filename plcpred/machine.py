@@ -371,8 +371,8 @@ def _plant_keys(r: _Reader, table: dict, kind: str) -> dict:
         elif form == "pair":
             out[key] = r.pair(key, None, positive=key.endswith("_C"), nonneg=True) \
                 if not key.endswith("_b") else r.pair(key, None)
-        else:
-            out[key] = r.number(key, nonneg=True)
+        else:   # the RANGES table bounds them; only the angle may be negative
+            out[key] = r.number(key, nonneg=key != "mount_angle_deg")
     if "spring_n" in out and kind != "single_acting":
         raise r.error("spring_n applies to single-acting cylinders")
     if "friction_static_n" in out and "friction_coulomb_n" in out and any(

@@ -463,3 +463,19 @@ def test_too_long_an_emulation_stops_with_a_clear_error(tmp_path, capsys, monkey
     err = capsys.readouterr().err
     assert "more than 50 integration pieces" in err and "shorter horizon" in err
     assert "Traceback" not in err and not out.exists()
+
+
+def test_two_lines_network_leak_and_a_din_meter():
+    em = emulate(RIG, "20s", truth=DATA / "rig_two_lines.truth.toml")
+    nl = em.consumer_nl()
+    base = emulate(RIG, "20s").consumer_nl()
+    # the knives and C hang on the 3.5 bar line: less air than at the 3.99 bar supply
+    p_l2, p_sup = 3.5e5 + P_ATM, 3.987e5 + P_ATM
+    assert nl["air knives"] < base["air knives"]
+    assert nl["air knives"] == pytest.approx(base["air knives"] * p_l2 / p_sup, rel=0.02)
+    assert nl["C"] < base["C"]
+    # the network leak sees 6.5 bar gauge, choked: C P for 20 s
+    assert nl["net leak"] == pytest.approx(2e-10 * (6.5e5 + P_ATM) * 60_000 * 20 / 60,
+                                           rel=1e-3)
+    # a DIN 1343 meter reads the same air 8.7 % lower
+    assert em.measured_nl() * 1.0875 == pytest.approx(em.total_nl, rel=0.01)

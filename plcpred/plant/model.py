@@ -166,10 +166,13 @@ class PlantModel:
         return out
 
     def passive_flow_kg_s(self, c) -> float:
-        """(D2, full phi) a nozzle's or leak's flow at its regulator or the supply."""
+        """(D2, full phi) a nozzle's or leak's flow at its own pressure or the supply. A
+        nozzle's regulator cannot raise the supply; a leak's pressure may lie above it (a
+        leak upstream of the machine's regulator sees the network)."""
         p_up = self.supply_pa
         if c.pressure_bar_g is not None:
-            p_up = min(p_up, bar_g_to_pa(c.pressure_bar_g, self.machine.atmosphere_kpa))
+            own = bar_g_to_pa(c.pressure_bar_g, self.machine.atmosphere_kpa)
+            p_up = own if c.kind == "leak" else min(p_up, own)
         return float(mass_flow_kg_s(sonic_conductance(c), c.b, c.m, p_up, self.ambient_k,
                                     self.atm_pa, self.ambient_k, c.a or 1.0))
 
