@@ -301,7 +301,8 @@ def _consumer(file: str, index: int, table: dict, warnings: list) -> Consumer:
         if kind in ("semi_rotary", "gripper") and c.stroke_mm is None:
             raise r.error("missing required key 'stroke_mm' (for a semi-rotary drive or a "
                           "gripper: the equivalent stroke of its swept volume)")
-        needs_rod = kind in ("double_acting", "double_rod", "single_acting")
+        # a single-acting cylinder fills only its cap end: its rod does not matter to the air
+        needs_rod = kind in ("double_acting", "double_rod")
         c.rod_mm = r.number("rod_mm", 0.0 if not needs_rod else None, required=needs_rod,
                             nonneg=True)
         if c.rod_mm is not None and c.rod_mm >= c.bore_mm:

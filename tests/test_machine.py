@@ -163,3 +163,29 @@ stroke_time_s = "auto"
     # a load the pressure cannot lift is an error naming the drive
     with pytest.raises(MachineError, match='consumer "c".*does not extend'):
         times(p=1, extra="payload_kg = 50\nmount_angle_deg = 90")
+
+
+def test_single_acting_cylinder_needs_no_rod(tmp_path):
+    """It fills only its cap end (D1), so a rod diameter is not asked for; D1 gives the
+    same air with or without one."""
+    (tmp_path / "p.st").write_text("PROGRAM P VAR_OUTPUT y : BOOL; END_VAR END_PROGRAM")
+    text = '''[machine]
+program = "p.st"
+supply_bar_g = 6
+[[consumer]]
+name = "c"
+kind = "single_acting"
+bore_mm = 32
+stroke_mm = 50
+valve = "y"
+stroke_time_s = 0.2
+'''
+    (tmp_path / "m.toml").write_text(text)
+    c = load_machine(tmp_path / "m.toml").consumer("c")
+    assert c.rod_mm == 0.0
+    from plcpred.air.volumes import consumer_stroke_volumes_nl
+    no_rod = consumer_stroke_volumes_nl(c, 7.01325e5)
+    (tmp_path / "m.toml").write_text(text + "rod_mm = 12\n")
+    with_rod = consumer_stroke_volumes_nl(load_machine(tmp_path / "m.toml").consumer("c"),
+                                          7.01325e5)
+    assert no_rod == with_rod and no_rod[1] == 0.0
