@@ -44,7 +44,7 @@ TIME_EPS_S = 1e-10        # switch times are compared with the sequencer's whole
 
 
 MAX_TINY_PIECES = 10_000  # consecutive pieces shorter than a microsecond: chattering
-MAX_PIECES = 200_000      # per group held in memory (about 1 KB each)
+MAX_PIECES = 1_000_000    # per group held in memory (about 0.3 KB each)
 
 
 class PlantError(PlcpredError):
@@ -100,13 +100,13 @@ class Control:
         return np.clip(self.u0 + self.slope * (t - self.t_ref), 0.0, 1.0)
 
 
-@dataclass
+@dataclass(slots=True)
 class Piece:
     t0: float
     t1: float
     x0: np.ndarray          # state at t0 (cumulative masses absolute)
     sol: object             # dense output over relative time, or None for a rest piece
-    control: Control        # at t0
+    control: Control | None  # at t0; dropped once no command can come before t1
     rest_rates: np.ndarray | None = None   # d(state)/dt while at rest (cumulative masses)
 
     def state(self, t):
@@ -182,6 +182,7 @@ class Group:
                             ambient_k))
         self.integrated_pieces = 0
         self._tiny = 0
+        self._settled_upto = 0      # pieces before this index have dropped their control
         self.reused_pieces = 0
         if self.has_line:
             x[7 * n] = self._line_equilibrium(self.control.on)
@@ -520,6 +521,13 @@ class Group:
             self.truncate(t)
         elif self.t < t:
             self.advance(t)
+        # commands only come later than this one: pieces that end by now are never
+        # truncated into again, so their control state (most of their memory) can go
+        k = self._settled_upto
+        while k < len(self.pieces) and self.pieces[k].t1 <= t:
+            self.pieces[k].control = None
+            k += 1
+        self._settled_upto = k
 
     def truncate(self, t: float) -> None:
         """Forget what was integrated after ``t`` (a command came before it)."""
@@ -553,7 +561,8 @@ class Group:
             t1 = min(tb, t_target) if c.pending else t_target
             last = self.pieces[-1] if self.pieces else None
             if last is not None and last.sol is None and last.t1 == self.t \
-                    and last.control.at_rest and _same(last.control, c):
+                    and last.control is not None and last.control.at_rest \
+                    and _same(last.control, c):
                 last.t1 = t1
             else:
                 self.pieces.append(Piece(self.t, t1, self.x.copy(), None, c.copy(),
