@@ -26,6 +26,7 @@ from __future__ import annotations
 import bisect
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -49,6 +50,43 @@ MAX_PIECES = 1_000_000    # per group held in memory (about 0.3 KB each)
 
 class PlantError(PlcpredError):
     """The plant cannot integrate a machine (parameters far outside what moves)."""
+
+
+class _DriveConsts(NamedTuple):
+    """One drive's constants as the right-hand side reads them (SI units); the friction
+    fields are (extending, retracting) pairs."""
+    area1: float
+    area2: float
+    rod_area: float
+    load: float
+    spring0: float
+    spring_rate: float
+    Cs1: float
+    bs1: float
+    ms1: float
+    Cs2: float
+    bs2: float
+    ms2: float
+    Ce1: float
+    be1: float
+    me1: float
+    Ce2: float
+    be2: float
+    me2: float
+    stroke: float
+    dead1: float
+    dead2: float
+    wall1: float
+    wall2: float
+    heat: float
+    vented2: bool
+    check: bool
+    pi_bore: float
+    F_coulomb: tuple
+    F_static: tuple
+    v_stribeck: tuple
+    beta: tuple
+    mass: float
 
 
 @dataclass
@@ -193,22 +231,16 @@ class Group:
         d = self.drives
         f = lambda attr: np.array([getattr(x, attr) for x in d], dtype=float)  # noqa: E731
         pair = lambda attr: np.array([getattr(x, attr) for x in d], dtype=float).reshape(-1, 2)  # noqa: E731
+        # arrays for the vectorised bookkeeping (settling, snapping, breakaway)
         self.stroke = f("stroke_m")
-        self.A1, self.A2, self.Ar = f("area1_m2"), f("area2_m2"), f("rod_area_m2")
+        self.A1, self.A2 = f("area1_m2"), f("area2_m2")
         self.dead1, self.dead2 = f("dead1_m3"), f("dead2_m3")
-        self.wall1, self.wall2 = f("wall1_m2"), f("wall2_m2")
-        self.bore = f("bore_m")
-        self.Cs, self.bs, self.ms = pair("C_supply"), pair("b_supply"), pair("m_supply")
-        self.Ce, self.be, self.me = pair("C_exhaust"), pair("b_exhaust"), pair("m_exhaust")
-        self.mass, self.load = f("mass_kg"), f("load_n")
         self.Fs = pair("F_static_n")           # (n, 2): extending, retracting
-        spring = pair("spring_n")
-        self.spring0, self.spring1 = spring[:, 0], spring[:, 1]
         self.vented2 = np.array([x.vented2 for x in d], dtype=bool)
-        self.heat = f("heat_w_m2k")
         self.check = np.array([x.check_valve for x in d], dtype=bool)
-        # per drive, as floats in one list (the right-hand side's loop reads these)
-        self._par = [[dr.area1_m2, dr.area2_m2, dr.rod_area_m2, dr.load_n, dr.spring_n[0],
+        # per drive, as plain floats (the right-hand side's loop reads these)
+        self._par = [_DriveConsts(
+                      dr.area1_m2, dr.area2_m2, dr.rod_area_m2, dr.load_n, dr.spring_n[0],
                       (dr.spring_n[1] - dr.spring_n[0]) / dr.stroke_m,
                       dr.C_supply[0], dr.b_supply[0], dr.m_supply[0],
                       dr.C_supply[1], dr.b_supply[1], dr.m_supply[1],
@@ -217,8 +249,7 @@ class Group:
                       dr.stroke_m, dr.dead1_m3, dr.dead2_m3, dr.wall1_m2, dr.wall2_m2,
                       dr.heat_w_m2k, dr.vented2, dr.check_valve, math.pi * dr.bore_m,
                       dr.F_coulomb_n, dr.F_static_n, dr.v_stribeck_m_s, dr.beta_ns_m,
-                      dr.mass_kg] for dr in d]
-        # friction by direction: P[27..30] are (extending, retracting) pairs
+                      dr.mass_kg) for dr in d]
         if self.passives:
             self.pC = np.array([p.C for p in self.passives])
             self.pb = np.array([p.b for p in self.passives])
@@ -232,17 +263,12 @@ class Group:
         return (x[0:n], x[n:2 * n], x[2 * n:3 * n], x[3 * n:4 * n], x[4 * n:5 * n],
                 x[5 * n:6 * n])
 
-    def net_force(self, x):
-        """Pressure, atmosphere, load and spring forces on each piston (+ extends)."""
-        p1, p2, _, _, y, _ = self._unpack(x)
-        spring = self.spring0 + (self.spring1 - self.spring0) * y / self.stroke
-        return p1 * self.A1 - p2 * self.A2 - self.p_atm * self.Ar - self.load - spring
-
     def _force(self, i: int, p1: float, p2: float, y: float) -> float:
-        """net_force for one drive, on floats (the right-hand side and the events)."""
+        """(domain.md section 4, motion) the pressure, atmosphere, load and spring forces
+        on drive i's piston, + extending."""
         P = self._par[i]
-        return (p1 * P[0] - p2 * P[1] - self.p_atm * P[2] - P[3]
-                - (P[4] + P[5] * y))
+        return (p1 * P.area1 - p2 * P.area2 - self.p_atm * P.rod_area - P.load
+                - (P.spring0 + P.spring_rate * y))
 
     def _passive_flows(self, p_line, on):
         return np.array([mass_flow_kg_s(self.pC[j], self.pb[j], self.pm[j],
@@ -263,17 +289,17 @@ class Group:
         """Mass flows (kg/s) of drive i: supply->1, 1->exhaust, supply->2, 2->exhaust."""
         P = self._par[i]
         p_atm, t_amb = self.p_atm, self.t_amb
-        qs1 = u1 * mass_flow_kg_s(P[6], P[7], P[8], p_sup, t_sup, p1, t1) if u1 > 0 else 0.0
-        qe1 = (1.0 - u1) * mass_flow_kg_s(P[12], P[13], P[14], p1, t1, p_atm, t_amb) \
+        qs1 = u1 * mass_flow_kg_s(P.Cs1, P.bs1, P.ms1, p_sup, t_sup, p1, t1) if u1 > 0 else 0.0
+        qe1 = (1.0 - u1) * mass_flow_kg_s(P.Ce1, P.be1, P.me1, p1, t1, p_atm, t_amb) \
             if u1 < 1 else 0.0
-        if P[24]:   # vented rod end
+        if P.vented2:   # vented rod end
             qs2 = qe2 = 0.0
         else:
-            qs2 = u2 * mass_flow_kg_s(P[9], P[10], P[11], p_sup, t_sup, p2, t2) \
+            qs2 = u2 * mass_flow_kg_s(P.Cs2, P.bs2, P.ms2, p_sup, t_sup, p2, t2) \
                 if u2 > 0 else 0.0
-            qe2 = (1.0 - u2) * mass_flow_kg_s(P[15], P[16], P[17], p2, t2, p_atm, t_amb) \
+            qe2 = (1.0 - u2) * mass_flow_kg_s(P.Ce2, P.be2, P.me2, p2, t2, p_atm, t_amb) \
                 if u2 < 1 else 0.0
-        if P[25]:   # supply check valve
+        if P.check:   # supply check valve
             qs1, qs2 = max(qs1, 0.0), max(qs2, 0.0)
         return qs1, qe1, qs2, qe2
 
@@ -293,25 +319,25 @@ class Group:
             qs1, qe1, qs2, qe2 = self._path_flows(i, u[i][0], u[i][1], p_sup, t_sup,
                                                   p1, t1, p2, t2)
             vel = v if moving[i] else 0.0
-            stroke = P[18]
-            v1 = P[19] + P[0] * y
-            v2 = P[20] + P[1] * (stroke - y)
+            stroke = P.stroke
+            v1 = P.dead1 + P.area1 * y
+            v2 = P.dead2 + P.area2 * (stroke - y)
             # D4: enthalpy of what flows in at its source's temperature, out at the chamber's
             h1 = CP_J_KG_K * (qs1 * (t_sup if qs1 > 0 else t1) - qe1 * (t1 if qe1 > 0 else t_amb))
-            heat1 = P[23] * (P[21] + P[26] * y) * (t_amb - t1)
-            dp1, dt1 = chamber_rates(p1, t1, v1, P[0] * vel, qs1 - qe1, h1, heat1)
-            if P[24]:
+            heat1 = P.heat * (P.wall1 + P.pi_bore * y) * (t_amb - t1)
+            dp1, dt1 = chamber_rates(p1, t1, v1, P.area1 * vel, qs1 - qe1, h1, heat1)
+            if P.vented2:
                 dp2 = dt2 = 0.0
             else:
                 h2 = CP_J_KG_K * (qs2 * (t_sup if qs2 > 0 else t2)
                                   - qe2 * (t2 if qe2 > 0 else t_amb))
-                heat2 = P[23] * (P[22] + P[26] * (stroke - y)) * (t_amb - t2)
-                dp2, dt2 = chamber_rates(p2, t2, v2, -P[1] * vel, qs2 - qe2, h2, heat2)
+                heat2 = P.heat * (P.wall2 + P.pi_bore * (stroke - y)) * (t_amb - t2)
+                dp2, dt2 = chamber_rates(p2, t2, v2, -P.area2 * vel, qs2 - qe2, h2, heat2)
             if moving[i]:
                 force = self._force(i, p1, p2, y)
                 k = 0 if direction[i] > 0 else 1
-                fr = friction_n(v, direction[i], P[27][k], P[28][k], P[29][k], P[30][k])
-                acc = (force - fr) / P[31]
+                fr = friction_n(v, direction[i], P.F_coulomb[k], P.F_static[k], P.v_stribeck[k], P.beta[k])
+                acc = (force - fr) / P.mass
             else:
                 acc = 0.0
             out[i], out[n + i], out[2 * n + i], out[3 * n + i] = dp1, dp2, dt1, dt2
@@ -348,7 +374,7 @@ class Group:
         c = self.control
         for _ in range(3):
             changed = False
-            force = self.net_force(x)
+            force = [self._force(i, x[i], x[n + i], x[4 * n + i]) for i in range(n)]
             for i in range(n):
                 yi, vi = x[4 * n + i], x[5 * n + i]
                 if c.moving[i]:
