@@ -1,5 +1,5 @@
 """The machine file (TOML): ties a PLC program's inputs and outputs to physical consumers,
-switches and input schedules. Contract: ``shared/design.md``, "Machine file".
+switches and input schedules. Every key is documented in ``docs/machine-file.md``.
 
 ``load_machine(path)`` reads and validates it. Problems are :class:`MachineError` naming
 the file, the table and the key (``station.toml: consumer "clamp": stroke_mm must be > 0``);

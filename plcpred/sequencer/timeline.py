@@ -1,6 +1,6 @@
 """The sequencer's result: the edges of every input, output and SFC step flag over a
-horizon, with helpers to ask for a signal's intervals. Contract for ``timeline.csv``:
-``shared/design.md`` ("Files"): ``time_s,signal,value``, one row per change, every signal's
+horizon, with helpers to ask for a signal's intervals. ``timeline.csv`` (README,
+``plcpred timeline``): ``time_s,signal,value``, one row per change, every signal's
 initial value at time 0, sorted by time and stable within a scan (inputs as the scan read
 them, then step flags, then outputs). BOOL values are written 1/0.
 """
