@@ -189,3 +189,15 @@ stroke_time_s = 0.2
     with_rod = consumer_stroke_volumes_nl(load_machine(tmp_path / "m.toml").consumer("c"),
                                           7.01325e5)
     assert no_rod == with_rod and no_rod[1] == 0.0
+
+
+def test_every_machine_file_key_is_documented():
+    """docs/machine-file.md names every key the loader accepts."""
+    from pathlib import Path
+
+    from plcpred import machine as mf
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "machine-file.md").read_text()
+    keys = (mf._MACHINE_KEYS | mf._INPUT_KEYS | mf._CONSUMER_KEYS | mf._LINE_KEYS
+            | mf._METER_KEYS)
+    missing = sorted(k for k in keys if f"`{k}`" not in doc)
+    assert not missing, f"undocumented keys: {missing}"
