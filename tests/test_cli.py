@@ -44,3 +44,17 @@ def test_console_script_runs_as_module(samples_dir):
                         str(samples_dir / "codesys_pick_place.st")],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
+
+
+def test_every_command_and_option_is_in_docs_cli():
+    """docs/cli.md (made from the --help texts) names every command and option."""
+    from pathlib import Path
+
+    from plcpred.cli import build_parser
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "cli.md").read_text()
+    sub = [a for a in build_parser()._actions if a.__class__.__name__ == "_SubParsersAction"]
+    for name, parser in sub[0].choices.items():
+        assert f"## `plcpred {name}`" in doc, name
+        for action in parser._actions:
+            for opt in action.option_strings:
+                assert opt in doc, f"plcpred {name} {opt}"
