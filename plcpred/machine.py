@@ -525,6 +525,12 @@ def machine_from_data(data: dict, path) -> Machine:
         c.supply_context = supply_context
         if c.stroke_time_s == "auto":
             c.auto_stroke_times()   # fails here, naming the drive, if it cannot move
+        if c.kind == "nozzle" and c.pressure_bar_g is not None and \
+                c.pressure_bar_g > machine.supply_bar_g:
+            machine.warnings.append(
+                f'{file}: consumer "{c.name}": pressure_bar_g = {c.pressure_bar_g:g} is above '
+                f"supply_bar_g = {machine.supply_bar_g:g}; a regulator cannot raise its "
+                "supply (predict takes the nozzle's pressure as given, emulate the supply)")
     lines = {ln.name for ln in machine.lines}
     if len(lines) != len(machine.lines):
         raise MachineError(file, "[[line]]", "a line name is used twice")

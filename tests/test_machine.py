@@ -201,3 +201,20 @@ def test_every_machine_file_key_is_documented():
             | mf._METER_KEYS)
     missing = sorted(k for k in keys if f"`{k}`" not in doc)
     assert not missing, f"undocumented keys: {missing}"
+
+
+def test_a_nozzle_regulated_above_the_supply_is_warned_about(tmp_path):
+    (tmp_path / "p.st").write_text("PROGRAM P VAR_OUTPUT y : BOOL; END_VAR END_PROGRAM")
+    (tmp_path / "m.toml").write_text('''[machine]
+program = "p.st"
+supply_bar_g = 4
+[[consumer]]
+name = "knife"
+kind = "nozzle"
+valve = "y"
+orifice_mm = 1
+Cd = 0.7
+pressure_bar_g = 5
+''')
+    m = load_machine(tmp_path / "m.toml")
+    assert any('"knife"' in w and "cannot raise its supply" in w for w in m.warnings)
