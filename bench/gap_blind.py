@@ -8,7 +8,7 @@ verdict), top-1 accuracy where the effect is larger than three times the noise, 
 verdict on cases without an effect, and the median held-out shrink of the gap.
 
 The generator applies each effect to the prediction's per-consumer flows with its own
-code, written from the physics (domain.md sections 2, 3 and 7) and sharing nothing with
+code, written from the physics (docs/physics.md: cylinders, restrictions, what D4 adds) and sharing nothing with
 the diagnosis' effect models: an exhaust is integrated as an ISO 6358 flow out of the dead
 volume, a refill as an explicit exponential kernel, a meter as a step-by-step lag, a valve
 delay as a dead time before the stroke.
@@ -45,7 +45,7 @@ P0, T0, P_ATM = 100_000.0, 293.15, 101_325.0
 # ---------------------------------------------------------------------- physics, ours
 
 def iso6358_phi(r, b, m):
-    """ISO 6358 subsonic flow function (domain.md D2)."""
+    """ISO 6358 subsonic flow function (docs/physics.md D2)."""
     r = np.asarray(r, dtype=float)
     x = np.clip((r - b) / (1.0 - b), 0.0, 1.0)
     return np.where(r <= b, 1.0, (1.0 - x * x) ** m)

@@ -536,8 +536,9 @@ def machine_from_data(data: dict, path) -> Machine:
         raise MachineError(file, "[[line]]", "a line name is used twice")
     for c in machine.consumers:
         if c.line is not None and c.line not in lines:
+            known = ", ".join(sorted(lines)) or "none"
             raise MachineError(file, f'consumer "{c.name}"', f"line '{c.line}' is not a "
-                               f"[[line]] of the file (lines: {', '.join(sorted(lines)) or 'none'})")
+                               f"[[line]] of the file (lines: {known})")
     if machine.meter is not None and machine.meter.line is not None and \
             machine.meter.line not in lines:
         raise MachineError(file, "[meter]", f"line '{machine.meter.line}' is not a [[line]] "
@@ -566,10 +567,11 @@ def program_addresses(program) -> dict[str, str]:
 
 
 def _program_io(program):
-    """(all variable names, output names, names read anywhere) of a program, upper case."""
+    """(all variable names, output names, names read anywhere: upper case; inputs: upper
+    case -> as declared) of a program."""
     from .parser.check import Checker
 
-    names, outputs = set(), set()
+    names, outputs, inputs = set(), set(), {}
     blocks = [g.block for g in program.globals]
     blocks += [b for c in program.configurations for b in c.var_blocks]
     blocks += [b for c in program.configurations for r in c.resources for b in r.var_blocks]
@@ -580,18 +582,20 @@ def _program_io(program):
         for d in b.decls:
             key = d.name.upper()
             names.add(key)
-            if b.kind == "VAR_OUTPUT" or (d.address or "").startswith("%Q"):
+            if b.kind == "VAR_OUTPUT" or (d.address or "").upper().startswith("%Q"):
                 outputs.add(key)
+            elif b.kind == "VAR_INPUT" or (d.address or "").upper().startswith("%I"):
+                inputs[key] = d.name
     usage = Checker(program).run().program_usage
-    return names, outputs, usage.read
+    return names, outputs, usage.read, inputs
 
 
 def check_against_program(machine: Machine, program) -> list[str]:
     """Cross-check the machine's signals with the program's variables. Unknown signals are
-    errors (raised); outputs that drive no consumer and switches the program never reads
-    are returned (and added to ``machine.warnings``)."""
+    errors (raised); outputs that drive no consumer, switches the program never reads and
+    inputs it reads that nothing drives are returned (and added to ``machine.warnings``)."""
     file = str(machine.path)
-    names, outputs, read = _program_io(program)
+    names, outputs, read, inputs = _program_io(program)
     by_address = program_addresses(program)
     by_address.update({addr.upper(): name for addr, name in machine.signals.items()})
     program_file = machine.program_path.name
@@ -617,6 +621,7 @@ def check_against_program(machine: Machine, program) -> list[str]:
     names |= used_addresses
     read = set(read) | used_addresses
     driven = set()
+    fed = set()     # inputs something drives: a schedule or a switch
     warnings = []
     for c in machine.consumers:
         where = f'consumer "{c.name}"'
@@ -624,13 +629,18 @@ def check_against_program(machine: Machine, program) -> list[str]:
             driven.add(require(where, "valve", v))
         for role, sig in c.switches.items():
             name = require(where, f"switches.{role}", sig)
+            fed.add(name)
             if name not in read:
                 warnings.append(f"{file}: {where}: switch '{sig}' is never read by "
                                 f"{program_file}")
     for s in machine.inputs:
-        require(f'input "{s.signal}"', "signal", s.signal)
+        fed.add(require(f'input "{s.signal}"', "signal", s.signal))
     for out in sorted(outputs - driven):
         warnings.append(f"{file}: output '{out}' of {program_file} drives no consumer")
+    for key in sorted((set(inputs) & set(read)) - fed):
+        warnings.append(f"{file}: input '{inputs[key]}' is read by {program_file} but nothing "
+                        "drives it (no [[input]] schedule, no switch): it keeps its initial "
+                        "value")
     machine.warnings.extend(warnings)
     return warnings
 

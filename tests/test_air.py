@@ -1,4 +1,4 @@
-"""The air model against domain.md's equations and published figures, and hand
+"""The air model against docs/physics.md's equations and published figures, and hand
 calculations."""
 import csv
 import json
@@ -33,7 +33,7 @@ def passive_total(pressure_bar_abs, model):
 
 @pytest.mark.parametrize("bar_abs,published", [(2.5, 104), (3.5, 145), (5.0, 207)])
 def test_passive_linear_row_of_the_published_table(bar_abs, published):
-    # the knives' C (domain.md table) plus the rig's leak, always choked
+    # the knives' C (docs/physics.md table) plus the rig's leak, always choked
     assert passive_total(bar_abs, "choked") == pytest.approx(published, rel=0.01)
 
 
@@ -124,7 +124,7 @@ def rig_total_without_leak(machine_file, horizon, choked=True):
 
 
 def test_rig_sequence_1_matches_the_published_simplified_total():
-    # 13.13 L (domain.md section 5). The knives' blow time is not published; the sample
+    # 13.13 L (docs/physics.md: figures). The knives' blow time is not published; the sample
     # uses the 3.7 s that makes this hold, so this checks consistency of the cylinder
     # volumes and the knife flow rather than validating them independently.
     assert rig_total_without_leak("rig.toml", "20s") == pytest.approx(13.13, rel=0.02)

@@ -20,7 +20,7 @@ from plcpred.plant.group import Group, Supply
 ROOT = Path(__file__).resolve().parent.parent
 RIG = ROOT / "samples" / "prototype_rig" / "rig.toml"
 ATM = 101_325.0
-KNIVES = (6.56e-9, 0.22, 0.55)      # domain.md section 5, two air knives on one valve
+KNIVES = (6.56e-9, 0.22, 0.55)      # docs/physics.md: figures, two air knives on one valve
 
 
 def hand_flow_l_min(C, b, m, p_up, p_down):

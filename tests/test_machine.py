@@ -218,3 +218,31 @@ pressure_bar_g = 5
 ''')
     m = load_machine(tmp_path / "m.toml")
     assert any('"knife"' in w and "cannot raise its supply" in w for w in m.warnings)
+
+
+def test_an_input_read_but_never_driven_is_warned_about(tmp_path):
+    """The E-stop a machine file forgot to schedule keeps the station still: say so."""
+    (tmp_path / "p.st").write_text("""PROGRAM P
+VAR_INPUT xEStopOk : BOOL; xStart : BOOL; END_VAR
+VAR_OUTPUT y : BOOL; END_VAR
+y := xEStopOk AND xStart;
+END_PROGRAM""")
+    (tmp_path / "m.toml").write_text('''[machine]
+program = "p.st"
+supply_bar_g = 6
+[[input]]
+signal = "xStart"
+pulses_s = [1.0]
+[[consumer]]
+name = "c"
+kind = "double_acting"
+bore_mm = 20
+rod_mm = 8
+stroke_mm = 50
+valve = "y"
+''')
+    from plcpred import unfold
+    m = load_machine(tmp_path / "m.toml")
+    unfold(m, "2s")
+    hits = [w for w in m.warnings if "nothing drives it" in w]
+    assert len(hits) == 1 and "'xEStopOk'" in hits[0]

@@ -1,4 +1,4 @@
-"""The physics plant (plcpred.plant) against the thesis' figures (domain.md sections 5
+"""The physics plant (plcpred.plant) against the thesis' figures (docs/physics.md sections 5
 and 7), hand calculations, mass balance, closed-loop runs and the emulate command.
 
 Reference numbers here are written from the physics (D1, D2 by hand, the ideal-gas fill
@@ -65,7 +65,7 @@ def test_eckersten_series_of_two_equal_restrictions():
 
 
 def _rig_drive(name):
-    """The rig's drives with their measured circuits (domain.md section 5, table 5.5)."""
+    """The rig's drives with their measured circuits (docs/physics.md: figures, table 5.5)."""
     m = load_machine(DATA / "rig_a.toml")
     a = m.consumer("A")
     if name == "A":
@@ -186,7 +186,7 @@ exhaust_C = 3.75e-9
 
 
 def test_passive_table_by_full_d2():
-    """Knives plus the pilot leak at 2.5, 3.5 and 5 bar absolute (domain.md section 5):
+    """Knives plus the pilot leak at 2.5, 3.5 and 5 bar absolute (docs/physics.md: figures):
     the plant's flow is D2 with phi; at 2.5 bar it is nearer the measured 91 NL/min than
     the linear model's 104."""
     m = load_machine(RIG)

@@ -1,4 +1,4 @@
-"""From a timeline to an air-demand profile: the activation/transition model (domain.md
+"""From a timeline to an air-demand profile: the activation/transition model (docs/physics.md
 section 2) evaluated on a regular time grid.
 
 * **Active consumers** (cylinders, semi-rotary drives, grippers) take their D1 volume on
@@ -9,7 +9,7 @@ section 2) evaluated on a regular time grid.
 * **Passive consumers** (nozzles, air knives) flow at their D2 rate while their output is
   on; **leaks** always.
 
-Shape of a stroke: nothing flows during the valve's switching delay (domain.md section 4:
+Shape of a stroke: nothing flows during the valve's switching delay (docs/physics.md: dynamic model:
 flow starts t_sw after the command); then the volume is spread evenly (a rectangle) over
 the stroke time in that direction, while the piston moves. Without a stroke time it is
 spread over the switching delay from the edge, and without either it lands at the edge
@@ -179,7 +179,7 @@ def _cumulative(points_s, start_s, duration_s, amount):
 def residual_fill_nl(t_s, extend, delay_s: float, stroke_time_s, exhaust_tau_s: float,
                      dead_fill_nl) -> np.ndarray:
     """Air a fill does not take because its chamber has not finished exhausting
-    (domain.md section 7, "incomplete exhaust"): a chamber starts exhausting when the
+    (docs/physics.md: what D4 adds, "incomplete exhaust"): a chamber starts exhausting when the
     opposite stroke has ended (its edge + delay + stroke time) and the air its dead volume
     holds above atmosphere decays as ``exp(-t / exhaust_tau_s)``; a fill at ``t`` after
     that start needs ``dead_fill_nl * exp(-t / tau)`` less (the whole of it if the opposite
@@ -212,7 +212,7 @@ def stroke_cells(edges_s, t_s, extend, extend_nl: float, retract_nl: float,
                                              exhaust_tau_s, dead_fill_nl), 0.0, None)
     if stroke_time_s is not None:
         # the valve opens a switching delay after the edge; the chamber fills while the
-        # piston moves (domain.md section 4: flow starts t_sw after the command)
+        # piston moves (docs/physics.md: dynamic model: flow starts t_sw after the command)
         start = t_s + delay_s
         dur = np.where(extend, stroke_time_s[0], stroke_time_s[1])
     else:

@@ -1,4 +1,4 @@
-"""Compressor and receiver sizing from a demand profile (domain.md section 6).
+"""Compressor and receiver sizing from a demand profile (docs/physics.md: energy).
 
 * **Design flow** of the compressor: the mean demand plus an allowance (default 10 %).
   Compressors are sized for the average, receivers and lines for the peaks.

@@ -1,4 +1,4 @@
-"""Free-air volume per stroke of an active consumer (domain.md D1a, D1b), stated at the
+"""Free-air volume per stroke of an active consumer (docs/physics.md D1a, D1b), stated at the
 reference condition (section 1).
 
 D1 gives the free air at atmospheric pressure: the swept volume plus the tube dead volume
@@ -64,7 +64,7 @@ def dead_fill_volumes_nl(consumer, supply_pa: float, atmosphere_pa: float,
                          supply_temp_k: float = T0_K) -> tuple[float, float]:
     """(cap, rod) normal litres that a chamber's dead volume (its tube from the valve)
     holds above atmospheric pressure when it is at supply pressure: what an exhaust cut
-    short leaves for the next fill (domain.md section 7; the ``exhaust_tau_s`` option of
+    short leaves for the next fill (docs/physics.md: what D4 adds; the ``exhaust_tau_s`` option of
     the air model). ``V_t * (P_s - P_atm) / P0 * T0 / T_s``."""
     tube_id = consumer.tube_id_mm or 0.0
     area_mm2 = math.pi * tube_id ** 2 / 4.0

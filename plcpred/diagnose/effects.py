@@ -27,7 +27,7 @@ LEAK_B = 0.528
 LEAK_M = 0.5
 DEFAULT_TUBE_ID_MM = 4.0     # a diagnosed dead volume on a drive without tube data
 MAX_METER_TAU_S = 10.0
-NUISANCE_METER_TAU_S = 0.6   # thermal-mass meters respond in 0.1-0.6 s (domain.md s. 5)
+NUISANCE_METER_TAU_S = 0.6   # thermal-mass meters respond in 0.1-0.6 s (docs/physics.md: figures)
 
 
 @dataclass
@@ -216,7 +216,7 @@ def _tube_area_mm2(consumer) -> float:
 
 class DeadVolume(Effect):
     """More (or less) volume between valve and piston than the file says (a longer tube,
-    a fitting, a manifold; D1 also counts a dead volume's air from zero, domain.md
+    a fitting, a manifold; D1 also counts a dead volume's air from zero, docs/physics.md
     section 7): ``extra_cm3`` per drive, filled to supply on every stroke."""
     name, title = "dead_volume", "a different dead volume (tube length)"
 
@@ -311,7 +311,7 @@ class SharedSupply(Effect):
     expressible = False     # the air model has no shared-line option yet
 
     """Drives on one supply line without check valves: holding neighbours give air back
-    to the line while a drive fills and take it again afterwards (domain.md section 7),
+    to the line while a drive fills and take it again afterwards (docs/physics.md: what D4 adds),
     so a share of each stroke's air arrives later, as a refill with a time constant."""
     name, title = "shared_supply", "drives refilling each other on a shared line"
 
@@ -366,7 +366,7 @@ class ValveDelay(Effect):
 
 class StrokeTime(Effect):
     """Strokes faster or slower than the file says (a flow control turned, a payload):
-    a factor on each drive's stroke times. Air per stroke stays (domain.md section 7); its
+    a factor on each drive's stroke times. Air per stroke stays (docs/physics.md: what D4 adds); its
     shape in time changes."""
     name, title = "stroke_time", "different stroke times"
 

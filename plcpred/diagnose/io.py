@@ -6,7 +6,7 @@ with ``time_col``/``flow_col`` (a header name or a 1-based column number). Times
 seconds or ISO 8601 date-times; flows are in ``l/min``, ``m3/h``, ``l/s`` or ``scfm`` at the
 meter's reference condition (ISO 8778, DIN 1343 or ISO 2533), converted here to normal
 litres per minute at the ISO 8778 reference every other part of plcpred uses
-(domain.md section 1: ``V_2 = V_1 * (P_1/P_2) * (T_2/T_1)``). Fields separated by
+(docs/physics.md: reference conditions: ``V_2 = V_1 * (P_1/P_2) * (T_2/T_1)``). Fields separated by
 ``,``, ``;`` or tabs; with ``;`` a decimal comma is read too (European loggers).
 """
 from __future__ import annotations
@@ -68,7 +68,7 @@ class MeasuredRun:
 
 def reference_factor(reference: str) -> float:
     """Multiplier from normal litres at ``reference`` to ISO 8778 normal litres
-    (domain.md section 1): ``(P_ref / P0) * (T0 / T_ref)``; DIN 1343 litres are 8.7 %
+    (docs/physics.md: reference conditions): ``(P_ref / P0) * (T0 / T_ref)``; DIN 1343 litres are 8.7 %
     more ISO 8778 litres."""
     try:
         p_pa, t_k = REFERENCES[reference]

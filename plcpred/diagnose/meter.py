@@ -3,7 +3,7 @@
 Comparing a prediction with a log means comparing like with like: the prediction's flow
 on a fine grid goes through the meter's first-order response and is averaged over each
 logged sample's interval, as a thermal-mass meter with a 1-2 Hz logger reports it
-(domain.md section 5: "the flow sensor acts as a low-pass filter"; section 7: meters lag
+(docs/physics.md: figures: "the flow sensor acts as a low-pass filter"; section 7: meters lag
 0.1-0.6 s).
 """
 from __future__ import annotations

@@ -2,7 +2,7 @@
 
 A group is either one drive on the ideal supply (the machine's regulated pressure, no
 dynamics), or every drive and passive consumer on one ``[[line]]``: a volume fed by a
-regulator, through which the drives exchange air (domain.md section 7, shared supply).
+regulator, through which the drives exchange air (docs/physics.md: what D4 adds, shared supply).
 
 The state is integrated with scipy's LSODA (stiff when chambers are nearly full, not
 stiff while pistons move) in *pieces*: a piece ends at the next discrete event (a valve
@@ -40,8 +40,8 @@ SETTLE_P_REL = 5e-4
 SETTLE_T_K = 0.5
 POS_EPS_M = 1e-7
 CACHE_LIMIT = 50_000
-LOOKAHEAD_S = 600.0
-TIME_EPS_S = 1e-10        # switch times are compared with the sequencer's whole ns       # a switch that has not changed by then is taken as never
+LOOKAHEAD_S = 600.0       # a switch that has not changed by then is taken as never
+TIME_EPS_S = 1e-10        # switch times are compared with the sequencer's whole ns
 
 
 MAX_TINY_PIECES = 10_000  # consecutive pieces shorter than a microsecond: chattering
@@ -230,7 +230,8 @@ class Group:
     def _arrays(self):
         d = self.drives
         f = lambda attr: np.array([getattr(x, attr) for x in d], dtype=float)  # noqa: E731
-        pair = lambda attr: np.array([getattr(x, attr) for x in d], dtype=float).reshape(-1, 2)  # noqa: E731
+        pair = lambda attr: np.array([getattr(x, attr) for x in d],  # noqa: E731
+                                     dtype=float).reshape(-1, 2)
         # arrays for the vectorised bookkeeping (settling, snapping, breakaway)
         self.stroke = f("stroke_m")
         self.A1, self.A2 = f("area1_m2"), f("area2_m2")
@@ -264,7 +265,7 @@ class Group:
                 x[5 * n:6 * n])
 
     def _force(self, i: int, p1: float, p2: float, y: float) -> float:
-        """(domain.md section 4, motion) the pressure, atmosphere, load and spring forces
+        """(docs/physics.md: dynamic model, motion) the pressure, atmosphere, load and spring forces
         on drive i's piston, + extending."""
         P = self._par[i]
         return (p1 * P.area1 - p2 * P.area2 - self.p_atm * P.rod_area - P.load
@@ -336,7 +337,8 @@ class Group:
             if moving[i]:
                 force = self._force(i, p1, p2, y)
                 k = 0 if direction[i] > 0 else 1
-                fr = friction_n(v, direction[i], P.F_coulomb[k], P.F_static[k], P.v_stribeck[k], P.beta[k])
+                fr = friction_n(v, direction[i], P.F_coulomb[k], P.F_static[k],
+                                P.v_stribeck[k], P.beta[k])
                 acc = (force - fr) / P.mass
             else:
                 acc = 0.0

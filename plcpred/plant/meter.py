@@ -1,4 +1,4 @@
-"""What a real flow meter reports of a true flow (domain.md sections 5 and 7): its
+"""What a real flow meter reports of a true flow (docs/physics.md: figures, what D4 adds): its
 reference condition, first-order response, logging intervals (each reading the mean over
 its interval), noise, zero offset and full-scale clipping."""
 from __future__ import annotations
@@ -43,7 +43,8 @@ def meter_readings(edges_s: np.ndarray, cum_nl: np.ndarray, settings: MeterSetti
     The flow of each fine cell (its mean) goes through the first-order response (exact
     for piecewise-constant input), each reading is the mean of the response over its
     logging interval ending at its time stamp, then converted to the meter's reference
-    (V_ref2 = V_ref1 (P1/P2)(T2/T1), domain.md section 1), offset, noise and clipping."""
+    (V_ref2 = V_ref1 (P1/P2)(T2/T1), docs/physics.md: reference conditions), offset,
+    noise and clipping."""
     dt = np.diff(edges_s)
     cell_flow = np.diff(cum_nl) / dt * 60.0
     lagged = first_order_lag(cell_flow, float(np.median(dt)), settings.tau_s)

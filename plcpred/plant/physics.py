@@ -1,8 +1,10 @@
-"""The physics of the virtual plant as plain functions (domain.md sections 3 and 4).
+"""The physics of the virtual plant as plain functions (docs/physics.md: restrictions,
+dynamic model).
 
 Pressures are absolute, in pascal; temperatures in kelvin; mass flows in kg/s; lengths in
-metres; forces in newtons. Functions take floats: the group's right-hand side calls them once per drive and
-chamber, which for the few drives of a group is faster than numpy on tiny arrays.
+metres; forces in newtons. Functions take floats: the group's right-hand side calls them
+once per drive and chamber, which for the few drives of a group is faster than numpy on
+tiny arrays.
 """
 from __future__ import annotations
 
@@ -62,7 +64,7 @@ def chamber_rates(p_pa, t_k, v_m3, dv_m3_s, q_net_kg_s, h_in_w, q_heat_w):
 
 def friction_n(v_m_s: float, direction: float, F_coulomb_n: float, F_static_n: float,
                v_stribeck_m_s: float, beta_ns_m: float, delta: float = 2.0) -> float:
-    """(domain.md section 4, Stribeck) friction of a sliding piston against its motion:
+    """(docs/physics.md: dynamic model, Stribeck) friction of a sliding piston against its motion:
     ``sgn(v) (F_c + (F_s - F_c) exp(-(|v|/v_s)^delta)) + beta v``; ``direction`` gives the
     sign while v passes through 0 at a breakaway."""
     return direction * (F_coulomb_n + (F_static_n - F_coulomb_n)
@@ -70,7 +72,8 @@ def friction_n(v_m_s: float, direction: float, F_coulomb_n: float, F_static_n: f
 
 
 def mass_to_nl(mass_kg):
-    """Normal litres (ISO 8778 reference, domain.md section 1) of a mass of air."""
+    """Normal litres (ISO 8778 reference, docs/physics.md: reference conditions) of a
+    mass of air."""
     return mass_kg / RHO0_KG_M3 * 1000.0
 
 
@@ -83,12 +86,12 @@ def air_mass_kg(p_pa, v_m3, t_k):
 
 
 def tube_transit_s(length_m: float) -> float:
-    """The time a pressure wave needs to cross a tube (domain.md section 4: L_t / c)."""
+    """The time a pressure wave needs to cross a tube (docs/physics.md: dynamic model: L_t / c)."""
     return length_m / SOUND_M_S
 
 
 def series_conductance(C1, b1, C2, b2):
-    """(domain.md section 3, Eckersten) two restrictions in series:
+    """(docs/physics.md: restrictions, Eckersten) two restrictions in series:
     ``1/C^3 = 1/C1^3 + 1/C2^3``, ``1 - b = C^2 ((1 - b1)/C1^2 + (1 - b2)/C2^2)``."""
     C = (C1 ** -3 + C2 ** -3) ** (-1.0 / 3.0)
     b = 1.0 - C * C * ((1.0 - b1) / C1 ** 2 + (1.0 - b2) / C2 ** 2)
