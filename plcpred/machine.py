@@ -626,7 +626,11 @@ def check_against_program(machine: Machine, program) -> list[str]:
     for c in machine.consumers:
         where = f'consumer "{c.name}"'
         for v in c.valve:
-            driven.add(require(where, "valve", v))
+            name = require(where, "valve", v)
+            driven.add(name)
+            if name in inputs:
+                warnings.append(f"{file}: {where}: valve '{v}' is an input of "
+                                f"{program_file}, not an output: the program cannot drive it")
         for role, sig in c.switches.items():
             name = require(where, f"switches.{role}", sig)
             fed.add(name)

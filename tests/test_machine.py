@@ -246,3 +246,40 @@ valve = "y"
     unfold(m, "2s")
     hits = [w for w in m.warnings if "nothing drives it" in w]
     assert len(hits) == 1 and "'xEStopOk'" in hits[0]
+
+
+def _lint_machine(tmp_path, program, consumers):
+    (tmp_path / "p.st").write_text(program)
+    (tmp_path / "m.toml").write_text('[machine]\nprogram = "p.st"\nsupply_bar_g = 6\n'
+                                     + consumers)
+    from plcpred import unfold
+    m = load_machine(tmp_path / "m.toml")
+    unfold(m, "3s")
+    return m.warnings
+
+
+def test_lint_nothing_moved_both_coils_and_a_valve_on_an_input(tmp_path):
+    cyl = ('[[consumer]]\nname = "c"\nkind = "double_acting"\nbore_mm = 20\nrod_mm = 8\n'
+           'stroke_mm = 50\nvalve = {valve}\n')
+    # the E-stop deadlock: nothing ever moves
+    w = _lint_machine(tmp_path, """PROGRAM P VAR_INPUT ok : BOOL; END_VAR
+VAR_OUTPUT y : BOOL; END_VAR y := ok; END_PROGRAM""", cyl.format(valve='"y"'))
+    assert any("nothing moved" in x for x in w)
+    # a bistable valve with both coils on at 1 s
+    w = _lint_machine(tmp_path, """PROGRAM P VAR_OUTPUT a, b : BOOL; END_VAR
+VAR t : TON; END_VAR t(IN := TRUE, PT := T#1S); a := TRUE; b := t.Q; END_PROGRAM""",
+                      cyl.format(valve='["a", "b"]'))
+    hits = [x for x in w if "both solenoids" in x]
+    assert len(hits) == 1 and "at 1 s" in hits[0]
+    assert not any("nothing moved" in x for x in w)
+    # a valve wired to an input
+    w = _lint_machine(tmp_path, """PROGRAM P VAR_INPUT x : BOOL; END_VAR
+VAR_OUTPUT y : BOOL; END_VAR y := x; END_PROGRAM""", cyl.format(valve='"x"'))
+    assert any("valve 'x' is an input" in x for x in w)
+
+
+def test_lint_a_first_scan_command_is_movement(tmp_path):
+    w = _lint_machine(tmp_path, """PROGRAM P VAR_OUTPUT y : BOOL; END_VAR y := TRUE;
+END_PROGRAM""", '[[consumer]]\nname = "c"\nkind = "double_acting"\nbore_mm = 20\n'
+                'rod_mm = 8\nstroke_mm = 50\nvalve = "y"\n')
+    assert not any("nothing moved" in x for x in w)

@@ -36,5 +36,51 @@ def unfold(machine, horizon="60s", scan_stepping: bool = False, tiling: bool = T
     elif not hasattr(program, "pous"):
         program = load_program(program)
     check_against_program(machine, program)
-    return Sequencer(program, machine).run(horizon_ns, scan_stepping=scan_stepping,
-                                           tiling=tiling, max_events=max_events)
+    timeline = Sequencer(program, machine).run(horizon_ns, scan_stepping=scan_stepping,
+                                               tiling=tiling, max_events=max_events)
+    machine.warnings.extend(lint_timeline(machine, timeline))
+    return timeline
+
+
+def lint_timeline(machine, timeline) -> list[str]:
+    """Warnings a run gives about its machine: no valve output ever changed (nothing
+    moved: an input nobody drives? a program waiting for something?), or both solenoids
+    of a bistable valve on at once (the valve keeps its state; the wiring or the program
+    is wrong). A tiled run is checked on the part executed, which the rest repeats."""
+    import numpy as np
+
+    file = str(machine.path)
+    names = timeline.info.get("machine_signals", {})
+    known = {sig.name for sig in timeline.signals}
+    out, moved, any_valve = [], False, False
+    for c in machine.consumers:
+        series = []
+        for v in c.valve:
+            name = names.get(v, v)
+            if name not in known:
+                break
+            series.append(timeline.executed_edge_times_ns(name))
+        else:
+            if not series:
+                continue
+            any_valve = True
+            # a change after the first scan, or a first scan that already commands the
+            # consumer away from its rest (a cylinder's initial position, a nozzle off)
+            rest = c.initial == "extended" if c.is_cylinder else False
+            first = [bool(v[0]) if len(v) else False for _, v in series]
+            away = first[0] != rest if len(series) == 1 else (
+                first[0] and not rest) or (first[1] and rest)
+            moved = moved or away or any(np.any(t > 0) for t, _ in series)
+            if len(series) == 2:
+                times = np.union1d(series[0][0], series[1][0])
+                on = [v[np.maximum(np.searchsorted(t, times, side="right") - 1, 0)] != 0
+                      for t, v in series]
+                both = times[on[0] & on[1]]
+                if both.size:
+                    out.append(f'{file}: consumer "{c.name}": both solenoids of its bistable '
+                               f"valve ({c.valve[0]}, {c.valve[1]}) are on at "
+                               f"{both[0] / 1e9:g} s; the valve keeps its state")
+    if any_valve and not moved:
+        out.append(f"{file}: no valve output changed over {timeline.horizon_s:g} s: nothing "
+                   "moved (an input nobody drives? a program waiting for something?)")
+    return out

@@ -172,6 +172,13 @@ class Timeline:
         m = self.signal_idx == self._idx(name)
         return pd.DataFrame({"time_s": self.time_ns[m] / NS, "value": self.values[m]})
 
+    def executed_edge_times_ns(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """``edge_times_ns`` over the part the executor ran (for a tiled run: up to the
+        end of the first period, which the rest repeats), without building the whole."""
+        t, s, v = self._base
+        m = s == self._idx(name)
+        return t[m], v[m]
+
     def edge_times_ns(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         m = self.signal_idx == self._idx(name)
         return self.time_ns[m], self.values[m]
