@@ -262,6 +262,8 @@ def cmd_compare(args) -> int:
         print(f"plcpred: error: {e}", file=sys.stderr)
         return 2
     print(json.dumps(result.to_dict(), indent=2) if args.json else result.table())
+    if not result.new_moves:
+        return EXIT_NEVER_MOVES
     return 0 if result.within_allowance else 1
 
 
@@ -330,6 +332,7 @@ def _machine_args(p, out: str | None = "output directory", dt: bool = True) -> N
 
 
 DEFAULT_MAX_CHANGES = 20_000_000  # the sequencer's default (not imported: --help stays fast)
+EXIT_NEVER_MOVES = 4   # compare: NEW never moves (a deadlock passes no air gate)
 
 
 def _positive_int(text: str) -> int:
@@ -412,8 +415,10 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Predict BASE and NEW over the same horizon and print a "
                                    "per-consumer table of totals and deltas. Exit 0 when NEW "
                                    "is within the allowance, 1 when it uses more air, 2 on an "
-                                   "error. NEW defaults to BASE, for comparing two programs "
-                                   "with --program-new.")
+                                   "error, 4 when NEW never moves (no valve output ever "
+                                   "changes: a deadlock uses less air but passes no gate). NEW "
+                                   "defaults to BASE, for comparing two programs with "
+                                   "--program-new.")
     p.add_argument("base", metavar="BASE", help="machine file (.toml)")
     p.add_argument("new", metavar="NEW", nargs="?", help="machine file (default: BASE)")
     p.add_argument("--horizon", required=True, help=HORIZON_HELP)

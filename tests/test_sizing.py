@@ -126,3 +126,42 @@ def test_a_machine_without_consumers_still_reports(tmp_path):
     assert r.returncode == 0, r.stderr
     data = json.loads((tmp_path / "o" / "sizing.json").read_text())
     assert data["total_nl"] == 0 and data["receiver_l"] == 0 and data["idle_share"] == 0
+
+
+def test_compare_fails_a_new_machine_that_never_moves(tmp_path):
+    """The E-stop nobody schedules: NEW uses far less air because it never runs. The gate
+    fails it with its own exit code (4) and names the input."""
+    (tmp_path / "p.st").write_text("""PROGRAM P
+VAR_INPUT I_ESTOP_OK : BOOL; xPart : BOOL; END_VAR
+VAR_OUTPUT qPush : BOOL; END_VAR
+qPush := I_ESTOP_OK AND xPart;
+END_PROGRAM""")
+    base = """[machine]
+program = "p.st"
+supply_bar_g = 6
+[[input]]
+signal = "xPart"
+period_s = 2.0
+pulse_ms = 500
+{estop}
+[[consumer]]
+name = "pusher"
+kind = "double_acting"
+bore_mm = 32
+rod_mm = 12
+stroke_mm = 80
+valve = "qPush"
+"""
+    (tmp_path / "base.toml").write_text(base.format(
+        estop='[[input]]\nsignal = "I_ESTOP_OK"\ninitial = true'))
+    (tmp_path / "new.toml").write_text(base.format(estop=""))
+    r = run("compare", tmp_path / "base.toml", tmp_path / "new.toml", "--horizon", "20s",
+            "--max-increase", "2%")
+    assert r.returncode == 4, r.stdout + r.stderr
+    assert "NEW never moves" in r.stdout and "I_ESTOP_OK" in r.stdout
+    js = run("compare", tmp_path / "base.toml", tmp_path / "new.toml", "--horizon", "20s",
+             "--json")
+    data = json.loads(js.stdout)
+    assert js.returncode == 4 and data["new_moves"] is False and data["passes"] is False
+    ok = run("compare", tmp_path / "base.toml", tmp_path / "base.toml", "--horizon", "20s")
+    assert ok.returncode == 0

@@ -36,6 +36,24 @@ class Comparison:
     def within_allowance(self) -> bool:
         return self.delta_nl <= self.allowed_increase_nl + 1e-9
 
+    @property
+    def new_moves(self) -> bool:
+        """False when no valve of NEW ever leaves its rest over the horizon: a machine
+        that never runs uses less air, and that must not pass the gate."""
+        from ..sequencer import valves_moved
+
+        return valves_moved(self.new.machine, self.new.timeline) is not False
+
+    def stall_reason(self) -> str:
+        """Why NEW does not move, from its warnings (an input nobody drives ...)."""
+        why = [w.split(": ", 1)[-1] for w in self.new.machine.warnings
+               if "nothing drives it" in w]
+        return "; ".join(why) if why else "no valve output ever changes"
+
+    @property
+    def passes(self) -> bool:
+        return self.within_allowance and self.new_moves
+
     def rows(self) -> list[dict]:
         b, n = self.base.profile, self.new.profile
         bt, nt = dict(zip(b.names, b.consumer_nl)), dict(zip(n.names, n.consumer_nl))
@@ -57,7 +75,8 @@ class Comparison:
                 "horizon_s": b.horizon_s, "delta_nl": self.delta_nl,
                 "delta_pct": self.delta_pct, "max_increase": self.allowance,
                 "allowed_increase_nl": self.allowed_increase_nl,
-                "within_allowance": self.within_allowance, "consumers": self.rows()}
+                "within_allowance": self.within_allowance, "new_moves": self.new_moves,
+                "passes": self.passes, "consumers": self.rows()}
 
     def table(self) -> str:
         """The per-consumer table and verdict, readable in a CI log."""
@@ -76,6 +95,10 @@ class Comparison:
         lines.append("-" * (w + 46))
         lines.append(f"{'total':<{w}}  {b.total_nl:>10.2f}  {n.total_nl:>10.2f}  "
                      f"{self.delta_nl:>+10.2f}  {self.delta_pct:>+7.1f} %")
+        if not self.new_moves:
+            lines.append(f"FAIL: NEW never moves over {n.horizon_s:g} s ({self.stall_reason()})"
+                         f"; its {self.delta_pct:+.1f} % says nothing about its air per part")
+            return "\n".join(lines)
         verdict = "ok" if self.within_allowance else "FAIL"
         lines.append(f"{verdict}: new uses {self.delta_nl:+.2f} NL ({self.delta_pct:+.1f} %); "
                      f"allowed +{self.allowed_increase_nl:.2f} NL ({self.allowance})")

@@ -14,7 +14,8 @@ from .runtime import ExecutionError, Watchdog
 from .timeline import DEFAULT_MAX_CHANGES, Signal, Timeline, TimelineTooLarge, parse_horizon
 
 __all__ = ["CompileError", "ExecutionError", "Sequencer", "SequencerError", "Signal",
-           "Timeline", "TimelineTooLarge", "Watchdog", "compile_program", "parse_horizon", "unfold"]
+           "Timeline", "TimelineTooLarge", "Watchdog", "compile_program", "lint_timeline",
+           "parse_horizon", "unfold", "valves_moved"]
 
 
 def unfold(machine, horizon="60s", scan_stepping: bool = False, tiling: bool = True,
@@ -42,11 +43,25 @@ def unfold(machine, horizon="60s", scan_stepping: bool = False, tiling: bool = T
     return timeline
 
 
+def valves_moved(machine, timeline) -> bool | None:
+    """Whether any consumer's valve command ever left its rest in the run (None: the
+    machine has no valves at all). Checked on the executed part of a tiled run."""
+    return _valve_lint(machine, timeline)[0]
+
+
 def lint_timeline(machine, timeline) -> list[str]:
     """Warnings a run gives about its machine: no valve output ever changed (nothing
     moved: an input nobody drives? a program waiting for something?), or both solenoids
     of a bistable valve on at once (the valve keeps its state; the wiring or the program
     is wrong). A tiled run is checked on the part executed, which the rest repeats."""
+    moved, out = _valve_lint(machine, timeline)
+    if moved is False:
+        out.append(f"{machine.path}: no valve output changed over {timeline.horizon_s:g} s: "
+                   "nothing moved (an input nobody drives? a program waiting for something?)")
+    return out
+
+
+def _valve_lint(machine, timeline) -> tuple[bool | None, list[str]]:
     import numpy as np
 
     file = str(machine.path)
@@ -80,7 +95,4 @@ def lint_timeline(machine, timeline) -> list[str]:
                     out.append(f'{file}: consumer "{c.name}": both solenoids of its bistable '
                                f"valve ({c.valve[0]}, {c.valve[1]}) are on at "
                                f"{both[0] / 1e9:g} s; the valve keeps its state")
-    if any_valve and not moved:
-        out.append(f"{file}: no valve output changed over {timeline.horizon_s:g} s: nothing "
-                   "moved (an input nobody drives? a program waiting for something?)")
-    return out
+    return (moved if any_valve else None), out
