@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .air.flow import R_J_KG_K, RHO0_KG_M3, T0_K
+from .air.flow import R_J_KG_K, RHO0_KG_M3, T0_K, phi
 from .errors import PlcpredError
 
 Z95 = 1.96
@@ -63,13 +63,6 @@ class FlowFit:
         return {"C": self.C, "b": self.b, "m": self.m, "a": self.a,
                 "ci95": dict(self.ci), "method": self.method, "n_points": self.n_points,
                 "rms": self.rms, "rms_unit": self.rms_unit}
-
-
-def phi_d2(r, b, m, a=1.0):
-    """(D2) the flow function, vectorised, without the plant's laminar tail."""
-    r = np.asarray(r, dtype=float)
-    x = np.clip((r - b) / (a - b), 0.0, 1.0)
-    return np.where(r <= b, 1.0, np.where(r >= a, 0.0, (1.0 - x * x) ** m))
 
 
 # ---------------------------------------------------------------------- reading
@@ -213,7 +206,7 @@ def identify_steady(data: FlowData, method: str = "improved", fit_a: bool = Fals
 
     def model(x, rr, sc):
         a = x[3] if fit_a else 1.0
-        return x[0] * sc * phi_d2(rr, x[1], x[2], max(a, x[1] + 1e-3))
+        return x[0] * sc * phi(rr, x[1], x[2], max(a, x[1] + 1e-3))
 
     joint = least_squares(lambda x: (model(x, r, scale) - q_m3_s) / c0 / scale.mean(),
                           x0, bounds=(lo, hi), x_scale=[c0, 0.1, 0.1] + ([0.01] if fit_a else []))
@@ -234,7 +227,7 @@ def identify_steady(data: FlowData, method: str = "improved", fit_a: bool = Fals
         b = float(np.mean(b_i))
         b_ci = Z95 * float(np.std(b_i, ddof=1)) / math.sqrt(sub.sum()) if sub.sum() > 1 \
             else math.inf
-        fitted = C * scale * phi_d2(r, b, 0.5)
+        fitted = C * scale * phi(r, b, 0.5)
         rms = float(np.sqrt(np.mean((fitted - q_m3_s) ** 2))) * 60_000.0
         return FlowFit(C, b, 0.5, 1.0, {"C": C_ci, "b": b_ci}, "iso6358", n, rms)
     # improved: b, m (a) on the flow ratio against the pressure ratio
@@ -249,12 +242,12 @@ def identify_steady(data: FlowData, method: str = "improved", fit_a: bool = Fals
 
     def resid2(x):
         a = x[2] if fit_a else 1.0
-        return phi_d2(r[use], x[0], x[1], max(a, x[0] + 1e-3)) / phi_meas[use] - 1.0
+        return phi(r[use], x[0], x[1], max(a, x[0] + 1e-3)) / phi_meas[use] - 1.0
     fit = least_squares(resid2, x02, bounds=(lo2, hi2))
     ci = _ci(fit.jac, fit.fun, len(x02))
     b, m = float(fit.x[0]), float(fit.x[1])
     a = float(fit.x[2]) if fit_a else 1.0
-    fitted = C * scale * phi_d2(r, b, m, a)
+    fitted = C * scale * phi(r, b, m, a)
     rms = float(np.sqrt(np.mean((fitted - q_m3_s) ** 2))) * 60_000.0
     out = {"C": C_ci, "b": ci[0], "m": ci[1]}
     if fit_a:
@@ -275,9 +268,9 @@ def tank_pressure_pa(time_s, p_start_pa, C, b, m, volume_m3, mode="discharge",
     def rate(t, p):
         if mode == "discharge":
             r = atmosphere_pa / p[0]
-            return [-k * p[0] * float(phi_d2(r, b, m, a))] if r < 1 else [0.0]
+            return [-k * p[0] * float(phi(r, b, m, a))] if r < 1 else [0.0]
         r = p[0] / supply_pa
-        return [k * supply_pa * float(phi_d2(r, b, m, a))] if r < 1 else [0.0]
+        return [k * supply_pa * float(phi(r, b, m, a))] if r < 1 else [0.0]
     t = np.asarray(time_s, dtype=float)
     sol = solve_ivp(rate, (t[0], t[-1]), [p_start_pa], t_eval=t, method="LSODA",
                     rtol=1e-8, atol=1.0)
@@ -340,10 +333,11 @@ def plot_fit(data, fit: FlowFit, path, volume_l=None, mode="discharge", supply_p
     fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
     if isinstance(data, FlowData):
         r = data.p_down_pa / data.p_up_pa
-        phi = data.flow_l_min / 60_000.0 / (fit.C * data.p_up_pa * np.sqrt(T0_K / data.t_up_k))
+        phi_data = data.flow_l_min / 60_000.0 / (fit.C * data.p_up_pa
+                                                 * np.sqrt(T0_K / data.t_up_k))
         rr = np.linspace(0, 1, 400)
-        ax.plot(r, phi, "o", ms=3, color="black", label="data")
-        ax.plot(rr, phi_d2(rr, fit.b, fit.m, fit.a), color="tab:red",
+        ax.plot(r, phi_data, "o", ms=3, color="black", label="data")
+        ax.plot(rr, phi(rr, fit.b, fit.m, fit.a), color="tab:red",
                 label=f"D2: b {fit.b:.3f}, m {fit.m:.3f}")
         ax.set_xlabel("pressure ratio P_d / P_u")
         ax.set_ylabel("flow ratio q / (C P_u)")
@@ -362,4 +356,4 @@ def plot_fit(data, fit: FlowFit, path, volume_l=None, mode="discharge", supply_p
 
 
 __all__ = ["FlowData", "FlowFit", "IdentifyError", "TankData", "identify_steady",
-           "identify_tank", "phi_d2", "plot_fit", "read_flow_data", "tank_pressure_pa"]
+           "identify_tank", "plot_fit", "read_flow_data", "tank_pressure_pa"]

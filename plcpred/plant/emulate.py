@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..diagnose.meter import interval_means_l_min
 from .meter import MeterSettings, meter_readings
 from .model import PlantModel
 
@@ -72,7 +73,7 @@ class Emulation:
         total = np.zeros(n)
         names = self.plant.metered_names()
         for name, cum in self.cumulative_nl.items():
-            flow = np.diff(np.interp(edges, self.edges_s, cum)) / np.diff(edges) * 60.0
+            flow = interval_means_l_min(cum, self.edges_s, edges[:-1], edges[1:])
             if name in names:
                 total += flow
             cols.append(flow)

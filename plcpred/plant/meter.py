@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..diagnose.io import reference_factor
-from ..diagnose.meter import first_order_lag
+from ..diagnose.meter import cumulative_nl, first_order_lag, interval_means_l_min
 
 DEFAULT_TAU_S = 0.2      # a thermal-mass meter's response (0.1-0.6 s)
 DEFAULT_RATE_HZ = 10.0
@@ -48,12 +48,10 @@ def meter_readings(edges_s: np.ndarray, cum_nl: np.ndarray, settings: MeterSetti
     dt = np.diff(edges_s)
     cell_flow = np.diff(cum_nl) / dt * 60.0
     lagged = first_order_lag(cell_flow, float(np.median(dt)), settings.tau_s)
-    lag_cum = np.concatenate([[0.0], np.cumsum(lagged * dt / 60.0)])
     period = 1.0 / settings.rate_hz
     times = np.arange(period, horizon_s + 1e-9, period)
-    c1 = np.interp(times, edges_s, lag_cum)
-    c0 = np.interp(times - period, edges_s, lag_cum)
-    flow = (c1 - c0) / period * 60.0 / reference_factor(settings.reference)
+    flow = interval_means_l_min(cumulative_nl(lagged * dt / 60.0), edges_s, times - period,
+                                times) / reference_factor(settings.reference)
     if settings.noise_l_min > 0:
         rng = rng or np.random.default_rng()
         flow = flow + rng.normal(0.0, settings.noise_l_min, len(flow))
