@@ -106,6 +106,22 @@ def _durations(args) -> tuple[float, float | None]:
         raise ValueError(f"--dt: cannot read {dt!r}: write e.g. 10ms, 0.5s or 1s") from None
 
 
+class UsageError(PlcpredError):
+    """A bad option value: ``main`` prints it as ``plcpred: error: ...`` and exits 2."""
+
+
+def _horizon_and_out(args):
+    """(horizon in s, grid step in s or None, the checked output directory) of a command
+    that runs a machine into DIR; bad values raise (exit 2 through ``main``)."""
+    from .output import check_out_dir
+
+    try:
+        horizon_s, dt_s = _durations(args)
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+    return horizon_s, dt_s, check_out_dir(args.out)
+
+
 def _command_line(args) -> str:
     """What the manifest records as the command that wrote a directory."""
     return " ".join(["plcpred"] + [str(a) for a in getattr(args, "argv", [])])
@@ -118,14 +134,10 @@ def _fail(message: str) -> int:
 
 def cmd_timeline(args) -> int:
     from .machine import load_machine
-    from .output import OutputError, check_out_dir, output_dir
+    from .output import output_dir
     from .sequencer import unfold
 
-    try:
-        horizon_s, _ = _durations(args)
-        out = check_out_dir(args.out)
-    except (ValueError, OutputError) as e:
-        return _fail(str(e))
+    horizon_s, _, out = _horizon_and_out(args)
     try:
         machine = load_machine(args.machine)
         tl = unfold(machine, horizon_s, scan_stepping=args.scan_stepping,
@@ -153,14 +165,10 @@ def cmd_timeline(args) -> int:
 def cmd_predict(args) -> int:
     from .air import predict
     from .machine import load_machine
-    from .output import OutputError, check_out_dir, output_dir
+    from .output import output_dir
     from .report import consumer_table
 
-    try:
-        horizon_s, dt_s = _durations(args)
-        out = check_out_dir(args.out)
-    except (ValueError, OutputError) as e:
-        return _fail(str(e))
+    horizon_s, dt_s, out = _horizon_and_out(args)
     try:
         machine = load_machine(args.machine)
         result = predict(machine, horizon_s, dt=dt_s, program=args.program,
@@ -618,14 +626,10 @@ def cmd_identify(args) -> int:
 def cmd_emulate(args) -> int:
     from .air import predict
     from .machine import load_machine
-    from .output import OutputError, check_out_dir, output_dir
+    from .output import output_dir
     from .plant import emulate
 
-    try:
-        horizon_s, _ = _durations(args)
-        out = check_out_dir(args.out)
-    except (ValueError, OutputError) as e:
-        return _fail(str(e))
+    horizon_s, _, out = _horizon_and_out(args)
     try:
         em = emulate(args.machine, horizon_s, truth=args.truth, seed=args.seed,
                      program=args.program)
