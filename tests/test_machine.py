@@ -58,6 +58,9 @@ m = 0.9
 """
 
 
+ONE_OUTPUT = "PROGRAM P VAR_OUTPUT y : BOOL; END_VAR END_PROGRAM"
+
+
 def write(tmp_path, text, program=PROGRAM):
     (tmp_path / "station.st").write_text(program)
     f = tmp_path / "station.toml"
@@ -132,9 +135,8 @@ def test_not_toml_is_a_clear_error(tmp_path):
 
 
 def test_auto_stroke_time_comes_from_the_plant(tmp_path):
-    (tmp_path / "p.st").write_text("PROGRAM P VAR_OUTPUT y : BOOL; END_VAR END_PROGRAM")
     base = '''[machine]
-program = "p.st"
+program = "station.st"
 supply_bar_g = {p}
 [[consumer]]
 name = "c"
@@ -150,8 +152,8 @@ stroke_time_s = "auto"
 '''
 
     def times(p=6, extra=""):
-        (tmp_path / "m.toml").write_text(base.format(p=p, extra=extra))
-        return load_machine(tmp_path / "m.toml").consumer("c").stroke_times()
+        text = base.format(p=p, extra=extra)
+        return load_machine(write(tmp_path, text, ONE_OUTPUT)).consumer("c").stroke_times()
 
     ext, ret = times()
     assert 0.01 < ext < 1.0 and 0.01 < ret < 1.0
@@ -168,9 +170,8 @@ stroke_time_s = "auto"
 def test_single_acting_cylinder_needs_no_rod(tmp_path):
     """It fills only its cap end (D1), so a rod diameter is not asked for; D1 gives the
     same air with or without one."""
-    (tmp_path / "p.st").write_text("PROGRAM P VAR_OUTPUT y : BOOL; END_VAR END_PROGRAM")
     text = '''[machine]
-program = "p.st"
+program = "station.st"
 supply_bar_g = 6
 [[consumer]]
 name = "c"
@@ -180,14 +181,13 @@ stroke_mm = 50
 valve = "y"
 stroke_time_s = 0.2
 '''
-    (tmp_path / "m.toml").write_text(text)
-    c = load_machine(tmp_path / "m.toml").consumer("c")
+    c = load_machine(write(tmp_path, text, ONE_OUTPUT)).consumer("c")
     assert c.rod_mm == 0.0
     from plcpred.air.volumes import consumer_stroke_volumes_nl
     no_rod = consumer_stroke_volumes_nl(c, 7.01325e5)
-    (tmp_path / "m.toml").write_text(text + "rod_mm = 12\n")
-    with_rod = consumer_stroke_volumes_nl(load_machine(tmp_path / "m.toml").consumer("c"),
-                                          7.01325e5)
+    with_rod = consumer_stroke_volumes_nl(
+        load_machine(write(tmp_path, text + "rod_mm = 12\n", ONE_OUTPUT)).consumer("c"),
+        7.01325e5)
     assert no_rod == with_rod and no_rod[1] == 0.0
 
 
@@ -204,9 +204,8 @@ def test_every_machine_file_key_is_documented():
 
 
 def test_a_nozzle_regulated_above_the_supply_is_warned_about(tmp_path):
-    (tmp_path / "p.st").write_text("PROGRAM P VAR_OUTPUT y : BOOL; END_VAR END_PROGRAM")
-    (tmp_path / "m.toml").write_text('''[machine]
-program = "p.st"
+    m = load_machine(write(tmp_path, '''[machine]
+program = "station.st"
 supply_bar_g = 4
 [[consumer]]
 name = "knife"
@@ -215,22 +214,17 @@ valve = "y"
 orifice_mm = 1
 Cd = 0.7
 pressure_bar_g = 5
-''')
-    m = load_machine(tmp_path / "m.toml")
+''', ONE_OUTPUT))
     assert any('"knife"' in w and "cannot raise its supply" in w for w in m.warnings)
 
 
 def test_an_input_read_but_never_driven_is_warned_about(tmp_path):
     """The E-stop a machine file forgot to schedule keeps the station still: say so."""
-    (tmp_path / "p.st").write_text("""PROGRAM P
+    warnings = _lint_machine(tmp_path, """PROGRAM P
 VAR_INPUT xEStopOk : BOOL; xStart : BOOL; END_VAR
 VAR_OUTPUT y : BOOL; END_VAR
 y := xEStopOk AND xStart;
-END_PROGRAM""")
-    (tmp_path / "m.toml").write_text('''[machine]
-program = "p.st"
-supply_bar_g = 6
-[[input]]
+END_PROGRAM""", '''[[input]]
 signal = "xStart"
 pulses_s = [1.0]
 [[consumer]]
@@ -241,19 +235,15 @@ rod_mm = 8
 stroke_mm = 50
 valve = "y"
 ''')
-    from plcpred import unfold
-    m = load_machine(tmp_path / "m.toml")
-    unfold(m, "2s")
-    hits = [w for w in m.warnings if "nothing drives it" in w]
+    hits = [w for w in warnings if "nothing drives it" in w]
     assert len(hits) == 1 and "'xEStopOk'" in hits[0]
 
 
-def _lint_machine(tmp_path, program, consumers):
-    (tmp_path / "p.st").write_text(program)
-    (tmp_path / "m.toml").write_text('[machine]\nprogram = "p.st"\nsupply_bar_g = 6\n'
-                                     + consumers)
+def _lint_machine(tmp_path, program, body):
+    """The warnings of a 3 s run of ``program`` with these tables."""
     from plcpred import unfold
-    m = load_machine(tmp_path / "m.toml")
+    m = load_machine(write(tmp_path, '[machine]\nprogram = "station.st"\nsupply_bar_g = 6\n'
+                                     + body, program))
     unfold(m, "3s")
     return m.warnings
 
