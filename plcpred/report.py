@@ -384,15 +384,15 @@ def diagnosis_html(d, png: bytes | None) -> str:
 
 # ---------------------------------------------------------------------- emulate
 
-def plot_emulation(em, path) -> None:
+def plot_emulation(em, path, table=None) -> None:
     """``emulate.png``: the meter's log against the plant's true total flow; each drive's
-    position; each drive's chamber pressures."""
+    position; each drive's chamber pressures. ``table``: ``em.plant_table()`` if made."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    header, rows = em.plant_table()
+    header, rows = table or em.plant_table()
     k = _bin_width(len(rows))
     t = _bins(rows[:, 0], k)
     col = {h: i for i, h in enumerate(header)}

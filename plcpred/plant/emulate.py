@@ -80,19 +80,21 @@ class Emulation:
             header.append(f"{name}_l_min")
         cols.insert(1, total)
         header.insert(1, "total_l_min")
+        sampled: dict = {}      # each group's states, sampled once for all its drives
         for c in self.machine.consumers:
             if c.is_cylinder:
-                st = self.plant.drive_states(c.name, mid)
+                st = self.plant.drive_states(c.name, mid, sampled)
                 for key, values in st.items():
                     cols.append(values)
                     header.append(f"{c.name}_{key}")
         return header, np.column_stack(cols)
 
-    def write_plant(self, path) -> None:
+    def write_plant(self, path, table=None) -> None:
+        """plant.csv; ``table`` is a :meth:`plant_table` already made."""
         from ..output import atomic_writer
         from ..air.demand import _csv_name
 
-        header, rows = self.plant_table()
+        header, rows = table or self.plant_table()
         with atomic_writer(path) as f:
             f.write(",".join(_csv_name(h) for h in header) + "\n")
             np.savetxt(f, rows, fmt="%.6g", delimiter=",")
@@ -103,11 +105,12 @@ class Emulation:
                  directory / "plant.csv"]
         self.write_measured(files[0])
         self.timeline.to_csv(files[1])
-        self.write_plant(files[2])
+        table = self.plant_table()      # sampling the plant: once for the file and the plot
+        self.write_plant(files[2], table)
         if plot:
             from ..report import plot_emulation
             files.append(directory / "emulate.png")
-            plot_emulation(self, files[-1])
+            plot_emulation(self, files[-1], table)
         return files
 
 

@@ -259,11 +259,6 @@ class Group:
             self.p_own = np.array([p.pressure_pa or np.inf for p in self.passives])
 
     # ------------------------------------------------------------------ physics
-    def _unpack(self, x):
-        n = self.n
-        return (x[0:n], x[n:2 * n], x[2 * n:3 * n], x[3 * n:4 * n], x[4 * n:5 * n],
-                x[5 * n:6 * n])
-
     def _force(self, i: int, p1: float, p2: float, y: float) -> float:
         """(docs/physics.md: dynamic model, motion) the pressure, atmosphere, load and spring forces
         on drive i's piston, + extending."""
@@ -641,7 +636,7 @@ class Group:
             self.integrated_pieces += 1
         else:
             self.reused_pieces += 1
-        dense, t_len, settled = hit
+        dense, t_len = hit
         piece = Piece(t0, t0 + t_len, self.x.copy(), dense, c.copy())
         x_end = piece.state([t0 + t_len])[0]
         return piece, x_end, t0 + t_len
@@ -702,7 +697,7 @@ class Group:
         if t_len <= 0.0:
             t_len = min(1e-9, span)  # an event at the very start: move on
         dense = _Dense(sol.sol, t_len, x0, self.cum)
-        return dense, t_len, sol.status == 1
+        return dense, t_len
 
     def _names(self) -> str:
         return ", ".join(f'"{d.name}"' for d in self.drives) or "(none)"

@@ -204,10 +204,17 @@ class PlantModel:
         names += [f"line:{g.supply.line}" for g in self.groups if g.has_line]
         return names
 
-    def drive_states(self, name: str, times_s: np.ndarray) -> dict[str, np.ndarray]:
-        """Position (mm) and chamber pressures (bar gauge) of a drive on a grid."""
+    def drive_states(self, name: str, times_s: np.ndarray,
+                     group_states: dict | None = None) -> dict[str, np.ndarray]:
+        """Position (mm) and chamber pressures (bar gauge) of a drive on a grid.
+        ``group_states``: id(group) -> its states on that grid, to sample each group once
+        when asking for several drives."""
         g, i = self.where[name]
-        x = g.state_at(times_s)
+        if group_states is None:
+            group_states = {}
+        if id(g) not in group_states:
+            group_states[id(g)] = g.state_at(times_s)
+        x = group_states[id(g)]
         n = g.n
         to_bar_g = lambda p: (p - self.atm_pa) / 1e5  # noqa: E731
         return {"position_mm": x[:, 4 * n + i] * 1000.0, "p_cap_bar_g": to_bar_g(x[:, i]),
