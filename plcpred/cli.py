@@ -575,7 +575,7 @@ def cmd_identify(args) -> int:
             supply = args.supply_bar_g * 1e5 + atm if args.supply_bar_g is not None else None
             fit = identify_tank(data, args.volume_l, args.mode, supply, atm,
                                 args.temperature_c + 273.15)
-        machine_text = None
+        to_write = None
         if args.write_machine:
             nominal = load_machine(args.machine)
             target = next((c for c in nominal.consumers if c.name == args.consumer), None)
@@ -588,7 +588,7 @@ def cmd_identify(args) -> int:
                         t.pop(k, None)
                     t.update({"C": float(f"{fit.C:.4g}"), "b": round(fit.b, 4),
                               "m": round(fit.m, 4), "a": round(fit.a, 4)})
-            machine_text = (raw, nominal)
+            to_write = (raw, nominal)
     except (IdentifyError, MachineError) as e:
         print(e, file=sys.stderr)
         return 2
@@ -614,8 +614,8 @@ def cmd_identify(args) -> int:
             print(text)
         else:
             atomic_write_text(args.json, text + "\n")
-    if machine_text is not None:
-        raw, nominal = machine_text
+    if to_write is not None:
+        raw, nominal = to_write
         save_machine(raw, nominal, args.write_machine,
                      f"{nominal.name}: {args.consumer} identified by plcpred identify flow "
                      f"from {Path(args.data).name}")
