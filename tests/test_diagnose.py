@@ -19,6 +19,7 @@ from plcpred.diagnose.core import write_fixed_machine
 from plcpred.diagnose.fit import DiagnosisError
 from plcpred.diagnose.meter import first_order_lag, noise_level_l_min
 from plcpred.diagnose.model import MachineModel, RunModel
+from plcpred.machine import machine_from_data, read_machine_data
 
 ROOT = Path(__file__).resolve().parent.parent
 RIG = ROOT / "samples" / "prototype_rig" / "rig.toml"
@@ -499,3 +500,75 @@ def test_meter_table_offset_and_full_scale(tmp_path):
     assert abs(with_meter.baseline.error_pct) < 1.5
     assert with_meter.verdict == "none"
     assert any("full scale" in w for w in with_meter.warnings)
+
+
+# ---------------------------------------------------------------------- closed loop
+
+RIG_SEQ2 = ROOT / "samples" / "prototype_rig" / "rig_seq2.toml"
+
+
+def _slower(path, drive, factor):
+    """The machine of ``path`` with ``drive``'s stroke times scaled: the real machine of
+    a closed-loop test (its program waits on the end switches, so its own prediction
+    moves every later edge, as the real one would)."""
+    data = read_machine_data(path)
+    for c in data["consumer"]:
+        if c["name"] == drive:
+            c["stroke_time_s"] = [x * factor for x in c["stroke_time_s"]]
+    return machine_from_data(data, path)
+
+
+def test_closed_loop_is_told_from_timers():
+    pick = diagnose(PICK, [run_of(PICK, 30, offset_s=3.0)], effects=["leak"])
+    assert pick.machine_model.resequencer is not None     # end switches start steps
+    timed = diagnose(RIG_SEQ2, [run_of(RIG_SEQ2, 30, offset_s=3.0)], effects=["leak"])
+    assert timed.machine_model.resequencer is None        # its valves follow timers
+
+
+def test_slower_stroke_in_a_closed_loop_is_found_with_its_drive_and_factor():
+    # the X slide 1.8x slower: every cycle grows, so within a minute the nominal
+    # prediction is out of step with the log; painting slower strokes onto the
+    # predicted edges cannot follow it, running the program again can
+    real = _slower(PICK, "X slide", 1.8)
+    runs = [run_of(real, 60, rate_hz=5.0, tau_s=0.3, noise=0.5, offset_s=4.0 + 3 * s,
+                   seed=s, name=f"r{s}.csv") for s in range(2)]
+    d = diagnose(PICK, runs, effects=["stroke_time", "valve_delay", "leak"])
+    assert d.verdict == "stroke_time", d.report()
+    best = d.effects[0]
+    assert "waiting" in best.title
+    assert best.physical["X slide"]["factor"] == pytest.approx(1.8, rel=0.05)
+    assert best.physical["Z lift"]["factor"] == 1.0
+    assert best.heldout_score.rmse_l_min < 0.3 * d.baseline_heldout.rmse_l_min
+    assert abs(best.heldout_score.error_pct) < 2.0
+
+
+def test_golden_refinement_finds_a_minimum_between_grid_values():
+    from plcpred.diagnose.effects import Param
+    from plcpred.diagnose.fit import _golden_refine
+
+    p = Param("f", "", 0.2, 5.0, 1.0, (0.5, 1.0, 1.4, 2.0, 2.8), discrete=True)
+    lo, span = np.array([0.2]), np.array([4.8])
+    calls = []
+
+    def cost(u):
+        x = lo[0] + u[0] * span[0]
+        calls.append(x)
+        return (x - 1.63) ** 2
+
+    u = _golden_refine(cost, np.array([(1.4 - 0.2) / 4.8]), [0], p, lo, span)
+    assert lo[0] + u[0] * span[0] == pytest.approx(1.63, abs=0.03)
+    assert 1.0 <= min(calls) and max(calls) <= 2.0       # between the grid neighbours
+    assert len(calls) <= 10                               # a few sequencer runs, not more
+
+
+def test_interval_means_on_a_uniform_grid_match_the_searched_ones():
+    from plcpred.diagnose.meter import interval_means_l_min
+
+    rng = np.random.default_rng(3)
+    edges = np.arange(1001) * 0.02
+    edges[-1] = 19.995                       # a short last cell, as grid_edges_s makes
+    cum = np.concatenate([[0.0], np.cumsum(rng.random(1000))])
+    start = np.concatenate([rng.uniform(-1.0, 21.0, 500), [0.0, 19.99]])
+    end = start + rng.uniform(0.01, 2.0, len(start))
+    np.testing.assert_allclose(interval_means_l_min(cum, edges, start, end, 0.02),
+                               interval_means_l_min(cum, edges, start, end), rtol=1e-12)

@@ -7,7 +7,10 @@
    it stands out of the noise estimated from the data.
 4. **Which effect**: every effect of the vocabulary fitted to the fit samples and scored
    on held-out samples (:func:`~plcpred.diagnose.fit.folds`); ranked by held-out RMSE,
-   BIC breaking near-ties. The verdict is the best effect when it beats the baseline on
+   BIC breaking near-ties. Where end switches start the program's steps (a closed
+   loop), ``stroke_time`` and ``valve_delay`` are also tried with the sequencer run
+   again (:mod:`~plcpred.diagnose.timing`), and the better form on held-out samples
+   stands for the effect. The verdict is the best effect when it beats the baseline on
    held-out samples by more than the noise allows, else ``none``.
 5. **Combination**: from the verdict, effects are added one at a time while each still
    improves the held-out error by more than the noise allows (up to three).
@@ -19,13 +22,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .effects import EFFECTS, Effect
+from .effects import CLOSED_LOOP_EFFECTS, EFFECTS, Effect
 from .fit import (DiagnosisError, FitResult, RunData, Score, align, fit_effects, folds,
                   heldout, score)
 from .io import MeasuredRun
 from .locate import contexts, sample_contexts, step_contexts, windows
 from .meter import noise_level_l_min
 from .model import MachineModel, RunModel
+from .timing import Resequencer
 
 MAX_COMBINATION = 3
 MAX_CELLS_PER_RUN = 200_000
@@ -205,6 +209,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     None: aligned by correlation within ``max_offset_s``, default half the run up to
     120 s); ``effects``: names to try (default: all that apply)."""
     from ..machine import Machine, load_machine
+    from ..parser import load_program
     from ..sequencer import unfold
 
     if not isinstance(machine, Machine):
@@ -229,6 +234,12 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     bases: list = []            # per run: the nominal model with the run's meter lag
     residuals: list = []        # per run: measured - predicted readings
     period_s = None
+    horizons, windows_s = [], []
+    sequenced = all(tl is None for tl in io)
+    if sequenced:
+        # parsed once for every unfold (timing effects run the sequencer again)
+        program = load_program(machine.program_path if program is None else program) \
+            if not hasattr(program, "pous") else program
     for run, tl, off in zip(runs, io, offsets):
         window = max_offset_s if max_offset_s is not None else min(
             120.0, max(2.0, 0.5 * run.span_s))
@@ -236,6 +247,8 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
             horizon = run.span_s + window + 3.0
         else:
             horizon = max(1.0, float(run.time_s[-1]) - off + 1.0)
+        horizons.append(horizon)
+        windows_s.append(window)
         if tl is None:
             tl = unfold(machine, horizon, program=program)
             if tl.info.get("period_s"):
@@ -252,6 +265,10 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
         rds.append(rd)
         bases.append(base)
         residuals.append(rd.measured_l_min - predicted)
+    if mm.drives and sequenced:
+        reseq = Resequencer(mm, rds, horizons, windows_s, offsets, program, meter_tau)
+        if reseq.closed_loop():
+            mm.resequencer = reseq
     base_score = score(rds, bases)
     noise = float(np.median([noise_level_l_min(r) for r in residuals]))
 
@@ -266,10 +283,13 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     base_heldout = heldout([], mm, rds, bases, ctx, fold_masks)
     results = []
     for name in names:
-        effect = EFFECTS[name]
-        if not effect.applies(mm):
-            continue
-        results.append(_evaluate([effect], mm, rds, bases, ctx, fold_masks))
+        forms = [e for e in (EFFECTS[name], CLOSED_LOOP_EFFECTS.get(name))
+                 if e is not None and e.applies(mm)]
+        # a timing effect painted on the predicted edges, or with the program waiting
+        # on the drives (every later edge moved): whichever holds on held-out samples
+        tried = [_evaluate([e], mm, rds, bases, ctx, fold_masks) for e in forms]
+        if tried:
+            results.append(min(tried, key=lambda e: e.heldout_score.rmse_l_min))
     results.sort(key=lambda e: e.heldout_score.rmse_l_min)
     # differences of the residual overstate the noise when the log is too coarse for
     # the strokes (1 Hz against 0.2 s strokes); no noise can exceed what the best fit
@@ -302,21 +322,23 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                         if significant(base_heldout, e.heldout_score, noise)
                         and not significant(e.heldout_score, results[0].heldout_score,
                                             noise)]
-        chosen = [EFFECTS[verdict]]
+        chosen = list(results[0].fit.effects)
         best = results[0]
         candidates = [e for e in results[1:] if significant(base_heldout, e.heldout_score,
                                                              noise)]
         # nothing is left to explain once the held-out error is down to the noise
         while (len(chosen) < max_combination and candidates
                and best.heldout_score.rmse_l_min > 1.1 * noise):
-            trials = [_evaluate(chosen + [EFFECTS[c.name]], mm, rds, bases, ctx, fold_masks)
+            trials = [_evaluate(chosen + list(c.fit.effects), mm, rds, bases, ctx,
+                                fold_masks)
                       for c in candidates]
             trial = min(trials, key=lambda e: e.heldout_score.rmse_l_min)
             if not significant(best.heldout_score, trial.heldout_score, noise):
                 break
             best = trial
             chosen = list(trial.fit.effects)
-            candidates = [c for c in candidates if EFFECTS[c.name] not in chosen]
+            candidates = [c for c in candidates
+                          if c.name not in {e.name for e in chosen}]
         combination = {"effects": [e.name for e in chosen], "fit": best.fit,
                        "heldout": best.heldout_score, "score": best.fit_score,
                        "physical": best.physical}

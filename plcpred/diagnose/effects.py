@@ -40,6 +40,10 @@ class Param:
     # values tried one parameter at a time before the least-squares fit, for parameters
     # whose fit is not convex (a shift or a time constant can lock onto the wrong edge)
     grid: tuple = ()
+    # each value costs a sequencer run (a closed loop's timing, diagnose.timing): swept
+    # on the grid and refined by golden section between grid neighbours, never by least
+    # squares (the quantised value is piecewise constant)
+    discrete: bool = False
 
 
 DELAY_GRID_S = tuple(np.round(np.arange(0.0, 0.51, 0.05), 3))
@@ -336,15 +340,26 @@ class ValveDelay(Effect):
     drive's switching delay."""
     name, title = "valve_delay", "different valve switching delays"
 
+    def __init__(self, closed_loop: bool = False):
+        self.closed_loop = closed_loop
+        if closed_loop:
+            self.title += " (the program waiting on them)"
+
     def applies(self, mm):
-        return bool(mm.drives)
+        return bool(mm.drives) and (mm.resequencer is not None or not self.closed_loop)
 
     def params(self, mm, ctx):
         return [Param(f"{mm.models[r].name}.extra_delay_s", "s", -mm.models[r].delay_s, 0.5,
-                      0.0, DELAY_GRID_S) for r in mm.drives]
+                      0.0, DELAY_GRID_S, discrete=self.closed_loop)
+                for r in mm.drives]
 
     def apply(self, mm, p, theta):
         q = p.copy()
+        if self.closed_loop:
+            # a closed loop: every later edge moves too (diagnose.timing)
+            q.timing = mm.resequencer.key(delays=theta, start=p.timing)
+            mm.resequencer.ensure(q.timing)
+            theta = [d for _, d in q.timing or mm.resequencer.neutral]
         q.delay_s = np.clip(p.delay_s + np.asarray(theta, dtype=float), 0.0, None)
         return q
 
@@ -370,8 +385,13 @@ class StrokeTime(Effect):
     shape in time changes."""
     name, title = "stroke_time", "different stroke times"
 
+    def __init__(self, closed_loop: bool = False):
+        self.closed_loop = closed_loop
+        if closed_loop:
+            self.title += " (the program waiting on them)"
+
     def applies(self, mm):
-        return bool(mm.drives)
+        return bool(mm.drives) and (mm.resequencer is not None or not self.closed_loop)
 
     def _reference(self, mm, k):
         m = mm.models[mm.drives[k]]
@@ -380,11 +400,16 @@ class StrokeTime(Effect):
         return mm.machine.consumers[mm.drives[k]].auto_stroke_times()
 
     def params(self, mm, ctx):
-        return [Param(f"{mm.models[r].name}.factor", "", 0.2, 5.0, 1.0, FACTOR_GRID)
-                for r in mm.drives]
+        return [Param(f"{mm.models[r].name}.factor", "", 0.2, 5.0, 1.0, FACTOR_GRID,
+                      discrete=self.closed_loop) for r in mm.drives]
 
     def apply(self, mm, p, theta):
         q = p.copy()
+        if self.closed_loop:
+            # a closed loop: every later edge moves too (diagnose.timing)
+            q.timing = mm.resequencer.key(factors=theta, start=p.timing)
+            mm.resequencer.ensure(q.timing)
+            theta = [f for f, _ in q.timing or mm.resequencer.neutral]
         for k, f in enumerate(theta):
             ext, ret = self._reference(mm, k)
             q.stroke_ext_s[k] = ext * float(f)
@@ -441,3 +466,8 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Leak(), PassiveFlow(), SupplyPressure(), DeadVolume(), IncompleteExhaust(),
     SharedSupply(), ValveDelay(), StrokeTime(), SensorLag())}
 VOCABULARY = ("none",) + tuple(EFFECTS)
+# the same effects where end switches start the program's next steps, so that a timing
+# change moves every later edge (diagnose.timing runs the sequencer again); tried
+# beside the forms above when the machine's runs come from the sequencer
+CLOSED_LOOP_EFFECTS: dict[str, Effect] = {e.name: e for e in (
+    ValveDelay(closed_loop=True), StrokeTime(closed_loop=True))}

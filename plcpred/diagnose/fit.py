@@ -6,13 +6,15 @@ others.
   cross-correlating the changes of both series, fine by the correlation of the meter
   readings themselves.
 * :func:`fit_effects` fits one or more effects jointly with bounded least squares
-  (``scipy.optimize.least_squares``), standard errors from the Jacobian.
+  (``scipy.optimize.least_squares``), standard errors from the Jacobian; a closed
+  loop's timing (:mod:`~plcpred.diagnose.timing`) by grid and golden section.
 * :func:`folds` says which samples each fit may see: leave one run out, or with a single
   run alternate blocks of it, so that every figure called "held-out" comes from samples
   the fit never saw.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -43,12 +45,24 @@ class RunData:
     end_s: np.ndarray
     measured_l_min: np.ndarray
     weight_s: np.ndarray = field(init=False)
+    # resequenced predictions (timing effects in a closed loop): ModelParams.timing ->
+    # (RunModel, its alignment's offset and meter lag minus this run's), made by
+    # diagnose.timing
+    variants: dict = field(default_factory=dict, repr=False)
 
     def __post_init__(self):
         self.weight_s = self.end_s - self.start_s
 
     def readings(self, params: ModelParams) -> np.ndarray:
-        return self.model.readings(params, self.start_s, self.end_s)
+        if params.timing is None:
+            return self.model.readings(params, self.start_s, self.end_s)
+        rm, shift_s, lag_s = self.variants[params.timing]
+        # the samples stay this run's; the variant's own alignment moves its clock and
+        # its meter lag (the fit's nuisances move both further)
+        if lag_s:
+            params = dataclasses.replace(params, meter_tau_s=max(0.0, params.meter_tau_s
+                                                                 + lag_s))
+        return rm.readings(params, self.start_s - shift_s, self.end_s - shift_s)
 
 
 def _intervals(run: MeasuredRun, offset_s: float, horizon_s: float):
@@ -58,6 +72,13 @@ def _intervals(run: MeasuredRun, offset_s: float, horizon_s: float):
     return np.flatnonzero(keep), start[keep], end[keep]
 
 
+def _common_samples(run: MeasuredRun, lo_s: float, hi_s: float,
+                    horizon_s: float) -> np.ndarray:
+    """Indices of the samples inside the prediction at every offset in [lo_s, hi_s]."""
+    keep = (run.interval_starts_s() - hi_s >= 0.0) & (run.time_s - lo_s <= horizon_s)
+    return np.flatnonzero(keep)
+
+
 def _pearson(a: np.ndarray, b: np.ndarray) -> float:
     a = a - a.mean()
     b = b - b.mean()
@@ -65,23 +86,29 @@ def _pearson(a: np.ndarray, b: np.ndarray) -> float:
     return float(a @ b) / den if den > 0 else 0.0
 
 
+CORRELATION_BLOCK = 1_000_000     # readings interpolated at once when aligning
 # lags tried when the meter's is not known; the baseline keeps at most the nuisance one
 ALIGN_TAUS_S = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0,
                 10.0)
 
 
 def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
-          meter_tau_s: float | None = None, offset_s: float | None = None) -> RunData:
+          meter_tau_s: float | None = None, offset_s: float | None = None,
+          quick: bool = False, max_tau_s: float | None = None) -> RunData:
     """Tie ``run`` to its prediction ``rm``. The offset is the logger's clock reading at
     the prediction's time 0, searched within ``window_s`` of the log's first sample
     unless ``offset_s`` is given. The meter lag is ``meter_tau_s`` when the machine file
     gives it; else the lag and the offset that correlate best are searched together (a
     lag delays every reading, so the two trade off) and the run keeps the lag up to the
     0.6 s of a thermal-mass meter: a slower meter is the ``sensor_lag`` effect
-    (``RunData.fitted_tau_s`` keeps what the search found)."""
-    from scipy.optimize import minimize
+    (``RunData.fitted_tau_s`` keeps what the search found). ``quick`` searches the
+    fine offsets on a five times coarser grid and refines only the offset, and
+    ``max_tau_s`` bounds the lags tried (a resequenced variant, aligned many times over,
+    near what the nominal alignment found)."""
+    from scipy.optimize import minimize, minimize_scalar
 
-    taus = [meter_tau_s] if meter_tau_s is not None else list(ALIGN_TAUS_S)
+    taus = [meter_tau_s] if meter_tau_s is not None else [
+        t for t in ALIGN_TAUS_S if max_tau_s is None or t <= max_tau_s]
     cells = rm.total_cells(params)
     lagged: dict[float, np.ndarray] = {}       # metered cumulative NL per lag
 
@@ -91,8 +118,7 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
         p = params.copy()
         p.meter_tau_s = tau
         lo_s, hi_s = span or (min(offsets), max(offsets))
-        idx = np.intersect1d(_intervals(run, hi_s, rm.horizon_s)[0],
-                             _intervals(run, lo_s, rm.horizon_s)[0])
+        idx = _common_samples(run, lo_s, hi_s, rm.horizon_s)
         if len(idx) < 5:
             return None
         starts = run.interval_starts_s()[idx]
@@ -101,8 +127,21 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
         cum = lagged.get(tau)
         if cum is None:
             cum = lagged[tau] = rm.metered_cumulative_nl(p, cells)
-        return np.array([_pearson(rm.readings(p, starts - o, ends - o, cum_nl=cum), meas)
-                         for o in offsets])
+        # all offsets at once (in blocks of bounded size): one interpolation per block
+        offs = np.asarray(offsets, dtype=float)
+        b = meas - meas.mean()
+        bb = float(b @ b)
+        out = np.empty(len(offs))
+        per_block = max(1, CORRELATION_BLOCK // len(idx))
+        for k in range(0, len(offs), per_block):
+            o = offs[k:k + per_block, None]
+            r = rm.readings(p, (starts - o).ravel(), (ends - o).ravel(),
+                            cum_nl=cum).reshape(len(o), -1)
+            a = r - r.mean(axis=1, keepdims=True)
+            den = np.sqrt((a * a).sum(axis=1) * bb)
+            out[k:k + per_block] = np.where(den > 0, (a @ b) / np.where(den > 0, den, 1.0),
+                                            0.0)
+        return out
 
     g = max(run.interval_s, rm.dt_s)
     if offset_s is None:
@@ -110,13 +149,12 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
         best = (-2.0, candidates[0], taus[0])
         # every candidate is scored on the same samples, when enough of them are common
         common = (min(candidates) - 1.5 * g - max(taus), max(candidates) + 1.5 * g)
-        n_common = len(np.intersect1d(_intervals(run, common[0], rm.horizon_s)[0],
-                                      _intervals(run, common[1], rm.horizon_s)[0]))
+        n_common = len(_common_samples(run, common[0], common[1], rm.horizon_s))
         shared = common if n_common >= 0.75 * len(run.time_s) else None
         for coarse in candidates:
             for tau in taus:
                 # a coarse offset may be late by up to the lag
-                step = max(rm.dt_s, g / 25.0, tau / 50.0)
+                step = max(rm.dt_s, g / (5.0 if quick else 25.0), tau / 50.0)
                 fine = np.arange(coarse - 1.5 * g - tau, coarse + 1.5 * g + step / 2,
                                  step)
                 corr = correlations(tau, list(fine), shared)
@@ -134,13 +172,22 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
         tau = taus[k]
         lo_o = hi_o = offset_s
     fitted_tau = tau
-    if meter_tau_s is None or lo_o < hi_o:
-        # continuous refinement of (offset, lag)
-        tau_free = meter_tau_s is None
+    if (meter_tau_s is not None or quick) and lo_o < hi_o:
+        # the lag is known (or, quick, kept at the best of the grid): the offset alone,
+        # a one-dimensional search
+        def offset_objective(o):
+            c = correlations(tau, [o])
+            return 2.0 if c is None else -float(c[0])
 
+        res = minimize_scalar(offset_objective, bounds=(lo_o, hi_o), method="bounded",
+                              options={"xatol": rm.dt_s / 4, "maxiter": 40})
+        if res.fun <= offset_objective(offset_s):
+            offset_s = float(res.x)
+    elif meter_tau_s is None:
+        # continuous refinement of (offset, lag)
         def objective(x):
             o = min(max(x[0], lo_o), hi_o)
-            t = min(max(x[1], 0.0), ALIGN_TAUS_S[-1]) if tau_free else tau
+            t = min(max(x[1], 0.0), ALIGN_TAUS_S[-1])
             c = correlations(t, [o])
             return 2.0 if c is None else -float(c[0])
 
@@ -152,8 +199,7 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
                                 "fatol": 1e-7, "maxfev": 120})
         if res.fun <= objective(x0):
             offset_s = min(max(float(res.x[0]), lo_o), hi_o)
-            if tau_free:
-                fitted_tau = min(max(float(res.x[1]), 0.0), ALIGN_TAUS_S[-1])
+            fitted_tau = min(max(float(res.x[1]), 0.0), ALIGN_TAUS_S[-1])
     tau = fitted_tau if meter_tau_s is not None else min(fitted_tau, NUISANCE_METER_TAU_S)
     idx, start, end = _intervals(run, offset_s, rm.horizon_s)
     if len(idx) < 5:
@@ -286,9 +332,13 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
     CLOCK_REACH_S: the alignment found the offset with the nominal model, and an effect
     that moves air in time (a late valve on the largest drive) pulls it. Parameters with
     a grid are first swept one at a time, each value with every clock adjustment of
-    CLOCK_GRID_S, so that a shift cannot lock onto the wrong edge. ``start`` (the values
-    of an earlier fit of the same effects, such as the fit on all samples before the
-    folds') replaces the initial values and the sweep."""
+    CLOCK_GRID_S, so that a shift cannot lock onto the wrong edge. Discrete parameters
+    (a closed loop's timing, each value a sequencer run) are swept from the nominal
+    timing, one drive or all of an effect's drives at a time, the best refined by golden
+    section and then held while least squares fits the rest. ``start`` (the values of an
+    earlier fit of the same effects, such as the fit on all samples before the folds')
+    replaces the initial values and the sweep; its discrete values are refined near
+    where they are."""
     from scipy.optimize import least_squares
 
     specs = [e.params(mm, ctx) for e in effects]
@@ -341,29 +391,68 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
     if start is not None and len(start) == len(x0):
         x0 = np.clip(np.asarray(start, dtype=float), lo, hi)
     u0 = (x0 - lo) / span
-    if start is None and any(p.grid for p in flat):
-        best_cost, u_best = cost(u0), u0
+    discrete = np.array([p.discrete for p in flat])
+    groups = [list(range(k, k + n)) for k, n in zip(np.cumsum([0] + sizes[:-1]), sizes)]
+    rays = _discrete_rays(groups, discrete)
+    def sweep(u_from, ray, best):
+        """``best`` (cost, u) improved by each grid value of ``ray``'s parameters, each
+        with every clock adjustment of CLOCK_GRID_S, from ``u_from``."""
+        for v in flat[ray[0]].grid:
+            if not lo[ray[0]] <= v <= hi[ray[0]]:
+                continue
+            for c in CLOCK_GRID_S:
+                u = u_from.copy()
+                u[ray] = (v - lo[ray]) / span[ray]
+                u[clock] = (c - lo[clock]) / span[clock]
+                trial = cost(u)
+                if trial < best[0]:
+                    best = (trial, u)
+        return best
+
+    if start is None and rays:
+        # a closed loop's timing: each drive alone, then the effect's drives together,
+        # from the nominal timing (swept one after the other, an early drive would take
+        # the whole gap just because it is swept first); the best ray is then refined
+        best, best_ray = (cost(u0), u0), None
+        for ray in rays:
+            trial = sweep(u0, ray, best)
+            if trial[0] < best[0]:
+                best, best_ray = trial, ray
+        u0 = best[1]
+        if best_ray is not None:
+            u0 = _golden_refine(cost, u0, best_ray, flat[best_ray[0]], lo, span)
+    elif rays:
+        # a fold's fit: its own value, near the start's
+        for g in groups:
+            d = [j for j in g if discrete[j]]
+            moved = [j for j in d if abs(u0[j] - u_init[j]) > 1e-12]
+            values = lo[moved] + u0[moved] * span[moved]
+            together = len(moved) == len(d) > 1 and np.ptp(values) < 1e-9
+            for ray in [moved] if together else [[j] for j in moved]:
+                u0 = _golden_refine(cost, u0, ray, flat[ray[0]], lo, span, narrow=True)
+    if start is None and any(p.grid and not p.discrete for p in flat):
+        best = (cost(u0), u0)
         for j, p in enumerate(flat):
-            for v in p.grid:
-                if not lo[j] <= v <= hi[j]:
-                    continue
-                for c in CLOCK_GRID_S:
-                    u = u0.copy()
-                    u[j] = (v - lo[j]) / span[j]
-                    u[clock] = (c - lo[clock]) / span[clock]
-                    trial = cost(u)
-                    if trial < best_cost:
-                        best_cost, u_best = trial, u
-            u0 = u_best
-    res = least_squares(residuals, u0, bounds=(0.0, 1.0), diff_step=1e-4, x_scale=1.0,
-                        max_nfev=40 * (len(flat) + 1))
-    u = res.x.copy()
+            if p.grid and not p.discrete:
+                best = sweep(u0, [j], best)
+                u0 = best[1]
+    free = np.flatnonzero(~discrete)
+
+    def free_residuals(v):
+        u = u0.copy()
+        u[free] = v
+        return residuals(u)
+
+    res = least_squares(free_residuals, u0[free], bounds=(0.0, 1.0), diff_step=1e-4,
+                        x_scale=1.0, max_nfev=40 * (len(free) + 1))
+    u = u0.copy()
+    u[free] = res.x
     if start is not None:
         # a parameter these samples say nothing about (a nozzle never on in them) must
         # not keep what the start learnt from other samples: back to its initial value
         norms = np.linalg.norm(res.jac, axis=0)
         blind = norms <= 1e-6 * max(float(norms.max()), 1e-300)
-        u[blind] = u_init[blind]
+        u[free[blind]] = u_init[free[blind]]
     theta = lo + u * span
     stderr = np.full(len(theta), math.nan)
     try:
@@ -371,12 +460,70 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
         dof = max(1, n - len(theta))
         s2 = 2.0 * res.cost / dof
         cov = np.linalg.pinv(J.T @ J) * s2
-        stderr = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * span
+        stderr[free] = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * span[free]
     except (ValueError, np.linalg.LinAlgError):
         pass
     return FitResult(effects, theta, stderr, [p.name for p in flat], [p.unit for p in flat],
                      model_params(theta), float(res.cost), n, bool(res.success),
                      str(res.message), sizes)
+
+
+GOLDEN_STEPS = 6
+NARROW = 0.25          # a fold's refinement: this share of the way to the grid neighbours
+
+
+def _discrete_rays(groups: list[list[int]], discrete: np.ndarray) -> list[list[int]]:
+    """The directions a discrete sweep tries: each discrete parameter alone, and all of
+    one effect's discrete parameters together (every valve slower by the same delay)."""
+    rays = []
+    for g in groups:
+        d = [j for j in g if discrete[j]]
+        rays += [[j] for j in d]
+        if len(d) > 1:
+            rays.append(d)
+    return rays
+
+
+def _golden_refine(cost, u0: np.ndarray, ray: list[int], param: Param, lo: np.ndarray,
+                   span: np.ndarray, narrow: bool = False) -> np.ndarray:
+    """``u0`` with the parameters ``ray`` (set to one value together) refined by
+    golden-section search between the grid values either side of their value (the
+    bounds where the grid ends; with ``narrow``, NARROW of the way to them), the others
+    held: for a discrete parameter each evaluation is a sequencer run, so a few, not a
+    gradient."""
+    j = ray[0]
+    v = lo[j] + u0[j] * span[j]
+    grid = sorted(g for g in param.grid if param.lower <= g <= param.upper)
+    a = max([g for g in grid if g < v - 1e-12], default=param.lower)
+    b = min([g for g in grid if g > v + 1e-12], default=param.upper)
+    if narrow:
+        a, b = v - NARROW * (v - a), v + NARROW * (b - v)
+
+    def at(x):
+        u = u0.copy()
+        u[ray] = np.clip((x - lo[ray]) / span[ray], 0.0, 1.0)
+        return u
+
+    ratio = (math.sqrt(5.0) - 1.0) / 2.0
+    best_x, best_c = v, cost(u0)
+    c, d = b - ratio * (b - a), a + ratio * (b - a)
+    fc, fd = cost(at(c)), cost(at(d))
+    for _ in range(GOLDEN_STEPS):
+        for x, f in ((c, fc), (d, fd)):
+            if f < best_c:
+                best_x, best_c = x, f
+        if fc < fd:
+            b, d, fd = d, c, fc
+            c = b - ratio * (b - a)
+            fc = cost(at(c))
+        else:
+            a, c, fc = c, d, fd
+            d = a + ratio * (b - a)
+            fd = cost(at(d))
+    for x, f in ((c, fc), (d, fd)):
+        if f < best_c:
+            best_x, best_c = x, f
+    return at(best_x)
 
 
 def folds(rds: list[RunData], period_s: float | None = None) -> list[list[np.ndarray]]:

@@ -12,6 +12,7 @@ litres per minute at the ISO 8778 reference every other part of plcpred uses
 from __future__ import annotations
 
 import csv
+import functools
 import math
 import re
 from dataclasses import dataclass, field
@@ -50,7 +51,7 @@ class MeasuredRun:
     def span_s(self) -> float:
         return float(self.time_s[-1] - self.time_s[0])
 
-    @property
+    @functools.cached_property
     def interval_s(self) -> float:
         """The median sampling interval."""
         return float(np.median(np.diff(self.time_s)))
@@ -59,6 +60,10 @@ class MeasuredRun:
         """Start of each sample's averaging interval: the previous sample, except after a
         gap in the log (longer than 1.5 sampling intervals), where a reading still
         averages only one sampling interval (the first one as long as the median)."""
+        return self._interval_starts_s.copy()
+
+    @functools.cached_property
+    def _interval_starts_s(self) -> np.ndarray:
         t = self.time_s
         start = np.concatenate([[t[0] - self.interval_s], t[:-1]])
         gap = (t - start) > 1.5 * self.interval_s

@@ -35,13 +35,28 @@ def cumulative_nl(cell_nl: np.ndarray) -> np.ndarray:
 
 
 def interval_means_l_min(cum_nl: np.ndarray, edges_s: np.ndarray, start_s: np.ndarray,
-                         end_s: np.ndarray) -> np.ndarray:
+                         end_s: np.ndarray, dt_s: float | None = None) -> np.ndarray:
     """Mean flow (NL/min) over each ``[start, end]`` from the cumulative volume at the
     grid edges (linear within a cell, i.e. exact for cell-mean flows). Intervals must lie
-    within the grid."""
-    c1 = np.interp(end_s, edges_s, cum_nl)
-    c0 = np.interp(start_s, edges_s, cum_nl)
+    within the grid. ``dt_s``: the edges are ``k dt_s`` (the last may be short), which
+    finds each time's cell by division instead of a search."""
+    if dt_s is None:
+        c1 = np.interp(end_s, edges_s, cum_nl)
+        c0 = np.interp(start_s, edges_s, cum_nl)
+    else:
+        c1 = _uniform_interp(end_s, edges_s, cum_nl, dt_s)
+        c0 = _uniform_interp(start_s, edges_s, cum_nl, dt_s)
     return (c1 - c0) / (end_s - start_s) * 60.0
+
+
+def _uniform_interp(x: np.ndarray, edges_s: np.ndarray, y: np.ndarray,
+                    dt_s: float) -> np.ndarray:
+    """``np.interp(x, edges_s, y)`` for edges ``k dt_s`` (clamped at both ends)."""
+    i = np.clip((np.asarray(x) * (1.0 / dt_s)).astype(np.int64), 0, len(edges_s) - 2)
+    e0 = edges_s[i]
+    f = np.clip((x - e0) / (edges_s[i + 1] - e0), 0.0, 1.0)
+    y0 = y[i]
+    return y0 + f * (y[i + 1] - y0)
 
 
 def noise_level_l_min(residual_l_min: np.ndarray) -> float:

@@ -36,6 +36,9 @@ class ModelParams:
     refill_tau_s: float = 0.0
     meter_tau_s: float = 0.0
     clock_adjust_s: float = 0.0       # added to the run's aligned offset
+    # a resequenced run's key (diagnose.timing: per drive a stroke factor and an extra
+    # delay), None: the run's own prediction
+    timing: tuple | None = None
 
     def copy(self) -> "ModelParams":
         """A copy whose arrays an effect may change (called for every evaluation of a
@@ -54,6 +57,9 @@ class MachineModel:
     models: list[ConsumerModel]
     drives: list[int] = field(default_factory=list)     # rows of active consumers
     passives: list[int] = field(default_factory=list)   # rows of nozzles and leaks
+    # set when the runs come from the sequencer and the drives' timing moves the valve
+    # edges (a closed loop): timing effects then run the sequencer again
+    resequencer: object = None
 
     @classmethod
     def of(cls, machine) -> "MachineModel":
@@ -194,4 +200,5 @@ class RunModel:
         if cum_nl is None:
             cum_nl = self.metered_cumulative_nl(params, total_cells)
         shift = params.clock_adjust_s
-        return interval_means_l_min(cum_nl, self.edges_s, start_s - shift, end_s - shift)
+        return interval_means_l_min(cum_nl, self.edges_s, start_s - shift, end_s - shift,
+                                    self.dt_s)
