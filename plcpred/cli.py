@@ -213,6 +213,7 @@ def _bar(text: str) -> float:
 
 def cmd_size(args) -> int:
     from .air import predict
+    from .air.cycles import cycles_of
     from .air.sizing import size
     from .output import OutputError, check_out_dir, output_dir
     from .report import write_sizing_report
@@ -229,7 +230,8 @@ def cmd_size(args) -> int:
         result = predict(args.machine, horizon_s, dt=dt_s, program=args.program,
                          max_events=args.max_events)
         s = size(result.profile, allowance=allowance, band_bar=band, hours_per_year=args.hours,
-                 sec_kwh_per_nm3=args.sec, price_per_kwh=args.price, idle_after_s=idle_after)
+                 sec_kwh_per_nm3=args.sec, price_per_kwh=args.price, idle_after_s=idle_after,
+                 cycles=cycles_of(result.machine, result.timeline, result.profile))
     except PlcpredError as e:
         print(e, file=sys.stderr)
         return 1
@@ -245,6 +247,12 @@ def cmd_size(args) -> int:
           f"{s.band_bar:g} bar band (deficit {s.deficit_nl:.2f} NL at {s.deficit_at_s:g} s)")
     print(f"energy {s.energy_kwh_per_year:,.0f} kWh/year, cost {s.cost_per_year:,.0f}/year; "
           f"idle air {100 * s.idle_share:.1f} %")
+    if s.cycle_s is not None:
+        print(f"cycle {s.cycle_s:.3g} s ({s.cycles_per_hour:.4g} per hour, by "
+              f"{s.cycle_source}): {s.nl_per_cycle:.3f} NL per cycle")
+    else:
+        print("no steady cycle (no [machine] cycle_signal, no repeating state): the figures "
+              f"are over the {s.horizon_s:g} s horizon")
     print(f"wrote {', '.join(str(f) for f in files if f.suffix != '.png')}")
     return 0
 
@@ -257,12 +265,14 @@ def cmd_compare(args) -> int:
     try:
         horizon_s, dt_s = _durations(args)
         parse_allowance(args.max_increase)
+        drop_pct = _percentage(args.max_throughput_drop, "--max-throughput-drop")
     except ValueError as e:
         print(f"plcpred: error: {e}", file=sys.stderr)
         return 2
     try:
         result = compare(args.base, args.new, horizon_s, args.max_increase, dt=dt_s,
-                         program_base=args.program_base, program_new=args.program_new)
+                         program_base=args.program_base, program_new=args.program_new,
+                         max_throughput_drop_pct=drop_pct)
     except PlcpredError as e:
         print(e, file=sys.stderr)
         return 2
@@ -272,7 +282,20 @@ def cmd_compare(args) -> int:
     print(json.dumps(result.to_dict(), indent=2) if args.json else result.table())
     if not result.new_moves:
         return EXIT_NEVER_MOVES
+    if not result.throughput_ok:
+        return EXIT_THROUGHPUT_DROP
     return 0 if result.within_allowance else 1
+
+
+def _percentage(text: str, option: str) -> float:
+    """``"5%"`` or ``"5"`` -> 5.0, from 0 to 100."""
+    try:
+        value = float(text.strip().rstrip("%"))
+    except ValueError:
+        raise ValueError(f"{option} takes a percentage such as 5%, not {text!r}") from None
+    if not 0.0 <= value <= 100.0:
+        raise ValueError(f"{option} takes a percentage from 0 to 100, not {text!r}")
+    return value
 
 
 def cmd_sweep(args) -> int:
@@ -341,6 +364,7 @@ def _machine_args(p, out: str | None = "output directory", dt: bool = True) -> N
 
 DEFAULT_MAX_CHANGES = 20_000_000  # the sequencer's default (not imported: --help stays fast)
 EXIT_NEVER_MOVES = 4   # compare: NEW never moves (a deadlock passes no air gate)
+EXIT_THROUGHPUT_DROP = 5   # compare: NEW completes fewer cycles per hour than allowed
 
 
 def _positive_int(text: str) -> int:
@@ -421,10 +445,15 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("compare", help="compare two machines or programs (CI gate)",
                        description="Predict BASE and NEW over the same horizon and print a "
-                                   "per-consumer table of totals and deltas. Exit 0 when NEW "
+                                   "per-consumer table of totals and deltas. Air is compared "
+                                   "per cycle when both machines have one ([machine] "
+                                   "cycle_signal, or a state that repeats), else over the "
+                                   "horizon. Exit 0 when NEW "
                                    "is within the allowance, 1 when it uses more air, 2 on an "
                                    "error, 4 when NEW never moves (no valve output ever "
-                                   "changes: a deadlock uses less air but passes no gate). NEW "
+                                   "changes: a deadlock uses less air but passes no gate), 5 "
+                                   "when NEW's cycles per hour drop by more than "
+                                   "--max-throughput-drop (or it completes none). NEW "
                                    "defaults to BASE, for comparing two programs with "
                                    "--program-new.")
     p.add_argument("base", metavar="BASE", help="machine file (.toml)")
@@ -432,7 +461,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--horizon", required=True, help=HORIZON_HELP)
     p.add_argument("--max-increase", default="0%",
                    help="allowed increase: a percentage (2%%) or normal litres (0.5NL); "
-                        "default 0%%")
+                        "default 0%%; per cycle when the gate compares cycles")
+    p.add_argument("--max-throughput-drop", default="5%", metavar="PCT",
+                   help="allowed fall of NEW's cycles per hour against BASE's, a percentage; "
+                        "default 5%%")
     p.add_argument("--program-base", metavar="PROGRAM", help="program to run on BASE")
     p.add_argument("--program-new", metavar="PROGRAM", help="program to run on NEW")
     p.add_argument("--dt", help=DT_HELP)

@@ -139,6 +139,8 @@ class Machine:
     warnings: list[str] = field(default_factory=list)
     meter: Meter | None = None
     lines: list[Line] = field(default_factory=list)
+    # a BOOL that rises (or a counter that counts up) once per machine cycle or part
+    cycle_signal: str | None = None
 
     def consumer(self, name: str) -> Consumer:
         for c in self.consumers:
@@ -147,7 +149,8 @@ class Machine:
         raise KeyError(name)
 
 
-_MACHINE_KEYS = {"name", "program", "scan_ms", "supply_bar_g", "atmosphere_kpa", "ambient_c"}
+_MACHINE_KEYS = {"name", "program", "scan_ms", "supply_bar_g", "atmosphere_kpa", "ambient_c",
+                 "cycle_signal"}
 _INPUT_KEYS = {"signal", "pulses_s", "pulse_ms", "period_s", "offset_s", "jitter_s", "seed",
                "initial"}
 _CONSUMER_KEYS = {"name", "kind", "valve", "bore_mm", "rod_mm", "stroke_mm", "tube_id_mm",
@@ -492,6 +495,8 @@ def machine_from_data(data: dict, path) -> Machine:
         atmosphere_kpa=r.number("atmosphere_kpa", 101.325, positive=True),
         ambient_c=r.number("ambient_c", 20.0),
     )
+    if "cycle_signal" in data["machine"]:
+        machine.cycle_signal = _signal_name(r, "cycle_signal", data["machine"]["cycle_signal"])
     if machine.ambient_c <= -273.15:
         raise r.error("ambient_c must be above absolute zero")
     if not machine.program_path.is_file():
@@ -639,6 +644,9 @@ def check_against_program(machine: Machine, program) -> list[str]:
                                 f"{program_file}")
     for s in machine.inputs:
         fed.add(require(f'input "{s.signal}"', "signal", s.signal))
+    if machine.cycle_signal:
+        # counted, not a consumer: an output that drives none is no surprise here
+        driven.add(require("[machine]", "cycle_signal", machine.cycle_signal))
     for out in sorted(outputs - driven):
         warnings.append(f"{file}: output '{out}' of {program_file} drives no consumer")
     for key in sorted((set(inputs) & set(read)) - fed):

@@ -208,6 +208,11 @@ def sizing_markdown(machine_name: str, s, profile, plots=("sizing.png", "demand.
         f"| energy per year ({s.hours_per_year:g} h, {s.sec_kwh_per_nm3:g} kWh/Nm³) | "
         f"{s.energy_kwh_per_year:,.0f} kWh |",
         f"| cost per year (at {s.price_per_kwh:g} per kWh) | {s.cost_per_year:,.0f} |",
+        f"| steady cycle | {s.cycle_s:.3g} s ({s.cycles_per_hour:.4g} per hour, by "
+        f"{_cell(s.cycle_source)}) |" if s.cycle_s is not None else
+        "| steady cycle | none found (no cycle_signal, no repeating state) |",
+        f"| air per cycle | {s.nl_per_cycle:.3f} NL |" if s.cycle_s is not None else
+        f"| air over the horizon | {s.total_nl:.2f} NL |",
         "",
         "| air | NL | share |",
         "|---|---|---|",

@@ -128,6 +128,16 @@ def test_a_machine_without_consumers_still_reports(tmp_path):
     assert data["total_nl"] == 0 and data["receiver_l"] == 0 and data["idle_share"] == 0
 
 
+PUSHER = """[[consumer]]
+name = "pusher"
+kind = "double_acting"
+bore_mm = 32
+rod_mm = 12
+stroke_mm = 80
+valve = "qPush"
+"""
+
+
 def test_compare_fails_a_new_machine_that_never_moves(tmp_path):
     """The E-stop nobody schedules: NEW uses far less air because it never runs. The gate
     fails it with its own exit code (4) and names the input."""
@@ -144,14 +154,7 @@ signal = "xPart"
 period_s = 2.0
 pulse_ms = 500
 {estop}
-[[consumer]]
-name = "pusher"
-kind = "double_acting"
-bore_mm = 32
-rod_mm = 12
-stroke_mm = 80
-valve = "qPush"
-"""
+""" + PUSHER
     (tmp_path / "base.toml").write_text(base.format(
         estop='[[input]]\nsignal = "I_ESTOP_OK"\ninitial = true'))
     (tmp_path / "new.toml").write_text(base.format(estop=""))
@@ -165,3 +168,95 @@ valve = "qPush"
     assert js.returncode == 4 and data["new_moves"] is False and data["passes"] is False
     ok = run("compare", tmp_path / "base.toml", tmp_path / "base.toml", "--horizon", "20s")
     assert ok.returncode == 0
+
+
+# ---------------------------------------------------------------------- cycles
+
+PICK = SAMPLES / "pick_place.toml"
+
+
+def _pick_place_variant(tmp_path, name, old, new):
+    """pick_place.toml with one line changed, its program found from tmp_path."""
+    text = PICK.read_text().replace('program = "codesys_pick_place.st"',
+                                    f'program = "{(SAMPLES / "codesys_pick_place.st")}"')
+    assert old in text
+    path = tmp_path / name
+    path.write_text(text.replace(old, new))
+    return path
+
+
+def test_per_cycle_sizing_does_not_depend_on_the_horizon():
+    from plcpred.air import predict
+    from plcpred.air.cycles import cycles_of
+
+    figures = []
+    for horizon in ("1h", "24h"):
+        p = predict(PICK, horizon)
+        c = cycles_of(p.machine, p.timeline, p.profile)
+        s = size(p.profile, cycles=c)
+        figures.append((s.cycle_s, s.nl_per_cycle, c.count))
+    (c1, nl1, n1), (c24, nl24, n24) = figures
+    assert c1 == c24 == 4.0                       # the repeating state's period
+    assert nl1 == pytest.approx(nl24, rel=1e-6)
+    # and it is the air of one cycle: the mean flow times the cycle, once start-up is past
+    assert nl24 * n24 == pytest.approx(p.profile.total_nl, rel=1e-3)
+
+
+def test_compare_fails_a_throughput_drop(tmp_path):
+    """A much slower X slide (a flow control turned down): the station can no longer take
+    a part every 4 s, so NEW uses less air per hour. The per-hour gate would pass it; the
+    throughput gate fails it (exit 5), and air is compared per part."""
+    slow = _pick_place_variant(tmp_path, "slow.toml", "stroke_time_s = [0.45, 0.45]",
+                               "stroke_time_s = [2.0, 2.0]")
+    r = run("compare", PICK, slow, "--horizon", "10min", "--json")
+    assert r.returncode == 5, r.stdout + r.stderr
+    data = json.loads(r.stdout)
+    base, new = data["cycles"]["base"], data["cycles"]["new"]
+    assert data["per"] == "cycle"
+    assert base["cycle_s"] == 4.0                  # a part every 4 s
+    # parts still come every 4 s; the slow station misses some: its state repeats only
+    # after several arrivals, several parts per period
+    assert new["cycle_s"] > 4.5 and "per period of valve" in new["source"]
+    assert data["throughput_drop_pct"] == pytest.approx(
+        (1 - base["cycle_s"] / new["cycle_s"]) * 100)
+    # the same strokes per part; only the leak runs longer per part
+    assert 0 < data["delta_pct"] < 10 and not data["passes"]
+    text = run("compare", PICK, slow, "--horizon", "10min")
+    assert "FAIL: throughput" in text.stdout and "--max-throughput-drop" in text.stdout
+    assert run("compare", PICK, slow, "--horizon", "10min", "--max-throughput-drop", "30%",
+               "--max-increase", "10%").returncode == 0
+    assert run("compare", PICK, slow, "--horizon", "10min", "--max-throughput-drop",
+               "lots").returncode == 2
+
+
+def test_cycle_signal_counts_a_counter(tmp_path):
+    (tmp_path / "p.st").write_text("""PROGRAM P
+VAR_INPUT xPart : BOOL; END_VAR
+VAR_OUTPUT qPush : BOOL; nParts : INT; END_VAR
+VAR edge : R_TRIG; END_VAR
+edge(CLK := xPart);
+IF edge.Q THEN nParts := nParts + 1; END_IF
+qPush := xPart;
+END_PROGRAM""")
+    machine = """[machine]
+program = "p.st"
+supply_bar_g = 6
+cycle_signal = "{signal}"
+[[input]]
+signal = "xPart"
+period_s = 2.5
+offset_s = 0.5
+pulse_ms = 500
+""" + PUSHER
+    (tmp_path / "m.toml").write_text(machine.format(signal="nParts"))
+    r = run("size", tmp_path / "m.toml", "--horizon", "60s", "--out", tmp_path / "o")
+    assert r.returncode == 0, r.stderr
+    data = json.loads((tmp_path / "o" / "sizing.json").read_text())
+    assert data["cycle_s"] == pytest.approx(2.5) and data["cycle_source"] == 'signal "nParts"'
+    # one extend and one retract of the pusher per part (D1 both ways, no leak)
+    per_part = data["active_nl"] / 24                  # 24 parts in 60 s
+    assert data["nl_per_cycle"] == pytest.approx(per_part, rel=1e-6)
+    (tmp_path / "bad.toml").write_text(machine.format(signal="nothing"))
+    bad = run("size", tmp_path / "bad.toml", "--horizon", "10s", "--out", tmp_path / "o2")
+    assert bad.returncode in (1, 2) and "cycle_signal" in bad.stderr
+    assert "[machine]" in bad.stderr and "Traceback" not in bad.stderr

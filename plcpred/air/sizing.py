@@ -11,6 +11,8 @@
 * **Energy**: ``E = q_avg * SEC * hours / efficiency`` with the specific energy SEC in kWh per
   normal m^3 (default 0.1, the published 0.30-0.35 kW per l/s at 7 bar gauge); cost = E *
   price.
+* **Per cycle**: with a steady cycle (:mod:`~plcpred.air.cycles`) the cycle time and the
+  air per cycle, which do not depend on the horizon.
 * **Idle air**: air used while no cylinder is moving (only leaks and blowers on), as a share
   of the total; with ``idle_after_s`` the machine must also have been still that long.
 """
@@ -55,6 +57,11 @@ class Sizing:
     idle_share: float
     horizon_s: float
     dt_s: float
+    # the steady cycle (plcpred.air.cycles), None when the machine has none
+    cycle_source: str | None = None
+    cycle_s: float | None = None
+    nl_per_cycle: float | None = None
+    cycles_per_hour: float | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -88,7 +95,9 @@ def idle_mask(profile, idle_after_s: float = 0.0) -> np.ndarray:
 def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAULT_BAND_BAR,
          hours_per_year: float = DEFAULT_HOURS, sec_kwh_per_nm3: float = DEFAULT_SEC_KWH_NM3,
          price_per_kwh: float = DEFAULT_PRICE, efficiency: float = 1.0,
-         idle_after_s: float = 0.0) -> Sizing:
+         idle_after_s: float = 0.0, cycles=None) -> Sizing:
+    """Size the supply for ``profile`` (module note); ``cycles`` (a
+    :class:`~plcpred.air.cycles.Cycles`) adds the steady cycle's figures."""
     if allowance < 0 or band_bar <= 0 or hours_per_year < 0 or sec_kwh_per_nm3 < 0 \
             or efficiency <= 0:
         raise ValueError("allowance, hours and specific energy must be >= 0, the pressure "
@@ -113,4 +122,7 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
         total_nl=profile.total_nl, active_nl=split["active"], passive_nl=split["passive"],
         leak_nl=split["leak"], idle_nl=idle_nl,
         idle_share=idle_nl / profile.total_nl if profile.total_nl > 0 else 0.0,
-        horizon_s=profile.horizon_s, dt_s=profile.dt_s)
+        horizon_s=profile.horizon_s, dt_s=profile.dt_s,
+        **({} if cycles is None or cycles.cycle_s is None else {
+            "cycle_source": cycles.source, "cycle_s": cycles.cycle_s,
+            "nl_per_cycle": cycles.nl_per_cycle, "cycles_per_hour": cycles.per_hour}))

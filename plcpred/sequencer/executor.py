@@ -517,11 +517,13 @@ class Sequencer:
                 hit = self._locate(inst, s)
                 self.signal_names[s] = self._display(inst, s, hit)
                 add(ins, self.signal_names[s], hit)
-            for cons in self.machine.consumers:
-                for v in cons.valve:
-                    hit = self._locate(inst, v)
-                    self.signal_names[v] = self._display(inst, v, hit)
-                    add(outs, self.signal_names[v], hit)
+            recorded = [v for cons in self.machine.consumers for v in cons.valve]
+            if self.machine.cycle_signal:
+                recorded.append(self.machine.cycle_signal)   # counted per cycle
+            for v in recorded:
+                hit = self._locate(inst, v)
+                self.signal_names[v] = self._display(inst, v, hit)
+                add(outs, self.signal_names[v], hit)
         return ins, outs
 
     def _display(self, inst, signal, hit):

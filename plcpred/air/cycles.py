@@ -1,0 +1,116 @@
+"""Machine cycles in a timeline: what "per cycle" and "throughput" mean for the gate and
+for sizing.
+
+A cycle is counted at each rising edge (a BOOL) or each increase (a counter) of the
+signal the machine file names as ``[machine] cycle_signal``; without one, a machine whose
+state repeats (a tiled timeline) has as many cycles in each repeating period as the valve
+that switches on least often switches on in it (every drive moves once or more per
+cycle; a machine fed faster than it works repeats only after several). The steady
+figures come from whole cycles only: air per cycle is the air between the first and the
+last cycle boundary divided by the cycles between them, so a start-up sequence or a
+horizon that ends mid-cycle does not enter them, and they do not depend on the horizon.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..sequencer.timeline import NS
+
+
+@dataclass
+class Cycles:
+    source: str                 # 'signal "NAME"' or "repeating state"
+    count: int                  # cycle boundaries within the horizon
+    cycle_s: float | None       # steady cycle time (None: fewer than two boundaries)
+    nl_per_cycle: float | None  # steady air per cycle, NL
+
+    @property
+    def per_hour(self) -> float | None:
+        return 3600.0 / self.cycle_s if self.cycle_s else None
+
+    def to_dict(self) -> dict:
+        return {"source": self.source, "count": self.count, "cycle_s": self.cycle_s,
+                "nl_per_cycle": self.nl_per_cycle, "cycles_per_hour": self.per_hour}
+
+
+def _boundaries(t_ns: np.ndarray, v: np.ndarray, before: float) -> np.ndarray:
+    """Times at which the signal rises (BOOL) or counts up (a counter), given its
+    edges and its value before the first of them."""
+    prev = np.concatenate([[before], v[:-1]])
+    return t_ns[v > prev] if len(v) else t_ns
+
+
+def cycles_of(machine, timeline, profile) -> Cycles | None:
+    """The cycles of a predicted run (None: no cycle signal and no repeating state)."""
+    total = profile.cell_nl.sum(axis=0)
+    cum = np.concatenate([[0.0], np.cumsum(total)])
+    edges_s = np.arange(len(cum)) * profile.dt_s
+
+    def nl_between(a_s: float, b_s: float) -> float:
+        return float(np.interp(b_s, edges_s, cum) - np.interp(a_s, edges_s, cum))
+
+    horizon_ns = timeline.horizon_ns
+    signal = machine.cycle_signal
+    if signal:
+        name = timeline.info.get("machine_signals", {}).get(signal, signal)
+        t, v = timeline.executed_edge_times_ns(name)
+        # the first row is the initial value, not a change
+        b = _boundaries(t[1:], v[1:], float(v[0])) if len(v) else t
+        source = f'signal "{signal}"'
+        if timeline.tiled is None:
+            return _steady(source, b / NS, nl_between)
+        t1, t2 = timeline.tiled
+        period = (b > t1) & (b <= t2)
+        per_tile = int(period.sum())
+        if per_tile == 0:
+            return Cycles(source, len(b), None, None)
+        reps = np.floor((horizon_ns - b[period]) / (t2 - t1)).astype(np.int64)
+        count = len(b) + int(np.clip(reps, 0, None).sum())
+        return _tiled(source, count, timeline, per_tile, nl_between)
+    if timeline.tiled is not None:
+        t1, t2 = timeline.tiled
+        per_tile, valve = _moves_per_period(machine, timeline)
+        source = "repeating state" + (f" ({per_tile} per period of valve '{valve}')"
+                                      if per_tile > 1 else "")
+        return _tiled(source, int((horizon_ns - t1) // (t2 - t1)) * per_tile, timeline,
+                      per_tile, nl_between)
+    return None
+
+
+def _moves_per_period(machine, timeline) -> tuple[int, str | None]:
+    """Cycles in one repeating period: how often the valve that switches on least often
+    (but at least once) does so in it, since each drive of a machine moves at least once
+    per cycle (a period of a machine fed faster than it works holds several)."""
+    t1, t2 = timeline.tiled
+    names = timeline.info.get("machine_signals", {})
+    best = (1, None)
+    for c in machine.consumers:
+        for v in c.valve:
+            t, val = timeline.executed_edge_times_ns(names.get(v, v))
+            if len(val) < 2:
+                continue
+            rises = _boundaries(t[1:], val[1:], float(val[0]))
+            n = int(((rises > t1) & (rises <= t2)).sum())
+            if n and (best[1] is None or n < best[0]):
+                best = (n, v)
+    return best
+
+
+def _tiled(source: str, count: int, timeline, per_tile: int, nl_between) -> Cycles:
+    """A tiled run's steady cycle: the period holds ``per_tile`` cycles; the air is taken
+    over every whole period in the horizon (the grid's cells do not line up with the
+    periods, and over many the part-cells at both ends weigh nothing)."""
+    t1, t2 = timeline.tiled
+    whole = max(1, int((timeline.horizon_ns - t1) // (t2 - t1)))
+    air = nl_between(t1 / NS, (t1 + whole * (t2 - t1)) / NS)
+    return Cycles(source, count, (t2 - t1) / NS / per_tile, air / whole / per_tile)
+
+
+def _steady(source: str, b_s: np.ndarray, nl_between) -> Cycles:
+    n = len(b_s)
+    if n < 2:
+        return Cycles(source, n, None, None)
+    return Cycles(source, n, float(b_s[-1] - b_s[0]) / (n - 1),
+                  nl_between(float(b_s[0]), float(b_s[-1])) / (n - 1))
