@@ -192,7 +192,7 @@ def cmd_predict(args) -> int:
           f"passive {split['passive']:.2f} NL ({100 * split['passive'] / total:.1f} %), "
           f"leaks {split['leak']:.2f} NL ({100 * split['leak'] / total:.1f} %)")
     print(f"mean {prof.mean_l_min:.1f} NL/min, peak {prof.peak_l_min():.1f} NL/min "
-          f"(grid), {prof.peak_l_min(1.0):.1f} NL/min (1 s), "
+          f"(instantaneous), {prof.peak_l_min(1.0):.1f} NL/min (1 s), "
           f"{prof.peak_l_min(60.0):.1f} NL/min (1 min)")
     print(f"wrote {', '.join(str(p) for p in written)}")
     return 0
@@ -240,7 +240,7 @@ def cmd_size(args) -> int:
     name = result.machine.name
     with output_dir(out, _command_line(args)) as staging:
         files = [out / f.name for f in write_sizing_report(result, s, staging)]
-    print(f"{name}: mean {s.mean_l_min:.1f} NL/min, peak {s.peak_l_min:.1f} (grid) / "
+    print(f"{name}: mean {s.mean_l_min:.1f} NL/min, peak {s.peak_l_min:.1f} (instant) / "
           f"{s.peak_1s_l_min:.1f} (1 s) / {s.peak_1min_l_min:.1f} (1 min) NL/min")
     print(f"compressor design flow {s.design_flow_l_min:.1f} NL/min "
           f"(mean + {100 * s.allowance:g} %); receiver {s.receiver_l:.1f} L for a "

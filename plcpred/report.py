@@ -78,8 +78,8 @@ def plot_demand(profile, path, title="Air demand") -> None:
     ax.grid(True, alpha=0.3)
     avg = f", averaged over {profile.dt_s * k:g} s bins" if k > 1 else ""
     ax.set_title(f"{_plain(title)}\nmean {profile.mean_l_min:.1f} NL/min, peak "
-                 f"{profile.peak_l_min():.1f} NL/min (grid {profile.dt_s:g} s{avg}), "
-                 f"total {profile.total_nl:.1f} NL", fontsize=10)
+                 f"{profile.peak_l_min():.1f} NL/min (instantaneous; grid "
+                 f"{profile.dt_s:g} s{avg}), total {profile.total_nl:.1f} NL", fontsize=10)
     ax2 = ax.twinx()
     cum = np.concatenate([[0.0], profile.cumulative_nl()])
     tc = np.arange(len(cum)) * profile.dt_s
@@ -196,7 +196,7 @@ def sizing_markdown(machine_name: str, s, profile, plots=("sizing.png", "demand.
         "| quantity | value |",
         "|---|---|",
         f"| mean demand | {s.mean_l_min:.1f} NL/min |",
-        f"| peak (grid) | {s.peak_l_min:.1f} NL/min |",
+        f"| peak (instantaneous) | {s.peak_l_min:.1f} NL/min |",
         f"| peak over 1 s | {s.peak_1s_l_min:.1f} NL/min |",
         f"| peak over 1 min | {s.peak_1min_l_min:.1f} NL/min |",
         f"| 95th percentile (grid) | {s.p95_l_min:.1f} NL/min |",

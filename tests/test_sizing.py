@@ -260,3 +260,34 @@ pulse_ms = 500
     bad = run("size", tmp_path / "bad.toml", "--horizon", "10s", "--out", tmp_path / "o2")
     assert bad.returncode in (1, 2) and "cycle_signal" in bad.stderr
     assert "[machine]" in bad.stderr and "Traceback" not in bad.stderr
+
+
+# ---------------------------------------------------------------------- exact peaks
+
+def test_square_wave_peaks_by_hand():
+    prof = square_wave(horizon_s=100.0)
+    assert prof.peak_l_min() == pytest.approx(330.0)          # blower and leak together
+    assert prof.peak_l_min(1.0) == pytest.approx(330.0)
+    # any 60 s holds six 2 s blows at most: 30 + 300 * 12 / 60
+    assert prof.peak_l_min(60.0) == pytest.approx(90.0)
+    # a 5 s window holds one whole blow: 30 + 300 * 2 / 5
+    assert prof.peak_l_min(5.0) == pytest.approx(150.0)
+
+
+def test_peaks_are_the_same_at_every_dt():
+    from plcpred.air import predict
+
+    figures = []
+    for dt in (0.002, 0.05, 0.3):
+        prof = predict(PICK, "30s", dt=dt).profile
+        figures.append((prof.peak_l_min(), prof.peak_l_min(1.0), prof.peak_l_min(10.0)))
+        # the grid can only average the exact demand down
+        assert prof.grid_peak_l_min() <= prof.peak_l_min() + 1e-9
+        assert prof.steps.cumulative_nl(prof.horizon_s) == pytest.approx(prof.total_nl,
+                                                                         rel=1e-9)
+    for f in figures[1:]:
+        assert f == pytest.approx(figures[0], rel=1e-12)
+    fine = predict(PICK, "30s", dt=0.001).profile
+    # a 1 ms grid's 1 s windows come within a cell's air of the exact one
+    assert fine.grid_peak_l_min(1.0) == pytest.approx(figures[0][1], rel=5e-3)
+    assert fine.grid_peak_l_min(1.0) <= figures[0][1] + 1e-9

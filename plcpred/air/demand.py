@@ -204,6 +204,16 @@ def stroke_cells(edges_s, t_s, extend, extend_nl: float, retract_nl: float,
     transition's volume spread evenly over its stroke time after its switching delay (see
     the module docstring), less the residual of an incomplete exhaust when
     ``exhaust_tau_s`` is given (:func:`residual_fill_nl`)."""
+    return _cell_volumes(edges_s, *stroke_rectangles(
+        t_s, extend, extend_nl, retract_nl, delay_s, stroke_time_s, exhaust_tau_s,
+        dead_fill_nl))
+
+
+def stroke_rectangles(t_s, extend, extend_nl: float, retract_nl: float,
+                      delay_s: float = 0.0, stroke_time_s=None, exhaust_tau_s=None,
+                      dead_fill_nl=(0.0, 0.0)):
+    """(D1, transition rule) each transition's (start s, duration s, NL): the air of
+    :func:`stroke_cells` before it meets a grid (a duration of 0 is a step)."""
     t_s = np.asarray(t_s, dtype=float)
     extend = np.asarray(extend, dtype=bool)
     vol = np.where(extend, extend_nl, retract_nl)
@@ -218,15 +228,20 @@ def stroke_cells(edges_s, t_s, extend, extend_nl: float, retract_nl: float,
     else:
         start = t_s
         dur = np.full(len(t_s), float(delay_s))
-    return _cell_volumes(edges_s, start, dur, vol)
+    return start, dur, vol
 
 
 def interval_cells(edges_s, starts_s, ends_s, flow_l_min: float) -> np.ndarray:
     """(D2 while on) normal litres per grid cell of a consumer flowing ``flow_l_min``
     over the given periods."""
+    return _cell_volumes(edges_s, *interval_rectangles(starts_s, ends_s, flow_l_min))
+
+
+def interval_rectangles(starts_s, ends_s, flow_l_min: float):
+    """(D2 while on) each period's (start s, duration s, NL)."""
     starts_s = np.asarray(starts_s, dtype=float)
     dur = np.asarray(ends_s, dtype=float) - starts_s
-    return _cell_volumes(edges_s, starts_s, dur, flow_l_min / 60.0 * dur)
+    return starts_s, dur, flow_l_min / 60.0 * dur
 
 
 def _cell_volumes(edges_s, start_s, duration_s, amount) -> np.ndarray:
@@ -270,6 +285,65 @@ def grid_edges_s(horizon_s: float, dt_s: float) -> np.ndarray:
     return edges
 
 
+# ---------------------------------------------------------------------- exact peaks
+
+@dataclass
+class DemandSteps:
+    """The total demand as the model has it before any grid: a piecewise-constant rate
+    (the strokes' and nozzles' rectangles) plus steps (strokes with no duration), as
+    breakpoint times, the rate after each (NL/s) and the cumulative NL at each
+    (right-continuous). Peaks from it do not depend on the output grid."""
+    times_s: np.ndarray
+    rate_nl_s: np.ndarray
+    cum_nl: np.ndarray
+    horizon_s: float
+
+    @classmethod
+    def of(cls, rects, horizon_s: float) -> "DemandSteps":
+        start = np.concatenate([r[0] for r in rects]) if rects else np.zeros(0)
+        dur = np.concatenate([r[1] for r in rects]) if rects else np.zeros(0)
+        vol = np.concatenate([r[2] for r in rects]) if rects else np.zeros(0)
+        ramp = dur > 0
+        rate = vol[ramp] / dur[ramp]
+        t = np.concatenate([start[ramp], start[ramp] + dur[ramp], start[~ramp]])
+        d_rate = np.concatenate([rate, -rate, np.zeros(int((~ramp).sum()))])
+        jump = np.concatenate([np.zeros(2 * int(ramp.sum())), vol[~ramp]])
+        order = np.argsort(t, kind="stable")
+        t, d_rate, jump = t[order], d_rate[order], jump[order]
+        # one breakpoint per distinct time
+        times, first = np.unique(t, return_index=True)
+        rate_after = np.cumsum(d_rate)[np.r_[first[1:], len(t)] - 1] if len(t) else t
+        jumps = np.add.reduceat(jump, first) if len(t) else t
+        gaps = np.diff(times, prepend=times[:1]) if len(t) else t
+        rate_before = np.concatenate([[0.0], rate_after[:-1]]) if len(t) else t
+        cum = np.cumsum(rate_before * gaps + jumps)
+        return cls(times, np.clip(rate_after, 0.0, None), cum, float(horizon_s))
+
+    def cumulative_nl(self, at_s) -> np.ndarray:
+        """NL used by each time (steps at a time counted in)."""
+        at_s = np.asarray(at_s, dtype=float)
+        k = np.searchsorted(self.times_s, at_s, side="right") - 1
+        kk = np.clip(k, 0, None)
+        if not len(self.times_s):
+            return np.zeros_like(at_s)
+        return np.where(k >= 0, self.cum_nl[kk] + self.rate_nl_s[kk]
+                        * (at_s - self.times_s[kk]), 0.0)
+
+    def peak_l_min(self, window_s: float | None = None) -> float:
+        """The highest instantaneous demand (steps left out: they have no rate), or the
+        highest mean over any window of ``window_s`` within the horizon (a window's
+        mean is largest with one of its ends on a breakpoint)."""
+        inside = self.times_s < self.horizon_s
+        if not window_s:
+            return float(self.rate_nl_s[inside].max(initial=0.0)) * 60.0
+        w = min(float(window_s), self.horizon_s)
+        b = self.times_s[inside]
+        ends = np.concatenate([b, b + w, [w, self.horizon_s]])
+        ends = ends[(ends >= w - 1e-12) & (ends <= self.horizon_s + 1e-12)]
+        gain = self.cumulative_nl(ends) - self.cumulative_nl(ends - w)
+        return float(gain.max(initial=0.0)) / w * 60.0
+
+
 # ---------------------------------------------------------------------- the profile
 
 @dataclass
@@ -284,6 +358,7 @@ class DemandProfile:
     passive_nl: np.ndarray
     strokes: dict = field(default_factory=dict)   # name -> (extend, retract) counts
     models: list = field(default_factory=list)
+    steps: DemandSteps | None = None    # the exact demand, for peaks off the grid
 
     @property
     def n_cells(self) -> int:
@@ -316,8 +391,16 @@ class DemandProfile:
         return self.total_nl / self.horizon_s * 60.0
 
     def peak_l_min(self, window_s: float | None = None) -> float:
-        """The highest total flow on the grid, or the highest mean over any window of
-        ``window_s`` (rounded to whole cells)."""
+        """The highest instantaneous demand, or the highest mean over any window of
+        ``window_s``: exact (:class:`DemandSteps`, the same at every ``dt``) when the
+        profile has its steps, else on the grid (cells, windows in whole cells)."""
+        if self.steps is not None:
+            return self.steps.peak_l_min(window_s)
+        return self.grid_peak_l_min(window_s)
+
+    def grid_peak_l_min(self, window_s: float | None = None) -> float:
+        """The highest total flow of a grid cell, or mean over ``window_s`` in whole
+        cells (what a plot of the grid shows)."""
         return float(np.max(self.moving_average_l_min(window_s))) if window_s else float(
             np.max(self.total_flow_l_min))
 
@@ -403,13 +486,15 @@ def demand_profile(timeline, models: list[ConsumerModel], dt_s: float = 0.01,
     active = np.zeros(n)
     passive = np.zeros(n)
     strokes = {}
+    rects = []
     for i, m in enumerate(models):
         if m.role == "active":
             t_ns, ext = valve_transitions(timeline, m, signal_map)
             strokes[m.name] = (int(ext.sum()), int((~ext).sum()))
-            cells[i] = stroke_cells(edges, t_ns / NS, ext, m.extend_nl, m.retract_nl,
-                                    m.delay_s, m.stroke_time_s, m.exhaust_tau_s,
-                                    m.dead_fill_nl)
+            rects.append(stroke_rectangles(t_ns / NS, ext, m.extend_nl, m.retract_nl,
+                                           m.delay_s, m.stroke_time_s, m.exhaust_tau_s,
+                                           m.dead_fill_nl))
+            cells[i] = _cell_volumes(edges, *rects[-1])
             active[i] = cells[i].sum()
         else:
             if m.role == "leak":
@@ -417,10 +502,12 @@ def demand_profile(timeline, models: list[ConsumerModel], dt_s: float = 0.01,
             else:
                 s_ns, e_ns = passive_intervals(timeline, m, signal_map)
                 starts, ends = s_ns / NS, e_ns / NS
-            cells[i] = interval_cells(edges, starts, ends, m.flow_l_min)
+            rects.append(interval_rectangles(starts, ends, m.flow_l_min))
+            cells[i] = _cell_volumes(edges, *rects[-1])
             passive[i] = cells[i].sum()
     return DemandProfile([m.name for m in models], [m.role for m in models], cells, dt_s,
-                         horizon_s, active, passive, strokes, list(models))
+                         horizon_s, active, passive, strokes, list(models),
+                         DemandSteps.of(rects, horizon_s))
 
 
 def activation_matrix(timeline, models: list[ConsumerModel], dt_s: float, signal_map=None):
