@@ -21,10 +21,12 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import statistics
 import sys
 import time
 from collections import Counter, defaultdict
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -251,6 +253,24 @@ def write_sample_log(path, seed: int = 7) -> None:
         f"{a:.1f},{b:.2f}\n" for a, b in zip(t, q)))
 
 
+def diagnose_case(case) -> dict:
+    """What the summary needs of one case's diagnosis (run in a worker process)."""
+    t0 = time.process_time()
+    path = ROOT / MACHINES[case["id"] % len(MACHINES)]
+    try:
+        d = diagnose(plcpred.load_machine(path), case["runs"])
+    except DiagnosisError as e:
+        return {"error": str(e), "cpu_s": time.process_time() - t0}
+    base = d.baseline_heldout
+    after = None if not d.effects else (d.effects[0].heldout_score if d.verdict != "none"
+                                        else base)
+    return {"verdict": d.verdict, "noise": d.noise_l_min, "base_mse": base.mse,
+            "base_error_pct": base.error_pct,
+            "after_mse": None if after is None else after.mse,
+            "after_error_pct": None if after is None else after.error_pct,
+            "cpu_s": time.process_time() - t0}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sample-log", metavar="PATH",
@@ -258,6 +278,8 @@ def main(argv=None) -> int:
     ap.add_argument("--cases", type=int, default=200)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--effects", help="withhold only these (comma-separated)")
+    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1,
+                    help="processes diagnosing cases in parallel (default: every core)")
     ap.add_argument("--verbose", action="store_true")
     args = ap.parse_args(argv)
     if args.sample_log:
@@ -271,41 +293,43 @@ def main(argv=None) -> int:
     errors = []
     per_effect = defaultdict(lambda: [0, 0])     # effect > 3x noise: [hits, cases]
     t0 = time.perf_counter()
-    for i in range(args.cases):
-        case = make_case(i, rng, effects)
+    cases = [make_case(i, rng, effects) for i in range(args.cases)]
+    # cases are independent: diagnosed in parallel processes, in order
+    with ProcessPoolExecutor(max_workers=args.jobs) as pool:
+        outcomes = list(pool.map(diagnose_case, cases))
+    cpu = 0.0
+    for i, (case, out) in enumerate(zip(cases, outcomes)):
         truth = case["effect"]
-        try:
-            d = diagnose(plcpred.load_machine(ROOT / MACHINES[i % len(MACHINES)]),
-                         case["runs"])
-        except DiagnosisError as e:     # counted as a miss, named in the output
+        cpu += out["cpu_s"]
+        if "error" in out:     # counted as a miss, named in the output
             confusion[truth]["error"] += 1
-            errors.append(f"case {i} ({case['machine']}, {truth}): {e}")
+            errors.append(f"case {i} ({case['machine']}, {truth}): {out['error']}")
             if truth != "none" and case["size"] > 3 * case["noise"]:
                 strong_n += 1
                 per_effect[truth][1] += 1
             none_n += truth == "none"
             continue
-        confusion[truth][d.verdict] += 1
+        verdict = out["verdict"]
+        confusion[truth][verdict] += 1
         strong = case["size"] > 3 * case["noise"]
         if truth == "none":
             none_n += 1
-            none_hits += d.verdict == "none"
+            none_hits += verdict == "none"
         elif strong:
             strong_n += 1
-            strong_hits += d.verdict == truth
-            per_effect[truth][0] += d.verdict == truth
+            strong_hits += verdict == truth
+            per_effect[truth][0] += verdict == truth
             per_effect[truth][1] += 1
-        if truth != "none" and strong and d.effects:
-            best = d.effects[0]
-            base = d.baseline_heldout
-            excess_before = math.sqrt(max(base.mse - d.noise_l_min ** 2, 1e-12))
-            after = best.heldout_score if d.verdict != "none" else base
-            excess_after = math.sqrt(max(after.mse - d.noise_l_min ** 2, 0.0))
+        if truth != "none" and strong and out["after_mse"] is not None:
+            noise2 = out["noise"] ** 2
+            excess_before = math.sqrt(max(out["base_mse"] - noise2, 1e-12))
+            excess_after = math.sqrt(max(out["after_mse"] - noise2, 0.0))
             shrinks.append(1.0 - excess_after / excess_before)
-            if abs(base.error_pct) > 2.0:
-                volume_shrinks.append(1.0 - abs(after.error_pct) / abs(base.error_pct))
+            if abs(out["base_error_pct"]) > 2.0:
+                volume_shrinks.append(1.0 - abs(out["after_error_pct"])
+                                      / abs(out["base_error_pct"]))
         if args.verbose:
-            print(f"{i:4d} {case['machine']:<20} {truth:<19} -> {d.verdict:<19} size/noise "
+            print(f"{i:4d} {case['machine']:<20} {truth:<19} -> {verdict:<19} size/noise "
                   f"{case['size'] / case['noise']:5.1f} {case['desc']}", flush=True)
     wall = time.perf_counter() - t0
     names = [e for e in EFFECTS + ["error"]
@@ -333,7 +357,8 @@ def main(argv=None) -> int:
               f"{100 * statistics.median(volume_shrinks):.0f} %")
     for e in errors:
         print(f"error: {e}")
-    print(f"{args.cases} cases in {wall:.0f} s ({wall / max(args.cases, 1):.1f} s per case)")
+    print(f"{args.cases} cases in {wall:.0f} s on {args.jobs} processes "
+          f"({cpu / max(args.cases, 1):.1f} s of CPU per case)")
     return 0
 
 

@@ -58,3 +58,16 @@ def test_every_command_and_option_is_in_docs_cli():
         for action in parser._actions:
             for opt in action.option_strings:
                 assert opt in doc, f"plcpred {name} {opt}"
+
+
+def test_help_imports_neither_numpy_nor_the_sequencer():
+    # --help and argument errors answer at once: the package imports its parts lazily
+    code = ("import sys\nfrom plcpred.cli import main\n"
+            "try:\n    main(['--help'])\nexcept SystemExit:\n    pass\n"
+            "heavy = [m for m in ('numpy', 'plcpred.sequencer', 'plcpred.parser', "
+            "'plcpred.air') if m in sys.modules]\nprint('HEAVY', heavy)")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert "HEAVY []" in r.stdout
+    import plcpred
+    assert plcpred.predict is plcpred.air.predict and "predict" in dir(plcpred)

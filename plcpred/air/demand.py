@@ -26,6 +26,7 @@ falling parts; active air per cell ``Zx^T q_extend + Zr^T q_retract``, passive
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -382,8 +383,10 @@ class DemandProfile:
     def total_nl(self) -> float:
         return float(self.cell_nl.sum())
 
-    @property
+    @functools.cached_property
     def consumer_nl(self) -> np.ndarray:
+        """Per-consumer totals, summed once (reports ask per consumer, per row, per
+        legend label: re-summing consumers x cells each time grows as N^2)."""
         return self.cell_nl.sum(axis=1)
 
     @property
