@@ -213,7 +213,7 @@ def _bar(text: str) -> float:
 
 def cmd_size(args) -> int:
     from .air import predict
-    from .air.cycles import cycles_of
+    from .air.cycles import cycles_of, last_switch_s
     from .air.sizing import size
     from .output import OutputError, check_out_dir, output_dir
     from .report import write_sizing_report
@@ -231,13 +231,16 @@ def cmd_size(args) -> int:
                          max_events=args.max_events)
         s = size(result.profile, allowance=allowance, band_bar=band, hours_per_year=args.hours,
                  sec_kwh_per_nm3=args.sec, price_per_kwh=args.price, idle_after_s=idle_after,
-                 cycles=cycles_of(result.machine, result.timeline, result.profile))
+                 cycles=cycles_of(result.machine, result.timeline, result.profile),
+                 last_switch_s=last_switch_s(result.machine, result.timeline))
     except PlcpredError as e:
         print(e, file=sys.stderr)
         return 1
     except ValueError as e:
         return _fail(str(e))
     name = result.machine.name
+    for w in result.machine.warnings + s.warnings:
+        print(f"warning: {w}", file=sys.stderr)
     with output_dir(out, _command_line(args)) as staging:
         files = [out / f.name for f in write_sizing_report(result, s, staging)]
     print(f"{name}: mean {s.mean_l_min:.1f} NL/min, peak {s.peak_l_min:.1f} (instant) / "

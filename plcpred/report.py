@@ -214,6 +214,7 @@ def sizing_markdown(machine_name: str, s, profile, plots=("sizing.png", "demand.
         f"| air per cycle | {s.nl_per_cycle:.3f} NL |" if s.cycle_s is not None else
         f"| air over the horizon | {s.total_nl:.2f} NL |",
         "",
+        *[f"**Warning**: {_cell(w)}\n" for w in s.warnings],
         "| air | NL | share |",
         "|---|---|---|",
         f"| active (cylinders, drives, grippers) | {s.active_nl:.2f} | "

@@ -291,3 +291,16 @@ def test_peaks_are_the_same_at_every_dt():
     # a 1 ms grid's 1 s windows come within a cell's air of the exact one
     assert fine.grid_peak_l_min(1.0) == pytest.approx(figures[0][1], rel=5e-3)
     assert fine.grid_peak_l_min(1.0) <= figures[0][1] + 1e-9
+
+
+def test_sizing_warns_of_a_machine_that_stops_early(tmp_path):
+    # the rig runs its one sequence in about 8 s, then stands still
+    r = run("size", RIG, "--horizon", "60s", "--out", tmp_path / "rig")
+    assert r.returncode == 0, r.stderr
+    data = json.loads((tmp_path / "rig" / "sizing.json").read_text())
+    assert len(data["warnings"]) == 1 and "last switch at 8.26 s of the 60 s" in r.stderr
+    assert "cycle_signal" in data["warnings"][0] and data["cycle_s"] is None
+    assert "Warning" in (tmp_path / "rig" / "sizing.md").read_text()
+    # a cycling machine keeps switching to the end of any horizon
+    r = run("size", PICK, "--horizon", "60s", "--out", tmp_path / "pick")
+    assert json.loads((tmp_path / "pick" / "sizing.json").read_text())["warnings"] == []

@@ -114,3 +114,18 @@ def _steady(source: str, b_s: np.ndarray, nl_between) -> Cycles:
         return Cycles(source, n, None, None)
     return Cycles(source, n, float(b_s[-1] - b_s[0]) / (n - 1),
                   nl_between(float(b_s[0]), float(b_s[-1])) / (n - 1))
+
+
+def last_switch_s(machine, timeline) -> float | None:
+    """When a consumer's valve last switches in the run (None: a repeating run, whose
+    valves keep switching to the horizon; 0 when none ever does)."""
+    if timeline.tiled is not None:
+        return None
+    names = timeline.info.get("machine_signals", {})
+    last = 0.0
+    for c in machine.consumers:
+        for v in c.valve:
+            t, _ = timeline.executed_edge_times_ns(names.get(v, v))
+            if len(t) > 1:          # the first row is the initial value
+                last = max(last, float(t[-1]) / NS)
+    return last

@@ -18,7 +18,7 @@
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
@@ -29,6 +29,7 @@ DEFAULT_BAND_BAR = 1.0
 DEFAULT_SEC_KWH_NM3 = 0.1
 DEFAULT_HOURS = 4000.0      # two shifts, about 250 days
 DEFAULT_PRICE = 0.15        # per kWh, in the user's currency
+STOPS_EARLY = 0.8           # valves still after this share of the horizon: a warning
 
 
 @dataclass
@@ -62,6 +63,7 @@ class Sizing:
     cycle_s: float | None = None
     nl_per_cycle: float | None = None
     cycles_per_hour: float | None = None
+    warnings: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -95,9 +97,12 @@ def idle_mask(profile, idle_after_s: float = 0.0) -> np.ndarray:
 def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAULT_BAND_BAR,
          hours_per_year: float = DEFAULT_HOURS, sec_kwh_per_nm3: float = DEFAULT_SEC_KWH_NM3,
          price_per_kwh: float = DEFAULT_PRICE, efficiency: float = 1.0,
-         idle_after_s: float = 0.0, cycles=None) -> Sizing:
+         idle_after_s: float = 0.0, cycles=None, last_switch_s: float | None = None
+         ) -> Sizing:
     """Size the supply for ``profile`` (module note); ``cycles`` (a
-    :class:`~plcpred.air.cycles.Cycles`) adds the steady cycle's figures."""
+    :class:`~plcpred.air.cycles.Cycles`) adds the steady cycle's figures, and
+    ``last_switch_s`` (when the valves last switch) warns of a machine that stops long
+    before the horizon ends."""
     if allowance < 0 or band_bar <= 0 or hours_per_year < 0 or sec_kwh_per_nm3 < 0 \
             or efficiency <= 0:
         raise ValueError("allowance, hours and specific energy must be >= 0, the pressure "
@@ -111,6 +116,14 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
     split = profile.by_role_nl()
     idle = idle_mask(profile, idle_after_s)
     idle_nl = float(profile.cell_nl[:, idle].sum())
+    warnings = []
+    if last_switch_s is not None and last_switch_s < STOPS_EARLY * profile.horizon_s:
+        warnings.append(
+            f"the valves last switch at {last_switch_s:g} s of the {profile.horizon_s:g} s "
+            "horizon: the mean, the design flow (and with it the receiver), the energy and "
+            "the idle share are averaged over a machine standing still for the rest (the "
+            f"peaks are not); size over about {last_switch_s:g} s, or name a cycle "
+            "([machine] cycle_signal) for per-cycle figures")
     return Sizing(
         mean_l_min=mean, peak_l_min=profile.peak_l_min(),
         peak_1s_l_min=profile.peak_l_min(1.0), peak_1min_l_min=profile.peak_l_min(60.0),
@@ -125,4 +138,5 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
         horizon_s=profile.horizon_s, dt_s=profile.dt_s,
         **({} if cycles is None or cycles.cycle_s is None else {
             "cycle_source": cycles.source, "cycle_s": cycles.cycle_s,
-            "nl_per_cycle": cycles.nl_per_cycle, "cycles_per_hour": cycles.per_hour}))
+            "nl_per_cycle": cycles.nl_per_cycle, "cycles_per_hour": cycles.per_hour}),
+        warnings=warnings)
