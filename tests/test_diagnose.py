@@ -518,11 +518,19 @@ def _slower(path, drive, factor):
     return machine_from_data(data, path)
 
 
+def _resequencer(path):
+    from plcpred.diagnose.timing import Resequencer
+    from plcpred.parser import load_program
+
+    d = diagnose(path, [run_of(path, 30, offset_s=3.0)], effects=["leak"])
+    assert d.machine_model.resequencer is None    # no timing effect asked for
+    return Resequencer(d.machine_model, d.runs, [rd.model.horizon_s for rd in d.runs],
+                       [15.0], [None], load_program(d.machine.program_path), None)
+
+
 def test_closed_loop_is_told_from_timers():
-    pick = diagnose(PICK, [run_of(PICK, 30, offset_s=3.0)], effects=["leak"])
-    assert pick.machine_model.resequencer is not None     # end switches start steps
-    timed = diagnose(RIG_SEQ2, [run_of(RIG_SEQ2, 30, offset_s=3.0)], effects=["leak"])
-    assert timed.machine_model.resequencer is None        # its valves follow timers
+    assert _resequencer(PICK).closed_loop()           # end switches start its steps
+    assert not _resequencer(RIG_SEQ2).closed_loop()   # its valves follow timers
 
 
 def test_slower_stroke_in_a_closed_loop_is_found_with_its_drive_and_factor():

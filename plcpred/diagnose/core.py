@@ -236,10 +236,9 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     period_s = None
     horizons, windows_s = [], []
     sequenced = all(tl is None for tl in io)
-    if sequenced:
+    if sequenced and not hasattr(program, "pous"):
         # parsed once for every unfold (timing effects run the sequencer again)
-        program = load_program(machine.program_path if program is None else program) \
-            if not hasattr(program, "pous") else program
+        program = load_program(machine.program_path if program is None else program)
     for run, tl, off in zip(runs, io, offsets):
         window = max_offset_s if max_offset_s is not None else min(
             120.0, max(2.0, 0.5 * run.span_s))
@@ -265,7 +264,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
         rds.append(rd)
         bases.append(base)
         residuals.append(rd.measured_l_min - predicted)
-    if mm.drives and sequenced:
+    if mm.drives and sequenced and set(CLOSED_LOOP_EFFECTS) & set(names):
         reseq = Resequencer(mm, rds, horizons, windows_s, offsets, program, meter_tau)
         if reseq.closed_loop():
             mm.resequencer = reseq

@@ -335,10 +335,9 @@ class SharedSupply(Effect):
         return {"refill_fraction": float(theta[0]), "refill_tau_s": float(theta[1])}
 
 
-class ValveDelay(Effect):
-    """Valves switching later (or earlier) than the file says: ``delay_s`` added to each
-    drive's switching delay."""
-    name, title = "valve_delay", "different valve switching delays"
+class _Timing(Effect):
+    """A timing effect painted on the predicted edges, or (``closed_loop``) with the
+    program run again so that every later edge moves too (diagnose.timing)."""
 
     def __init__(self, closed_loop: bool = False):
         self.closed_loop = closed_loop
@@ -348,6 +347,20 @@ class ValveDelay(Effect):
     def applies(self, mm):
         return bool(mm.drives) and (mm.resequencer is not None or not self.closed_loop)
 
+    def _resequenced(self, mm, p: ModelParams, q: ModelParams, **change) -> list[tuple]:
+        """Point ``q`` at the run with ``p``'s timing changed by ``change`` (factors= or
+        delays=, made if new); the quantised (factor, extra delay) of each drive."""
+        q.timing = mm.resequencer.key(start=p.timing, **change)
+        mm.resequencer.ensure(q.timing)
+        return list(q.timing or mm.resequencer.neutral)
+
+
+class ValveDelay(_Timing):
+    """Valves switching later (or earlier) than the file says: ``delay_s`` added to each
+    drive's switching delay."""
+    name, title = "valve_delay", "different valve switching delays"
+
+
     def params(self, mm, ctx):
         return [Param(f"{mm.models[r].name}.extra_delay_s", "s", -mm.models[r].delay_s, 0.5,
                       0.0, DELAY_GRID_S, discrete=self.closed_loop)
@@ -356,10 +369,7 @@ class ValveDelay(Effect):
     def apply(self, mm, p, theta):
         q = p.copy()
         if self.closed_loop:
-            # a closed loop: every later edge moves too (diagnose.timing)
-            q.timing = mm.resequencer.key(delays=theta, start=p.timing)
-            mm.resequencer.ensure(q.timing)
-            theta = [d for _, d in q.timing or mm.resequencer.neutral]
+            theta = [d for _, d in self._resequenced(mm, p, q, delays=theta)]
         q.delay_s = np.clip(p.delay_s + np.asarray(theta, dtype=float), 0.0, None)
         return q
 
@@ -379,19 +389,12 @@ class ValveDelay(Effect):
         return changes
 
 
-class StrokeTime(Effect):
+class StrokeTime(_Timing):
     """Strokes faster or slower than the file says (a flow control turned, a payload):
     a factor on each drive's stroke times. Air per stroke stays (docs/physics.md: what D4 adds); its
     shape in time changes."""
     name, title = "stroke_time", "different stroke times"
 
-    def __init__(self, closed_loop: bool = False):
-        self.closed_loop = closed_loop
-        if closed_loop:
-            self.title += " (the program waiting on them)"
-
-    def applies(self, mm):
-        return bool(mm.drives) and (mm.resequencer is not None or not self.closed_loop)
 
     def _reference(self, mm, k):
         m = mm.models[mm.drives[k]]
@@ -406,10 +409,7 @@ class StrokeTime(Effect):
     def apply(self, mm, p, theta):
         q = p.copy()
         if self.closed_loop:
-            # a closed loop: every later edge moves too (diagnose.timing)
-            q.timing = mm.resequencer.key(factors=theta, start=p.timing)
-            mm.resequencer.ensure(q.timing)
-            theta = [f for f, _ in q.timing or mm.resequencer.neutral]
+            theta = [f for f, _ in self._resequenced(mm, p, q, factors=theta)]
         for k, f in enumerate(theta):
             ext, ret = self._reference(mm, k)
             q.stroke_ext_s[k] = ext * float(f)
