@@ -48,6 +48,10 @@ class Param:
 
 DELAY_GRID_S = tuple(np.round(np.arange(0.0, 0.51, 0.05), 3))
 FACTOR_GRID = (0.25, 0.35, 0.5, 0.7, 1.0, 1.4, 2.0, 2.8, 4.0)
+# a closed loop's grids are coarser (each value a sequencer run per log); golden section
+# refines between neighbours
+CLOSED_DELAY_GRID_S = (0.0, 0.03, 0.08, 0.16, 0.3, 0.5)
+CLOSED_FACTOR_GRID = (0.5, 0.7, 1.0, 1.4, 2.0, 2.8, 4.0)
 TAU_GRID_S = (0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0)
 
 
@@ -363,7 +367,8 @@ class ValveDelay(_Timing):
 
     def params(self, mm, ctx):
         return [Param(f"{mm.models[r].name}.extra_delay_s", "s", -mm.models[r].delay_s, 0.5,
-                      0.0, DELAY_GRID_S, discrete=self.closed_loop)
+                      0.0, CLOSED_DELAY_GRID_S if self.closed_loop else DELAY_GRID_S,
+                      discrete=self.closed_loop)
                 for r in mm.drives]
 
     def apply(self, mm, p, theta):
@@ -403,7 +408,8 @@ class StrokeTime(_Timing):
         return mm.machine.consumers[mm.drives[k]].auto_stroke_times()
 
     def params(self, mm, ctx):
-        return [Param(f"{mm.models[r].name}.factor", "", 0.2, 5.0, 1.0, FACTOR_GRID,
+        return [Param(f"{mm.models[r].name}.factor", "", 0.2, 5.0, 1.0,
+                      CLOSED_FACTOR_GRID if self.closed_loop else FACTOR_GRID,
                       discrete=self.closed_loop) for r in mm.drives]
 
     def apply(self, mm, p, theta):

@@ -508,7 +508,7 @@ def _golden_refine(cost, u0: np.ndarray, ray: list[int], param: Param, lo: np.nd
     best_x, best_c = v, cost(u0)
     c, d = b - ratio * (b - a), a + ratio * (b - a)
     fc, fd = cost(at(c)), cost(at(d))
-    for _ in range(GOLDEN_STEPS):
+    for _ in range(GOLDEN_STEPS - 2 if narrow else GOLDEN_STEPS):
         for x, f in ((c, fc), (d, fd)):
             if f < best_c:
                 best_x, best_c = x, f
