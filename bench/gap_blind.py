@@ -13,9 +13,10 @@ the diagnosis' effect models: an exhaust is integrated as an ISO 6358 flow out o
 volume, a refill as an explicit exponential kernel, a meter as a step-by-step lag, a valve
 delay as a dead time before the stroke.
 
-    python bench/gap_blind.py [--cases 200] [--seed 1] [--effects leak,stroke_time]
+    python bench/gap_blind.py [--cases 200] [--seed 1] [--effects leak,stroke_time] [--jobs N]
 
-The physical tier (logs from ``plcpred emulate``) waits for the virtual plant.
+Cases are made in order from the seed and diagnosed in ``--jobs`` parallel processes
+(default: every core). The physical tier is ``bench/gap_physical.py``.
 """
 from __future__ import annotations
 
