@@ -232,7 +232,8 @@ def cmd_size(args) -> int:
         s = size(result.profile, allowance=allowance, band_bar=band, hours_per_year=args.hours,
                  sec_kwh_per_nm3=args.sec, price_per_kwh=args.price, idle_after_s=idle_after,
                  cycles=cycles_of(result.machine, result.timeline, result.profile),
-                 last_switch_s=last_switch_s(result.machine, result.timeline))
+                 last_switch_s=last_switch_s(result.machine, result.timeline),
+                 supply=(result.machine.supply_bar_g, result.machine.atmosphere_kpa))
     except PlcpredError as e:
         print(e, file=sys.stderr)
         return 1
@@ -424,7 +425,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("size", help="size the compressor and receiver for a machine",
                        description="Predict the machine's demand over the horizon and size "
-                                   "its supply: mean, peaks (grid, 1 s, 1 min), 95th "
+                                   "its supply: mean, peaks (instantaneous, 1 s, 1 min), 95th "
                                    "percentile, a compressor design flow (mean plus an "
                                    "allowance), the receiver that holds the pressure within a "
                                    "band, energy and cost per year, and the air used while "
@@ -437,8 +438,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="pressure band the receiver must hold (default 1bar)")
     p.add_argument("--hours", type=float, default=4000.0,
                    help="operating hours per year (default 4000)")
-    p.add_argument("--sec", type=float, default=0.1,
-                   help="specific energy, kWh per normal m^3 (default 0.1)")
+    p.add_argument("--sec", type=float, default=None,
+                   help="specific energy, kWh per normal m^3 (default: isothermal "
+                        "compression to the supply pressure over 57.4 %% efficiency, "
+                        "0.1 at 7 bar gauge)")
     p.add_argument("--price", type=float, default=0.15,
                    help="energy price per kWh (default 0.15)")
     p.add_argument("--idle-after", metavar="DURATION",

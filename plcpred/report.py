@@ -205,7 +205,7 @@ def sizing_markdown(machine_name: str, s, profile, plots=("sizing.png", "demand.
         f"| largest deficit over the design flow | {s.deficit_nl:.2f} NL at "
         f"{s.deficit_at_s:g} s |",
         f"| **receiver** for a {s.band_bar:g} bar band | **{s.receiver_l:.1f} L** |",
-        f"| energy per year ({s.hours_per_year:g} h, {s.sec_kwh_per_nm3:g} kWh/Nm³) | "
+        f"| energy per year ({s.hours_per_year:g} h, {s.sec_kwh_per_nm3:.3g} kWh/Nm³) | "
         f"{s.energy_kwh_per_year:,.0f} kWh |",
         f"| cost per year (at {s.price_per_kwh:g} per kWh) | {s.cost_per_year:,.0f} |",
         f"| steady cycle | {s.cycle_s:.3g} s ({s.cycles_per_hour:.4g} per hour, by "

@@ -146,7 +146,7 @@ def _set_program_value(program, name: str, value: str, key: str):
 
 def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
                  program_path: str | None = None, hours: float = 4000.0,
-                 sec: float = 0.1) -> dict:
+                 sec: float | None = None) -> dict:
     """One prediction with the scenario applied: a row of totals."""
     from .air import predict
     from .air.sizing import size
@@ -158,7 +158,8 @@ def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
     program = load_program(program_path or base.program_path)
     machine, program = apply_settings(data, machine_path, program, scenario)
     result = predict(machine, horizon_s, dt=dt_s, program=program)
-    s = size(result.profile, hours_per_year=hours, sec_kwh_per_nm3=sec)
+    s = size(result.profile, hours_per_year=hours, sec_kwh_per_nm3=sec,
+             supply=(machine.supply_bar_g, machine.atmosphere_kpa))
     row = dict(scenario)
     row.update({"total_nl": s.total_nl, "mean_l_min": s.mean_l_min,
                 "peak_l_min": s.peak_l_min, "peak_1s_l_min": s.peak_1s_l_min,

@@ -1,5 +1,6 @@
 """Sizing formulas on profiles with known answers, and the CI gate's exit codes."""
 import json
+import math
 import subprocess
 import sys
 from pathlib import Path
@@ -304,3 +305,32 @@ def test_sizing_warns_of_a_machine_that_stops_early(tmp_path):
     # a cycling machine keeps switching to the end of any horizon
     r = run("size", PICK, "--horizon", "60s", "--out", tmp_path / "pick")
     assert json.loads((tmp_path / "pick" / "sizing.json").read_text())["warnings"] == []
+
+
+# ---------------------------------------------------------------------- energy
+
+def test_specific_energy_rises_with_pressure_as_isothermal_work():
+    from plcpred.air.sizing import DEFAULT_SEC_KWH_NM3, specific_energy_kwh_per_nm3
+
+    # the published figure at 7 bar gauge (0.30-0.35 kW per l/s = about 0.1 kWh/Nm^3)
+    assert specific_energy_kwh_per_nm3(7.0) == pytest.approx(DEFAULT_SEC_KWH_NM3, rel=1e-9)
+    assert 0.30 / 3.6 <= specific_energy_kwh_per_nm3(7.0) <= 0.35 / 3.6 * 1.1
+    # isothermal work: P0 ln(p/p_atm) per normal m^3, so 4 bar g costs ln(5.01/1.01)/ln(8.01/1.01)
+    ratio = math.log(501.325 / 101.325) / math.log(801.325 / 101.325)
+    assert specific_energy_kwh_per_nm3(4.0) / specific_energy_kwh_per_nm3(7.0) == \
+        pytest.approx(ratio, rel=1e-12)
+    assert specific_energy_kwh_per_nm3(0.0) == 0.0
+
+
+def test_size_takes_the_energy_from_the_supply_pressure(tmp_path):
+    # the rig runs at 3.987 bar gauge: each normal m^3 costs less than at 7 bar
+    r = run("size", RIG, "--horizon", "20s", "--out", tmp_path / "a")
+    data = json.loads((tmp_path / "a" / "sizing.json").read_text())
+    from plcpred.air.sizing import specific_energy_kwh_per_nm3
+    assert data["sec_kwh_per_nm3"] == pytest.approx(specific_energy_kwh_per_nm3(3.987),
+                                                    rel=1e-3)
+    assert data["energy_kwh_per_year"] == pytest.approx(
+        data["mean_l_min"] * 60 / 1000 * data["sec_kwh_per_nm3"] * 4000, rel=1e-9)
+    r = run("size", RIG, "--horizon", "20s", "--out", tmp_path / "b", "--sec", "0.1")
+    assert r.returncode == 0
+    assert json.loads((tmp_path / "b" / "sizing.json").read_text())["sec_kwh_per_nm3"] == 0.1

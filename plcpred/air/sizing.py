@@ -9,8 +9,11 @@
   volume that keeps the pressure within the band dP: ``V = deficit_NL * P0 / dP``
   (normal litres are at P0 = 100 kPa).
 * **Energy**: ``E = q_avg * SEC * hours / efficiency`` with the specific energy SEC in kWh per
-  normal m^3 (default 0.1, the published 0.30-0.35 kW per l/s at 7 bar gauge); cost = E *
-  price.
+  normal m^3; cost = E * price. SEC defaults to the isothermal work of compressing a normal
+  m^3 from the atmosphere to the supply pressure over the compressor's isothermal
+  efficiency (:func:`specific_energy_kwh_per_nm3`), 0.1 kWh/Nm^3 at 7 bar gauge (the
+  published 0.30-0.35 kW per l/s), so that a lower supply pressure saves energy twice:
+  less air (D1, D2) and less work per normal m^3.
 * **Per cycle**: with a steady cycle (:mod:`~plcpred.air.cycles`) the cycle time and the
   air per cycle, which do not depend on the horizon.
 * **Idle air**: air used while no cylinder is moving (only leaks and blowers on), as a share
@@ -18,6 +21,7 @@
 """
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -26,7 +30,10 @@ from .flow import P0_PA
 
 DEFAULT_ALLOWANCE = 0.10
 DEFAULT_BAND_BAR = 1.0
-DEFAULT_SEC_KWH_NM3 = 0.1
+DEFAULT_SEC_KWH_NM3 = 0.1      # at 7 bar gauge, the published figure
+# (E1) the isothermal efficiency that makes SEC(7 bar g) = DEFAULT_SEC_KWH_NM3 with the
+# ISO 8778 normal m^3 (P0 = 100 kPa) and a 101.325 kPa atmosphere: 0.0574 / 0.1
+ISOTHERMAL_EFFICIENCY = P0_PA * math.log(801.325 / 101.325) / 3.6e6 / DEFAULT_SEC_KWH_NM3
 DEFAULT_HOURS = 4000.0      # two shifts, about 250 days
 DEFAULT_PRICE = 0.15        # per kWh, in the user's currency
 STOPS_EARLY = 0.8           # valves still after this share of the horizon: a warning
@@ -69,6 +76,21 @@ class Sizing:
         return asdict(self)
 
 
+def specific_energy_kwh_per_nm3(supply_bar_g: float, atmosphere_kpa: float = 101.325,
+                                isothermal_efficiency: float = ISOTHERMAL_EFFICIENCY
+                                ) -> float:
+    """(E1) Specific energy of compressed air, kWh per normal m^3 (ISO 8778): the
+    isothermal work of compressing it from the atmosphere to the supply pressure,
+    ``P0 ln(p_supply / p_atm)`` per normal m^3 (intake at the reference temperature),
+    over the compressor's isothermal efficiency (docs/physics.md: energy)."""
+    if isothermal_efficiency <= 0:
+        raise ValueError("the isothermal efficiency must be positive")
+    p_atm_pa = atmosphere_kpa * 1000.0
+    p_supply_pa = p_atm_pa + supply_bar_g * 1e5
+    work_j_per_nm3 = P0_PA * math.log(p_supply_pa / p_atm_pa)
+    return work_j_per_nm3 / 3.6e6 / isothermal_efficiency
+
+
 def receiver_deficit(flow_l_min, dt_s: float, design_flow_l_min: float):
     """(largest deficit in NL, time in s at which it occurs, deficit curve at the end of
     each cell) of demand over a constant supply (a Lindley recursion, vectorised)."""
@@ -95,14 +117,18 @@ def idle_mask(profile, idle_after_s: float = 0.0) -> np.ndarray:
 
 
 def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAULT_BAND_BAR,
-         hours_per_year: float = DEFAULT_HOURS, sec_kwh_per_nm3: float = DEFAULT_SEC_KWH_NM3,
+         hours_per_year: float = DEFAULT_HOURS, sec_kwh_per_nm3: float | None = None,
          price_per_kwh: float = DEFAULT_PRICE, efficiency: float = 1.0,
-         idle_after_s: float = 0.0, cycles=None, last_switch_s: float | None = None
-         ) -> Sizing:
+         idle_after_s: float = 0.0, cycles=None, last_switch_s: float | None = None,
+         supply: tuple[float, float] | None = None) -> Sizing:
     """Size the supply for ``profile`` (module note); ``cycles`` (a
     :class:`~plcpred.air.cycles.Cycles`) adds the steady cycle's figures, and
     ``last_switch_s`` (when the valves last switch) warns of a machine that stops long
-    before the horizon ends."""
+    before the horizon ends. ``sec_kwh_per_nm3`` None: from ``supply`` (supply bar
+    gauge, atmosphere kPa) by E1, without it DEFAULT_SEC_KWH_NM3."""
+    if sec_kwh_per_nm3 is None:
+        sec_kwh_per_nm3 = (DEFAULT_SEC_KWH_NM3 if supply is None
+                           else specific_energy_kwh_per_nm3(*supply))
     if allowance < 0 or band_bar <= 0 or hours_per_year < 0 or sec_kwh_per_nm3 < 0 \
             or efficiency <= 0:
         raise ValueError("allowance, hours and specific energy must be >= 0, the pressure "
