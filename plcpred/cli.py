@@ -239,6 +239,7 @@ def cmd_size(args) -> int:
         return 1
     except ValueError as e:
         return _fail(str(e))
+    s.currency = args.currency
     name = result.machine.name
     for w in result.machine.warnings + s.warnings:
         print(f"warning: {w}", file=sys.stderr)
@@ -249,8 +250,9 @@ def cmd_size(args) -> int:
     print(f"compressor design flow {s.design_flow_l_min:.1f} NL/min "
           f"(mean + {100 * s.allowance:g} %); receiver {s.receiver_l:.1f} L for a "
           f"{s.band_bar:g} bar band (deficit {s.deficit_nl:.2f} NL at {s.deficit_at_s:g} s)")
-    print(f"energy {s.energy_kwh_per_year:,.0f} kWh/year, cost {s.cost_per_year:,.0f}/year; "
-          f"idle air {100 * s.idle_share:.1f} %")
+    money = f" {s.currency}" if s.currency else ""
+    print(f"energy {s.energy_kwh_per_year:,.0f} kWh/year, cost {s.cost_per_year:,.0f}{money}"
+          f"/year; idle air {100 * s.idle_share:.1f} %")
     if s.cycle_s is not None:
         print(f"cycle {s.cycle_s:.3g} s ({s.cycles_per_hour:.4g} per hour, by "
               f"{s.cycle_source}): {s.nl_per_cycle:.3f} NL per cycle")
@@ -289,6 +291,15 @@ def cmd_compare(args) -> int:
     if not result.throughput_ok:
         return EXIT_THROUGHPUT_DROP
     return 0 if result.within_allowance else 1
+
+
+def _currency(text: str) -> str:
+    """A currency as reports show it: short printable text (EUR, USD, CHF, ...)."""
+    t = text.strip()
+    if t and (len(t) > 8 or not t.replace(" ", "").isalnum()):
+        raise argparse.ArgumentTypeError(f"a currency is a short code such as EUR, not "
+                                         f"{text!r}")
+    return t
 
 
 def _percentage(text: str, option: str) -> float:
@@ -444,6 +455,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "0.1 at 7 bar gauge)")
     p.add_argument("--price", type=float, default=0.15,
                    help="energy price per kWh (default 0.15)")
+    p.add_argument("--currency", default="", type=_currency,
+                   help="what --price and the cost are in, shown with them (EUR, USD, ...)")
     p.add_argument("--idle-after", metavar="DURATION",
                    help="count air as idle only once no cylinder has moved for this long "
                         "(default: whenever no cylinder moves)")

@@ -64,7 +64,9 @@ def plot_demand(profile, path, title="Air demand") -> None:
     t = np.arange(flows.shape[1]) * profile.dt_s * k
     scale, unit = _time_axis(profile.horizon_s)
     fig, ax = plt.subplots(figsize=(11, 5.5), dpi=110)
-    order = np.argsort([-v for v in profile.consumer_nl])
+    # leaks first, as the base layer they are (always on), then the largest users
+    order = sorted(range(len(profile.names)),
+                   key=lambda i: (profile.roles[i] != "leak", -profile.consumer_nl[i]))
     labels = [f"{_plain(profile.names[i])} ({profile.consumer_nl[i]:.1f} NL)" for i in order]
     if len(order):
         ax.stackplot(t * scale, flows[order], labels=labels, step="post", alpha=0.85)
@@ -207,7 +209,8 @@ def sizing_markdown(machine_name: str, s, profile, plots=("sizing.png", "demand.
         f"| **receiver** for a {s.band_bar:g} bar band | **{s.receiver_l:.1f} L** |",
         f"| energy per year ({s.hours_per_year:g} h, {s.sec_kwh_per_nm3:.3g} kWh/Nm³) | "
         f"{s.energy_kwh_per_year:,.0f} kWh |",
-        f"| cost per year (at {s.price_per_kwh:g} per kWh) | {s.cost_per_year:,.0f} |",
+        f"| cost per year (at {s.price_per_kwh:g} {_cell(s.currency)} per kWh) | "
+        f"{s.cost_per_year:,.0f} {_cell(s.currency)} |",
         f"| steady cycle | {s.cycle_s:.3g} s ({s.cycles_per_hour:.4g} per hour, by "
         f"{_cell(s.cycle_source)}) |" if s.cycle_s is not None else
         "| steady cycle | none found (no cycle_signal, no repeating state) |",

@@ -334,3 +334,17 @@ def test_size_takes_the_energy_from_the_supply_pressure(tmp_path):
     r = run("size", RIG, "--horizon", "20s", "--out", tmp_path / "b", "--sec", "0.1")
     assert r.returncode == 0
     assert json.loads((tmp_path / "b" / "sizing.json").read_text())["sec_kwh_per_nm3"] == 0.1
+
+
+def test_currency_is_shown_with_the_cost(tmp_path):
+    r = run("size", PICK, "--horizon", "20s", "--out", tmp_path / "a", "--price", "0.2",
+            "--currency", "EUR")
+    assert r.returncode == 0, r.stderr
+    assert " EUR/year" in r.stdout
+    data = json.loads((tmp_path / "a" / "sizing.json").read_text())
+    assert data["currency"] == "EUR"
+    assert data["cost_per_year"] == pytest.approx(data["energy_kwh_per_year"] * 0.2)
+    assert "0.2 EUR per kWh" in (tmp_path / "a" / "sizing.md").read_text()
+    bad = run("size", PICK, "--horizon", "20s", "--out", tmp_path / "b", "--currency",
+              "<script>")
+    assert bad.returncode == 2 and "currency" in bad.stderr

@@ -71,6 +71,7 @@ class Sizing:
     nl_per_cycle: float | None = None
     cycles_per_hour: float | None = None
     warnings: list = field(default_factory=list)
+    currency: str = ""              # what the price and the cost are in (EUR, USD, ...)
 
     def to_dict(self) -> dict:
         return asdict(self)
