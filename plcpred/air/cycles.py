@@ -44,12 +44,17 @@ def _boundaries(t_ns: np.ndarray, v: np.ndarray, before: float) -> np.ndarray:
 
 def cycles_of(machine, timeline, profile) -> Cycles | None:
     """The cycles of a predicted run (None: no cycle signal and no repeating state)."""
-    total = profile.cell_nl.sum(axis=0)
-    cum = np.concatenate([[0.0], np.cumsum(total)])
-    edges_s = np.arange(len(cum)) * profile.dt_s
+    if profile.steps is not None:
+        def nl_between(a_s: float, b_s: float) -> float:
+            """Air between two times, exact (the demand before the grid)."""
+            a, b = profile.steps.cumulative_nl([a_s, b_s])
+            return float(b - a)
+    else:
+        cum = np.concatenate([[0.0], np.cumsum(profile.cell_nl.sum(axis=0))])
+        edges_s = np.arange(len(cum)) * profile.dt_s
 
-    def nl_between(a_s: float, b_s: float) -> float:
-        return float(np.interp(b_s, edges_s, cum) - np.interp(a_s, edges_s, cum))
+        def nl_between(a_s: float, b_s: float) -> float:
+            return float(np.interp(b_s, edges_s, cum) - np.interp(a_s, edges_s, cum))
 
     horizon_ns = timeline.horizon_ns
     signal = machine.cycle_signal
@@ -100,8 +105,8 @@ def _moves_per_period(machine, timeline) -> tuple[int, str | None]:
 
 def _tiled(source: str, count: int, timeline, per_tile: int, nl_between) -> Cycles:
     """A tiled run's steady cycle: the period holds ``per_tile`` cycles; the air is taken
-    over every whole period in the horizon (the grid's cells do not line up with the
-    periods, and over many the part-cells at both ends weigh nothing)."""
+    over every whole period in the horizon (on a grid, whose cells do not line up with
+    the periods, the part-cells at both ends then weigh nothing)."""
     t1, t2 = timeline.tiled
     whole = max(1, int((timeline.horizon_ns - t1) // (t2 - t1)))
     air = nl_between(t1 / NS, (t1 + whole * (t2 - t1)) / NS)
