@@ -225,6 +225,9 @@ def sizing_markdown(machine_name: str, s, profile, plots=("sizing.png", "demand.
         f"| passive (nozzles, air knives) | {s.passive_nl:.2f} | {pct(s.passive_nl / total)} |",
         f"| leaks | {s.leak_nl:.2f} | {pct(s.leak_nl / total)} |",
         f"| **while idle** (no cylinder moving) | {s.idle_nl:.2f} | **{pct(s.idle_share)}** |",
+        f"| of it leaks | {s.idle_leak_nl:.2f} | {pct(s.idle_leak_nl / total)} |",
+        f"| of it nozzles and blowers left on | {s.idle_blowers_nl:.2f} | "
+        f"{pct(s.idle_blowers_nl / total)} |",
         "",
         "A published industrial case study (an automated assembly module, 20 h of flow "
         "logging) found about a third of machine air non-productive (leaks 21 %, uncontrolled blowers 13 %); best practice keeps "

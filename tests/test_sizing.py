@@ -61,9 +61,11 @@ def test_energy_cost_and_idle_share():
     energy = s.mean_l_min * 60 / 1000 * 0.12 * 2000
     assert s.energy_kwh_per_year == pytest.approx(energy)
     assert s.cost_per_year == pytest.approx(energy * 0.2)
-    # no cylinder at all: everything is idle air
+    # no cylinder at all: everything is idle air, the blower's and the leak's
     assert s.idle_share == pytest.approx(1.0)
     assert s.passive_nl + s.leak_nl == pytest.approx(s.total_nl)
+    assert s.idle_blowers_nl == pytest.approx(s.passive_nl)
+    assert s.idle_leak_nl == pytest.approx(s.leak_nl)
 
 
 def test_idle_share_counts_air_while_no_cylinder_moves():
@@ -78,6 +80,7 @@ def test_idle_share_counts_air_while_no_cylinder_moves():
     # leak 0.1 NL/s for 40 s = 4 NL, 0.2 NL of it while a stroke moves; strokes 2 NL
     assert s.idle_nl == pytest.approx(3.8)
     assert s.idle_share == pytest.approx(3.8 / 6.0)
+    assert s.idle_leak_nl == pytest.approx(3.8) and s.idle_blowers_nl == 0.0
     # once the machine must have been still for 5 s, 2 x 5 s of leak are no longer idle
     assert size(prof, idle_after_s=5.0).idle_nl == pytest.approx(2.8)
 

@@ -17,7 +17,9 @@
 * **Per cycle**: with a steady cycle (:mod:`~plcpred.air.cycles`) the cycle time and the
   air per cycle, which do not depend on the horizon.
 * **Idle air**: air used while no cylinder is moving (only leaks and blowers on), as a share
-  of the total; with ``idle_after_s`` the machine must also have been still that long.
+  of the total, split into leaks and blowers left on (the non-productive air of the
+  published case study); with ``idle_after_s`` the machine must also have been still
+  that long.
 """
 from __future__ import annotations
 
@@ -72,6 +74,9 @@ class Sizing:
     cycles_per_hour: float | None = None
     warnings: list = field(default_factory=list)
     currency: str = ""              # what the price and the cost are in (EUR, USD, ...)
+    # the idle air split: leaks, and nozzles / blowers left on while nothing moves
+    idle_leak_nl: float = 0.0
+    idle_blowers_nl: float = 0.0
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -142,7 +147,9 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
     energy = mean * 60.0 / 1000.0 * sec_kwh_per_nm3 * hours_per_year / efficiency
     split = profile.by_role_nl()
     idle = idle_mask(profile, idle_after_s)
-    idle_nl = float(profile.cell_nl[:, idle].sum())
+    idle_by_consumer = profile.cell_nl[:, idle].sum(axis=1)
+    idle_nl = float(idle_by_consumer.sum())
+    roles = np.array(profile.roles)
     warnings = []
     if last_switch_s is not None and last_switch_s < STOPS_EARLY * profile.horizon_s:
         warnings.append(
@@ -162,6 +169,8 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
         total_nl=profile.total_nl, active_nl=split["active"], passive_nl=split["passive"],
         leak_nl=split["leak"], idle_nl=idle_nl,
         idle_share=idle_nl / profile.total_nl if profile.total_nl > 0 else 0.0,
+        idle_leak_nl=float(idle_by_consumer[roles == "leak"].sum()),
+        idle_blowers_nl=float(idle_by_consumer[roles == "passive"].sum()),
         horizon_s=profile.horizon_s, dt_s=profile.dt_s,
         **({} if cycles is None or cycles.cycle_s is None else {
             "cycle_source": cycles.source, "cycle_s": cycles.cycle_s,
