@@ -35,6 +35,13 @@ class Cycles:
                 "nl_per_cycle": self.nl_per_cycle, "cycles_per_hour": self.per_hour}
 
 
+def _executed_edges(timeline, signal: str):
+    """(times ns, values) of a machine file's signal over the executed part of the run
+    (the timeline may know it by another name, recorded in its info)."""
+    name = timeline.info.get("machine_signals", {}).get(signal, signal)
+    return timeline.executed_edge_times_ns(name)
+
+
 def _boundaries(t_ns: np.ndarray, v: np.ndarray, before: float) -> np.ndarray:
     """Times at which the signal rises (BOOL) or counts up (a counter), given its
     edges and its value before the first of them."""
@@ -59,8 +66,7 @@ def cycles_of(machine, timeline, profile) -> Cycles | None:
     horizon_ns = timeline.horizon_ns
     signal = machine.cycle_signal
     if signal:
-        name = timeline.info.get("machine_signals", {}).get(signal, signal)
-        t, v = timeline.executed_edge_times_ns(name)
+        t, v = _executed_edges(timeline, signal)
         # the first row is the initial value, not a change
         b = _boundaries(t[1:], v[1:], float(v[0])) if len(v) else t
         source = f'signal "{signal}"'
@@ -89,11 +95,10 @@ def _moves_per_period(machine, timeline) -> tuple[int, str | None]:
     (but at least once) does so in it, since each drive of a machine moves at least once
     per cycle (a period of a machine fed faster than it works holds several)."""
     t1, t2 = timeline.tiled
-    names = timeline.info.get("machine_signals", {})
     best = (1, None)
     for c in machine.consumers:
         for v in c.valve:
-            t, val = timeline.executed_edge_times_ns(names.get(v, v))
+            t, val = _executed_edges(timeline, v)
             if len(val) < 2:
                 continue
             rises = _boundaries(t[1:], val[1:], float(val[0]))
@@ -126,11 +131,10 @@ def last_switch_s(machine, timeline) -> float | None:
     valves keep switching to the horizon; 0 when none ever does)."""
     if timeline.tiled is not None:
         return None
-    names = timeline.info.get("machine_signals", {})
     last = 0.0
     for c in machine.consumers:
         for v in c.valve:
-            t, _ = timeline.executed_edge_times_ns(names.get(v, v))
+            t, _ = _executed_edges(timeline, v)
             if len(t) > 1:          # the first row is the initial value
                 last = max(last, float(t[-1]) / NS)
     return last

@@ -65,18 +65,18 @@ class RunData:
         return rm.readings(params, self.start_s - shift_s, self.end_s - shift_s)
 
 
-def _intervals(run: MeasuredRun, offset_s: float, horizon_s: float):
-    start = run.interval_starts_s() - offset_s
-    end = run.time_s - offset_s
-    keep = (start >= 0.0) & (end <= horizon_s)
-    return np.flatnonzero(keep), start[keep], end[keep]
-
-
 def _common_samples(run: MeasuredRun, lo_s: float, hi_s: float,
                     horizon_s: float) -> np.ndarray:
     """Indices of the samples inside the prediction at every offset in [lo_s, hi_s]."""
     keep = (run.interval_starts_s() - hi_s >= 0.0) & (run.time_s - lo_s <= horizon_s)
     return np.flatnonzero(keep)
+
+
+def _intervals(run: MeasuredRun, offset_s: float, horizon_s: float):
+    """(indices, starts, ends in prediction time) of the samples inside the prediction
+    at ``offset_s``."""
+    idx = _common_samples(run, offset_s, offset_s, horizon_s)
+    return idx, run.interval_starts_s()[idx] - offset_s, run.time_s[idx] - offset_s
 
 
 def _pearson(a: np.ndarray, b: np.ndarray) -> float:
