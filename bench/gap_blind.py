@@ -254,6 +254,50 @@ def write_sample_log(path, seed: int = 7) -> None:
         f"{a:.1f},{b:.2f}\n" for a, b in zip(t, q)))
 
 
+class Verdicts:
+    """A blind benchmark's tally (shared with bench/gap_physical.py): the confusion
+    matrix, top-1 where the withheld effect exceeds three times the noise, and the
+    verdict on cases without one. A diagnosis that failed counts as the verdict
+    ``error``."""
+
+    def __init__(self):
+        self.confusion = defaultdict(Counter)
+        self.strong_hits = self.strong_n = self.none_hits = self.none_n = 0
+        self.per_effect = defaultdict(lambda: [0, 0])    # effect > 3x noise: [hits, cases]
+
+    def add(self, truth: str, verdict: str, strong: bool) -> None:
+        self.confusion[truth][verdict] += 1
+        if truth == "none":
+            self.none_n += 1
+            self.none_hits += verdict == "none"
+        elif strong:
+            self.strong_n += 1
+            self.strong_hits += verdict == truth
+            self.per_effect[truth][0] += verdict == truth
+            self.per_effect[truth][1] += 1
+
+    def print(self, cases: int, effects: list[str], target_pct: float,
+              width: int = 19) -> None:
+        c = self.confusion
+        names = [e for e in effects + ["error"]
+                 if e in c or any(e in row for row in c.values())]
+        print(f"\nconfusion matrix ({cases} cases, rows: withheld effect, columns: verdict)")
+        print(f"{'':<{width}}" + "".join(f"{e[:6]:>7}" for e in names))
+        for e in names:
+            if e in c:
+                print(f"{e:<{width}}" + "".join(f"{c[e][v]:>7}" for v in names))
+        print()
+        if self.strong_n:
+            print(f"top-1 accuracy, effect > 3x noise: {self.strong_hits}/{self.strong_n} = "
+                  f"{100 * self.strong_hits / self.strong_n:.1f} % "
+                  f"(target >= {target_pct:g} %)")
+            print("  by effect: " + ", ".join(f"{e} {h}/{n}" for e, (h, n) in
+                                              sorted(self.per_effect.items())))
+        if self.none_n:
+            print(f"verdict none without an effect:    {self.none_hits}/{self.none_n} = "
+                  f"{100 * self.none_hits / self.none_n:.1f} % (target >= 90 %)")
+
+
 def diagnose_case(case) -> dict:
     """What the summary needs of one case's diagnosis (run in a worker process)."""
     t0 = time.process_time()
@@ -288,11 +332,9 @@ def main(argv=None) -> int:
         return 0
     effects = args.effects.split(",") if args.effects else EFFECTS
     rng = np.random.default_rng(args.seed)
-    confusion = defaultdict(Counter)
-    strong_hits = strong_n = none_hits = none_n = 0
+    verdicts = Verdicts()
     shrinks, volume_shrinks = [], []
     errors = []
-    per_effect = defaultdict(lambda: [0, 0])     # effect > 3x noise: [hits, cases]
     t0 = time.perf_counter()
     cases = [make_case(i, rng, effects) for i in range(args.cases)]
     # cases are independent: diagnosed in parallel processes, in order
@@ -302,25 +344,13 @@ def main(argv=None) -> int:
     for i, (case, out) in enumerate(zip(cases, outcomes)):
         truth = case["effect"]
         cpu += out["cpu_s"]
+        strong = case["size"] > 3 * case["noise"]
         if "error" in out:     # counted as a miss, named in the output
-            confusion[truth]["error"] += 1
+            verdicts.add(truth, "error", strong)
             errors.append(f"case {i} ({case['machine']}, {truth}): {out['error']}")
-            if truth != "none" and case["size"] > 3 * case["noise"]:
-                strong_n += 1
-                per_effect[truth][1] += 1
-            none_n += truth == "none"
             continue
         verdict = out["verdict"]
-        confusion[truth][verdict] += 1
-        strong = case["size"] > 3 * case["noise"]
-        if truth == "none":
-            none_n += 1
-            none_hits += verdict == "none"
-        elif strong:
-            strong_n += 1
-            strong_hits += verdict == truth
-            per_effect[truth][0] += verdict == truth
-            per_effect[truth][1] += 1
+        verdicts.add(truth, verdict, strong)
         if truth != "none" and strong and out["after_mse"] is not None:
             noise2 = out["noise"] ** 2
             excess_before = math.sqrt(max(out["base_mse"] - noise2, 1e-12))
@@ -333,23 +363,7 @@ def main(argv=None) -> int:
             print(f"{i:4d} {case['machine']:<20} {truth:<19} -> {verdict:<19} size/noise "
                   f"{case['size'] / case['noise']:5.1f} {case['desc']}", flush=True)
     wall = time.perf_counter() - t0
-    names = [e for e in EFFECTS + ["error"]
-             if e in confusion or any(e in c for c in confusion.values())]
-    print(f"\nconfusion matrix ({args.cases} cases, rows: withheld effect, columns: verdict)")
-    short = {e: e[:6] for e in names}
-    print(f"{'':<19}" + "".join(f"{short[e]:>7}" for e in names))
-    for e in names:
-        print(f"{e:<19}" + "".join(f"{confusion[e][v]:>7}" for v in names))
-    print()
-    if strong_n:
-        print(f"top-1 accuracy, effect > 3x noise: {strong_hits}/{strong_n} = "
-              f"{100 * strong_hits / strong_n:.1f} % (target >= 95 %)")
-    if strong_n:
-        print("  by effect: " + ", ".join(f"{e} {h}/{n}" for e, (h, n) in
-                                          sorted(per_effect.items())))
-    if none_n:
-        print(f"verdict none without an effect:    {none_hits}/{none_n} = "
-              f"{100 * none_hits / none_n:.1f} % (target >= 90 %)")
+    verdicts.print(args.cases, EFFECTS, target_pct=95)
     if shrinks:
         print(f"median held-out shrink of the excess RMSE: {100 * statistics.median(shrinks):.0f} %"
               f" (target >= 70 %)")

@@ -22,9 +22,9 @@ from __future__ import annotations
 
 import argparse
 import copy
+import sys
 import tempfile
 import time
-from collections import Counter, defaultdict
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +34,9 @@ from plcpred.diagnose import DiagnosisError, MeasuredRun, diagnose
 from plcpred.diagnose.io import dump_machine_toml
 from plcpred.machine import read_machine_data
 from plcpred.plant import emulate
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from gap_blind import Verdicts  # noqa: E402  (the tally only, not the generator)
 
 ROOT = Path(__file__).resolve().parent.parent
 MACHINES = ["samples/prototype_rig/rig.toml", "samples/pick_place.toml",
@@ -158,8 +161,7 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     effects = args.effects.split(",") if args.effects else EFFECTS
     rng = np.random.default_rng(args.seed)
-    confusion = defaultdict(Counter)
-    strong_hits = strong_n = none_hits = none_n = 0
+    verdicts = Verdicts()
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(args.cases):
@@ -172,31 +174,12 @@ def main(argv=None) -> int:
             except DiagnosisError as e:
                 verdict = "error"
                 print(f"case {i}: {e}")
-            confusion[truth][verdict] += 1
-            strong = case["size"] > 3 * case["noise"]
-            if truth == "none":
-                none_n += 1
-                none_hits += verdict == "none"
-            elif strong:
-                strong_n += 1
-                strong_hits += verdict == truth
+            verdicts.add(truth, verdict, case["size"] > 3 * case["noise"])
             if args.verbose:
                 print(f"{i:4d} {case['machine']:<16} {truth:<16} -> {verdict:<18} size/noise "
                       f"{case['size'] / case['noise']:5.1f} {case['desc']}", flush=True)
     wall = time.perf_counter() - t0
-    names = [e for e in EFFECTS + ["incomplete_exhaust", "error"]
-             if e in confusion or any(e in c for c in confusion.values())]
-    print(f"\nconfusion matrix ({args.cases} cases, rows: withheld effect, columns: verdict)")
-    print(f"{'':<16}" + "".join(f"{e[:6]:>7}" for e in names))
-    for e in names:
-        if e in confusion:
-            print(f"{e:<16}" + "".join(f"{confusion[e][v]:>7}" for v in names))
-    print()
-    if strong_n:
-        print(f"top-1 accuracy, effect > 3x noise: {strong_hits}/{strong_n} = "
-              f"{100 * strong_hits / strong_n:.1f} %")
-    if none_n:
-        print(f"verdict none without an effect: {none_hits}/{none_n}")
+    verdicts.print(args.cases, EFFECTS + ["incomplete_exhaust"], target_pct=85, width=16)
     print(f"{args.cases} cases in {wall:.0f} s ({wall / max(args.cases, 1):.1f} s per case)")
     return 0
 
