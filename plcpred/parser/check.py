@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 
 from . import ir
 from .errors import ProgramError, ProgramWarning, at
-from .stdlib import ELEMENTARY_TYPES, STANDARD_FBS, is_standard_function
+from .stdlib import ELEMENTARY_TYPES, STANDARD_FBS, is_standard_function, std_fb_pins
 
 _LOCAL_KINDS = ("VAR", "VAR_TEMP", "VAR_STAT", "VAR_INST")
 
@@ -75,8 +75,8 @@ class _Globals:
         """(inputs, outputs, others) of an FB type, or None if it is not an FB."""
         up = type_name.upper()
         if up in STANDARD_FBS:
-            ins, outs = STANDARD_FBS[up]
-            return set(ins), set(outs), set()
+            ins, outs = std_fb_pins(up)
+            return ins, outs, set()
         pou = self.pous.get(up)
         if pou is None or pou.kind != "FUNCTION_BLOCK":
             return None

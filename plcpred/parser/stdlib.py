@@ -33,6 +33,41 @@ for _width in ("INT", "DINT", "LINT", "UDINT", "ULINT"):
     for _base in ("CTU", "CTD", "CTUD"):
         STANDARD_FBS[f"{_base}_{_width}"] = STANDARD_FBS[_base]
 
+# CODESYS and TwinCAT (Standard, Tc2_Standard) name some IEC pins differently; both
+# names are accepted everywhere and mean the IEC pin.
+PIN_ALIASES: dict[str, dict[str, str]] = {
+    "CTU": {"RESET": "R"},
+    "CTD": {"LOAD": "LD"},
+    "CTUD": {"RESET": "R", "LOAD": "LD"},
+    "SR": {"SET1": "S1", "RESET": "R"},
+    "RS": {"SET": "S", "RESET1": "R1"},
+}
+
+
+def _base_fb(name: str) -> str:
+    """CTU_DINT -> CTU (the sized counters share their base's pins)."""
+    base, _, width = name.partition("_")
+    return base if width and base in ("CTU", "CTD", "CTUD") else name
+
+
+def std_fb_pin(fb_name: str, pin: str) -> str | None:
+    """The IEC name of pin ``pin`` (either spelling, any case) of standard FB ``fb_name``,
+    or None when the FB has no such pin."""
+    fb, key = fb_name.upper(), pin.upper()
+    ins, outs = STANDARD_FBS[fb]
+    if key in ins or key in outs:
+        return key
+    return PIN_ALIASES.get(_base_fb(fb), {}).get(key)
+
+
+def std_fb_pins(fb_name: str) -> tuple[set[str], set[str]]:
+    """(inputs, outputs) of a standard FB, each under both its IEC and vendor names."""
+    fb = fb_name.upper()
+    ins, outs = STANDARD_FBS[fb]
+    aliases = PIN_ALIASES.get(_base_fb(fb), {})
+    return set(ins) | {a for a, c in aliases.items() if c in ins}, set(outs)
+
+
 STANDARD_FUNCTIONS = frozenset("""
 ABS SQRT LN LOG EXP SIN COS TAN ASIN ACOS ATAN ATAN2 EXPT ADD SUB MUL DIV MOD MOVE
 SHL SHR ROL ROR AND OR XOR NOT SEL MAX MIN LIMIT MUX GT GE EQ LE LT NE

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 from ..parser import ir
 from ..parser.errors import ProgramError, at
 from ..parser.names import ident, validate_names
-from ..parser.stdlib import STANDARD_FBS, is_standard_function
+from ..parser.stdlib import STANDARD_FBS, is_standard_function, std_fb_pin
 from . import types as ty
 from .types import BOOL, STRING, TIME, ArrayT, Elem, EnumT, FbT, ItfT, PtrT, StdFbT, StructT
 
@@ -43,6 +43,15 @@ _STDFB_MEMBERS = {"IN": ty.BOOL, "PT": ty.TIME, "Q": ty.BOOL, "ET": ty.TIME, "CL
                   "S1": ty.BOOL, "R": ty.BOOL, "S": ty.BOOL, "R1": ty.BOOL, "Q1": ty.BOOL,
                   "CU": ty.BOOL, "CD": ty.BOOL, "LD": ty.BOOL, "PV": ty.DINT, "CV": ty.DINT,
                   "QU": ty.BOOL, "QD": ty.BOOL, "RESET": ty.BOOL}
+
+
+def _stdfb_member(t: StdFbT, key: str):
+    """(IEC pin name, type) of member ``key`` of a standard FB (vendor pin names map to
+    the IEC ones), or (None, None)."""
+    pin = std_fb_pin(t.name, key)
+    return (pin, _STDFB_MEMBERS[pin]) if pin else (None, None)
+
+
 _CMP = {"=": "==", "<>": "!=", "<": "<", ">": ">", "<=": "<=", ">=": ">="}
 # (target category, value category) -> how to store the value (assignment conversions)
 _CONVERSIONS = {
@@ -686,13 +695,15 @@ class Compiler:
             flat += [self._init(t.elem, None, scope, decl)] * (t.size - len(flat))
             return f"_nest([{', '.join(flat)}], {[hi - lo + 1 for lo, hi in t.dims]!r})"
         if isinstance(init, ir.StructInit):
-            if t.cat not in ("struct", "fb"):
+            if t.cat not in ("struct", "fb", "stdfb"):
                 raise _err(init, "a structure initialiser for a variable that is neither a "
                                  "structure nor a function block")
             members = t.members if isinstance(t, StructT) else None
             parts = []
             for fname, finit in init.fields:
                 key = ident(fname)
+                if isinstance(t, StdFbT):
+                    key = _stdfb_member(t, key)[0] or key
                 mt = members.get(key) if members is not None else self._fb_member_type(
                     t, key, init)
                 if mt is None:
@@ -721,7 +732,7 @@ class Compiler:
 
     def _fb_member_type(self, t, key, node):
         if isinstance(t, StdFbT):
-            return _STDFB_MEMBERS.get(key)
+            return _stdfb_member(t, key)[1]
         d = t.var(key)
         return None if d is None else self.types.resolve(d.type, d.pos)
 
@@ -938,8 +949,9 @@ class Compiler:
                 if p is not None:
                     return "prop", bcode, key, self.types.resolve(p[0].type, p[0].pos)
             elif isinstance(bt, StdFbT):
-                if key in _STDFB_MEMBERS:
-                    return "attr", bcode, key, _STDFB_MEMBERS[key]
+                pin, pt = _stdfb_member(bt, key)
+                if pin:
+                    return "attr", bcode, pin, pt
             elif isinstance(bt, StructT):
                 if key in bt.members:
                     return "attr", bcode, key, bt.members[key]
@@ -1044,6 +1056,8 @@ class Compiler:
                 if arg.output or k >= len(positional):
                     raise _err(arg, "too many arguments")
                 name = positional[k]
+            elif isinstance(t, StdFbT):
+                name = std_fb_pin(t.name, arg.name) or ident(arg.name)
             else:
                 name = ident(arg.name)
             if arg.output:
@@ -1187,7 +1201,8 @@ class Compiler:
         bcode, bt = self._expr(base, scope)
         bt = _deref_t(bt)
         if isinstance(bt, StdFbT):
-            if key not in _STDFB_MEMBERS:
+            key, pt = _stdfb_member(bt, key)
+            if key is None:
                 raise _err(x, f"{bt.name} has no member '{x.member}'")
             if key == "ET" and not self._et_const:
                 # inside an FB or PROGRAM the data flow decides whether it matters
@@ -1196,7 +1211,7 @@ class Compiler:
                     self.reads_et = True
                 else:
                     self._et_classes.add(scope.fb.name)
-            return f"{bcode}.{key}", _STDFB_MEMBERS[key]
+            return f"{bcode}.{key}", pt
         if isinstance(bt, StructT):
             if key not in bt.members:
                 raise _err(x, f"{bt.name} has no member '{x.member}'")
