@@ -75,3 +75,20 @@ def test_a_pin_of_another_fb_is_still_rejected():
     assert any("RESET" in e for e in errors) and any("CV" in e for e in errors)
     with pytest.raises(CompileError):
         ProgramInstance(parse_st(src, "t.st"))
+
+
+# ---------------------------------------------------------------- opaque code
+def test_beremiz_inline_c_is_kept_and_only_executing_it_is_an_error():
+    from plcpred.sequencer import ExecutionError
+    src = body("x : BOOL; n : INT;",
+               "IF x THEN\n  {{ printf(\"hi\\n\");\n     fflush(stdout); }}\nEND_IF;\nn := n + 1;\nn := n +;")
+    with pytest.raises(Exception) as e:   # the line count after the block is exact
+        parse_st(src, "t.st")
+    assert (e.value.line, e.value.col) == (10, 9)
+    src = src.replace("n := n +;", "")
+    errors, warnings = check_program(parse_st(src, "t.st"))
+    assert errors == [] and [(w.line, w.col) for w in warnings] == [(6, 3)]
+    assert trace(src, ("N",), lambda k: {}, scans=2) == [(1,), (2,)]   # never reached
+    with pytest.raises(ExecutionError) as e:
+        trace(src, ("N",), lambda k: {"X": k == 1}, scans=2)
+    assert (e.value.line, "inline code" in str(e.value)) == (6, True)

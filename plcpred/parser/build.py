@@ -266,6 +266,9 @@ class IRBuilder:
     def label_stmt(self, name):
         return ir.Label(str(name), pos=self._pos(name))
 
+    def inline_stmt(self, tok):
+        return ir.Opaque("inline code block {{ }}", str(tok)[2:-2], pos=self._pos(tok))
+
     # ------------------------------------------------------------------ types
     def qual_name(self, *names):
         return _QualName(".".join(str(n) for n in names), self._pos(names[0]))

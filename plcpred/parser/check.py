@@ -359,6 +359,9 @@ class Checker:
             elif t is ir.Repeat:
                 self._stmts(s.body, ctx)
                 self._expr(s.cond, ctx.scope, ctx)
+            elif t is ir.Opaque:
+                self.warn(s.pos, f"{s.what} is not read: the program checks, but running "
+                                 "it stops with an error")
 
     def _write_target(self, target, ctx):
         """Check an assignment target and record the write."""

@@ -12,7 +12,7 @@ the parse tree. Two choices keep the grammar LALR(1) and fast:
 """
 
 TERMINALS = """
-%declare NAME INTEGER REAL TYPED_LIT TIME_LIT DT_LIT TOD_LIT DATE_LIT ENUM_LIT STRING_LIT WSTRING_LIT ADDRESS
+%declare INLINE_CODE NAME INTEGER REAL TYPED_LIT TIME_LIT DT_LIT TOD_LIT DATE_LIT ENUM_LIT STRING_LIT WSTRING_LIT ADDRESS
 %declare _ASSIGN _OUTASSIGN LE GE NE POW _DOTDOT _ATTEMPT PLUS MINUS STAR SLASH LT GT EQ _LPAR _RPAR _LSQB _RSQB _COMMA _SEMI _COLON _DOT _CARET AMP _ARROW _REFASSIGN
 %declare PROGRAM _END_PROGRAM FUNCTION _END_FUNCTION FUNCTION_BLOCK _END_FUNCTION_BLOCK METHOD _END_METHOD
 %declare PROPERTY _END_PROPERTY INTERFACE _END_INTERFACE _EXTENDS _IMPLEMENTS END_GET END_SET
@@ -70,10 +70,10 @@ args: arg (_COMMA arg)*
 stmt_list: stmt*
 ?stmt: assign | ref_assign | attempt_assign | call_stmt | if_stmt | case_stmt | for_stmt
      | while_stmt | repeat_stmt | exit_stmt | continue_stmt | return_stmt | empty_stmt
-     | jmp_stmt | label_stmt
+     | jmp_stmt | label_stmt | inline_stmt
 ?stmt_nolabel: assign | ref_assign | attempt_assign | call_stmt | if_stmt | case_stmt
              | for_stmt | while_stmt | repeat_stmt | exit_stmt | continue_stmt | return_stmt
-             | empty_stmt | jmp_stmt
+             | empty_stmt | jmp_stmt | inline_stmt
 
 assign: postfix _ASSIGN expr _SEMI
 ref_assign: postfix _REFASSIGN expr _SEMI
@@ -95,6 +95,7 @@ return_stmt: RETURN _SEMI
 empty_stmt: _SEMI
 jmp_stmt: JMP NAME _SEMI
 label_stmt: NAME _COLON
+inline_stmt: INLINE_CODE
 
 // ------------------------------------------------------------------ types and declarations
 qual_name: NAME (_DOT NAME)*

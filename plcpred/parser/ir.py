@@ -336,8 +336,18 @@ class Jmp:
     pos: Pos | None = _pos()
 
 
+@dataclass(slots=True)
+class Opaque:
+    """Code kept but not read: a graphical (FBD, LD, CFC, IL) body or a Beremiz ``{{ }}``
+    inline C block. The project still loads and checks; executing it is an error naming
+    ``what``. ``text`` is the block's source where it has one (printed back as ``{{ }}``)."""
+    what: str
+    text: str = ""
+    pos: Pos | None = _pos()
+
+
 Stmt = Union[Assign, CallStmt, If, Case, For, While, Repeat, Exit, Continue, Return, Empty,
-             Label, Jmp]
+             Label, Jmp, Opaque]
 
 
 # --------------------------------------------------------------------------- SFC

@@ -213,6 +213,12 @@ class Tokenizer:
                 if end < 0:
                     raise self.error("comment '/*' is never closed", line, col)
                 end += 2
+            elif text.startswith("{{", pos):  # Beremiz/matiec inline C: a statement
+                end = text.find("}}", pos + 2)
+                if end < 0:
+                    raise self.error("inline code '{{' is never closed", line, col)
+                end += 2
+                yield Token("INLINE_CODE", text[pos:end], line, col)
             else:  # pragma
                 end = text.find("}", pos + 1)
                 if end < 0:

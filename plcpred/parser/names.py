@@ -76,6 +76,8 @@ _ADDRESS_FIELDS = {(ir.DirectAddress, "address"), (ir.VarDecl, "address")}
 _FREE_TEXT = {
     (ir.Pou, "pragmas"), (ir.Method, "pragmas"), (ir.TypeDecl, "pragmas"),
     (ir.Program, "pragmas"), (ir.Program, "source"),
+    # emitted only through repr() (in the error raised when it is executed) or not at all
+    (ir.Opaque, "what"), (ir.Opaque, "text"),
 }
 
 

@@ -194,6 +194,8 @@ def statement(s, indent: str) -> list[str]:
         return [f"{indent}{s.name}:"]
     if t is ir.Jmp:
         return [f"{indent}JMP {s.label};"]
+    if t is ir.Opaque:
+        return [f"{indent}{{{{{s.text}}}}}"]
     raise TypeError(f"cannot print statement {s!r}")
 
 

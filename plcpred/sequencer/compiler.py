@@ -885,6 +885,8 @@ class Compiler:
             e(ind, scope.ret, pos)
         elif isinstance(s, ir.Empty):
             pass
+        elif isinstance(s, ir.Opaque):
+            e(ind, f"_opaque({s.what!r}, {_pos_args(pos)})", pos)
         elif isinstance(s, ir.Jmp):
             labels, jl, depth = self._jump or ({}, None, 0)
             if ident(s.label) not in labels:

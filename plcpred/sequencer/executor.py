@@ -123,6 +123,11 @@ def _watchdog(kind, file, line, col):
                        f"(more than {1_000_000} iterations)", file, line, col)
 
 
+def _opaque(what, file, line, col):
+    raise rtm.ExecutionError(f"cannot execute {what}: plcpred reads only ST and SFC "
+                             "bodies", file, line, col)
+
+
 def _sizeof(v):
     return 1 if isinstance(v, bool) else 8
 
@@ -160,6 +165,7 @@ def _namespace(timers: list, sfcs: list) -> dict:
         "_unlisted": _unlisted,
         "_setattrs": _setattrs, "_nest": _nest, "_copy": _copy, "_snap_any": _snap_any,
         "_refkey": _refkey, "_for_range": _for_range, "_watchdog": _watchdog,
+        "_opaque": _opaque,
         "_chkidx": rtm.check_index, "_getbit": rtm.getbit, "_setbit": rtm.setbit,
         "_wrap": rtm.wrap, "_idiv": rtm.idiv, "_imod": rtm.imod, "_fdiv": rtm.fdiv,
         "_fmod": __import__("math").fmod, "_tmul": rtm.tmul, "_tdiv": rtm.tdiv,
