@@ -403,7 +403,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
 
     p = sub.add_parser("check", help="parse and validate PLC programs",
-                       description="Parse and validate programs (.st, .seq, PLCopen .xml). "
+                       description="Parse and validate programs (.st, .seq, PLCopen .xml, "
+                                   "TwinCAT .TcPOU/.TcGVL/.TcDUT/.TcIO/.TcTTO, or a whole "
+                                   "TwinCAT project as a .plcproj or a folder). "
                                    "Files given together are checked as one project, so a "
                                    "global variable list can be checked with the POUs using "
                                    "it. Errors print as file:line:col: message; exit 1 if any.")

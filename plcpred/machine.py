@@ -499,7 +499,7 @@ def machine_from_data(data: dict, path) -> Machine:
         machine.cycle_signal = _signal_name(r, "cycle_signal", data["machine"]["cycle_signal"])
     if machine.ambient_c <= -273.15:
         raise r.error("ambient_c must be above absolute zero")
-    if not machine.program_path.is_file():
+    if not machine.program_path.exists():
         raise r.error(f"program file '{program}' not found (looked for "
                       f"{machine.program_path})")
     signals = data.get("signals", {})

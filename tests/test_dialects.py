@@ -92,3 +92,59 @@ def test_beremiz_inline_c_is_kept_and_only_executing_it_is_an_error():
     with pytest.raises(ExecutionError) as e:
         trace(src, ("N",), lambda k: {"X": k == 1}, scans=2)
     assert (e.value.line, "inline code" in str(e.value)) == (6, True)
+
+
+# ---------------------------------------------------------------- expressions
+def test_operators_called_as_functions():
+    src = body("a, b, c, x, y, z : BOOL; n : INT := 17; m : INT;",
+               "x := AND(a, b, c); y := OR(a, b); z := XOR(a, b); m := MOD(n, 5);")
+    got = trace(src, ("X", "Y", "Z", "M"), lambda k: {"A": True, "B": k == 1, "C": True}, 2)
+    assert got == [(False, True, True, 2), (True, True, False, 2)]
+    assert problems(src) == []
+
+
+# ---------------------------------------------------------------- statements
+def test_an_array_element_or_member_as_for_variable():
+    src = body("i : ARRAY[0..1] OF INT; n : INT; s : ARRAY[1..3] OF INT;",
+               "n := 0;\nFOR i[1] := 1 TO 3 DO\n  s[i[1]] := i[1] * 10;\n  n := n + i[1];\nEND_FOR")
+    inst = ProgramInstance(parse_st(src, "t.st"))
+    inst.scan(0)
+    p = inst.programs[0]
+    assert (p.N, list(p.S), list(p.I)) == (6, [10, 20, 30], [0, 4])   # IEC: ends past END
+    assert problems(src) == []
+    from plcpred.parser.printer import to_st
+    assert parse_st(to_st(parse_st(src, "t.st")), "t.st") == parse_st(src, "t.st")
+
+
+# ---------------------------------------------------------------- declarations
+def test_fb_init_arguments_in_declarations_parse_print_and_warn():
+    src = ("FUNCTION_BLOCK FB_T\nVAR_INPUT\n  q : INT;\nEND_VAR\nEND_FUNCTION_BLOCK\n"
+           + body("a : R_TRIG(); b : FB_T(5, x := 2) := (q := 1); r : INT(0..10);", "r := b.q;"))
+    prog = parse_st(src, "t.st")
+    decls = {d.name: d for d in prog.pou("P").decls()}
+    assert decls["a"].init_args == [] and decls["r"].init_args is None
+    assert [a.name for a in decls["b"].init_args] == [None, "x"]
+    from plcpred.parser.printer import to_st
+    assert parse_st(to_st(prog), "t.st") == prog
+    errors, warnings = check_program(prog)
+    assert errors == [] and [w.line for w in warnings if "FB_init" in w.message] == [8]
+    assert trace(src, ("R",), lambda k: {}, scans=1) == [(1,)]
+    with pytest.raises(Exception, match="FB_init arguments belong in a variable declaration"):
+        parse_st("TYPE T : ARRAY[0..1] OF FB_T(1); END_TYPE", "t.st")
+
+
+def test_semicolons_after_headers_and_access_specifiers():
+    src = ("FUNCTION_BLOCK PUBLIC FB_A;\nVAR\n  n : INT;\nEND_VAR\n"
+           "METHOD PUBLIC M : INT;\nM := n;\nEND_METHOD\n"
+           "PROPERTY P : INT;\nPUBLIC GET\nP := n;\nEND_GET\nEND_PROPERTY\n"
+           "END_FUNCTION_BLOCK\nINTERFACE PUBLIC I_X;\nEND_INTERFACE\n"
+           "PROGRAM INTERNAL Main;\nVAR\n  fb : FB_A;\n  k : INT;\nEND_VAR\nk := fb.M() + fb.P + 1;\n"
+           "END_PROGRAM\n")
+    prog = parse_st(src, "t.st")
+    assert prog.pou("Main").access == "INTERNAL" and prog.pou("FB_A").access == "PUBLIC"
+    assert trace(src, ("K",), lambda k: {}, scans=1) == [(1,)]
+
+
+def test_based_literals_in_base_10_and_the_unsigned_ltime_range():
+    src = body("n : INT; t : LTIME;", "n := 10#12 + 2#1; t := LTIME#213503D23H34M33S709MS551US615NS;")
+    assert trace(src, ("N", "T"), lambda k: {}, scans=1) == [(13, 2**64 - 1)]

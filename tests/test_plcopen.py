@@ -112,8 +112,6 @@ def test_st_error_position_is_the_position_in_the_xml_file():
 
 
 @pytest.mark.parametrize("xml, fragment", [
-    (project(pous='<pou name="L" pouType="program"><body><LD/></body></pou>'),
-     "POU 'L': LD bodies cannot be converted"),
     (HEAD + "<types>", "not well-formed XML"),
     ('<?xml version="1.0"?><other/>', "not a PLCopen XML file"),
     (sfc_pou('<step localId="1" name="A"/>'), "exactly one initial step"),
@@ -127,6 +125,30 @@ def test_unconvertible_input_is_named(xml, fragment):
         parse_plcopen(xml, "bad.xml")
     assert fragment in ei.value.message
     assert ei.value.line > 0
+
+
+def test_graphical_pous_load_with_a_warning_and_only_running_one_is_an_error():
+    from plcpred.parser.check import check_program
+    from plcpred.sequencer import ExecutionError
+    from plcpred.sequencer.executor import ProgramInstance
+    xml = project(
+        pous='<pou name="Lad" pouType="functionBlock"><interface><inputVars><variable name="a">'
+             '<type><BOOL/></type></variable></inputVars></interface><body><LD/></body></pou>'
+             '<pou name="P" pouType="program"><interface><localVars>'
+             '<variable name="l"><type><derived name="Lad"/></type></variable>'
+             '<variable name="go"><type><BOOL/></type></variable>'
+             '<variable name="n"><type><INT/></type></variable></localVars></interface>'
+             '<body><ST><xhtml:p><![CDATA[n := n + 1; IF go THEN l(a := TRUE); END_IF]]>'
+             '</xhtml:p></ST></body></pou>')
+    prog = parse_plcopen(xml, "g.xml")
+    errors, warnings = check_program(prog)
+    assert errors == [] and ["LD body of POU 'Lad'" in w.message for w in warnings] == [True]
+    inst = ProgramInstance(prog)
+    inst.scan(0)
+    assert inst.programs[0].N == 1
+    inst.programs[0].GO = True
+    with pytest.raises(ExecutionError, match="LD body of POU 'Lad'"):
+        inst.scan(10_000_000)
 
 
 def test_methods_exported_as_vendor_data():

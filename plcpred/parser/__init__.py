@@ -11,22 +11,51 @@ __all__ = ["ir", "ProgramError", "ProgramWarning", "parse_st", "load_program"]
 
 
 def load_program(path) -> "ir.Program":
-    """Read and parse a program file: ``.st`` (also ``.iecst``, ``.txt``), ``.seq`` or
-    PLCopen ``.xml``. Errors name the file, line and column."""
+    """Read and parse a program: an ST file (``.st``, also ``.iecst``, ``.txt``), a
+    ``.seq`` chart, a PLCopen ``.xml`` export, a TwinCAT 3 object file (``.TcPOU``,
+    ``.TcGVL``, ``.TcDUT``, ``.TcIO``, ``.TcTTO``), or a whole project: a TwinCAT
+    ``.plcproj`` or a folder. A file is read by what it holds when its name says
+    otherwise (a ``.TcPOU`` saved as ``.st``). Errors name the file, line and column."""
     from pathlib import Path
 
+    from . import twincat
+
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        text = p.read_text(encoding="latin-1")
-    except OSError as e:
-        raise ProgramError(f"cannot read file: {e.strerror}", str(path), 0, 0) from None
-    suffix = p.suffix.lower()
-    if suffix == ".seq":
+    if p.is_dir() or p.suffix.lower() == ".plcproj":
+        files = twincat.project_files(p)
+        return twincat.merge([load_program(f) for f in files], str(path))
+    text = twincat._read(p)
+    kind = _sniff(text) or p.suffix.lower()
+    if kind == ".seq":
         from .seq import parse_seq
         return parse_seq(text, str(path))
-    if suffix == ".xml":
+    if kind == ".xml":
         from .plcopen import parse_plcopen
         return parse_plcopen(text, str(path))
+    if kind in twincat.OBJECT_SUFFIXES:
+        return twincat.parse_twincat(text, str(path))
+    if kind == "machine":
+        raise ProgramError("this is a machine file (TOML), not a PLC program: give it to "
+                           "predict, timeline, size, compare, sweep or diagnose, which read "
+                           "the program it names", str(path), 1, 1)
     return parse_st(text, str(path))
+
+
+_XML_ROOT = None
+
+
+def _sniff(text: str) -> str | None:
+    """What a file holds when its content says so: an XML root element we know, or a
+    machine file's ``[machine]`` table."""
+    import re
+
+    global _XML_ROOT
+    if _XML_ROOT is None:
+        _XML_ROOT = re.compile(r"\s*(?:<\?xml[^>]*\?>\s*)?(?:<!--[\s\S]*?-->\s*)*<(?:\w+:)?(\w+)")
+    head = text[:4096]
+    m = _XML_ROOT.match(head)
+    if m:
+        return {"TcPlcObject": ".tcpou", "project": ".xml"}.get(m.group(1))
+    if re.search(r"^\s*\[machine\]\s*$", head, re.M):
+        return "machine"
+    return None

@@ -36,6 +36,15 @@ class _QualName(str):
         return obj
 
 
+class _FbInit:
+    """A type with FB_init arguments (``FB_T(5)``), until var_decl takes the arguments."""
+    __slots__ = ("type", "args")
+
+    def __init__(self, type_, args):
+        self.type = type_
+        self.args = args
+
+
 class _CaseHead:
     __slots__ = ("labels", "pos")
 
@@ -162,6 +171,12 @@ class IRBuilder:
         type_name, value = str(tok).split("#", 1)
         return ir.EnumLiteral(type_name, value, pos=self._pos(tok))
 
+    def fn_operator(self, tok):
+        return tok
+
+    def operator_call(self, op, args):
+        return ir.Call(ir.Name(str(op).upper(), pos=self._pos(op)), args, pos=self._pos(op))
+
     def args(self, *args):
         return list(args)
 
@@ -240,7 +255,15 @@ class IRBuilder:
         return ir.CaseRange(low, high, pos=low.pos)
 
     def for_stmt(self, tok, var, start, end, step, body):
-        return ir.For(str(var), start, end, step, body, pos=self._pos(tok))
+        if type(var) is ir.Name:
+            return ir.For(var.name, start, end, step, body, pos=self._pos(tok))
+        base = var
+        while isinstance(base, (ir.Index, ir.Member)):
+            base = base.base
+        if type(base) is not ir.Name:
+            raise self._err("the FOR control variable must be a variable, an array element "
+                            "or a member", self._pos(tok))
+        return ir.For(base.name, start, end, step, body, pos=self._pos(tok), target=var)
 
     def while_stmt(self, tok, cond, body):
         return ir.While(cond, body, pos=self._pos(tok))
@@ -286,7 +309,7 @@ class IRBuilder:
         return ir.StringType(tok.type == "WSTRING", length, pos=self._pos(tok))
 
     def array_type(self, *parts):
-        return ir.ArrayType(list(parts[:-1]), parts[-1])
+        return ir.ArrayType(list(parts[:-1]), self._plain(parts[-1]))
 
     def array_dim(self, low, high):
         return (low, high)
@@ -295,7 +318,18 @@ class IRBuilder:
         return (None, None)
 
     def pointer_type(self, tok, target):
+        target = self._plain(target)
         return ir.PointerType(target, tok.type == "REFERENCE", pos=self._pos(tok))
+
+    def fb_init_type(self, name, args):
+        return _FbInit(ir.NamedType(str(name), pos=self._pos(name)), args or [])
+
+    def _plain(self, t):
+        """A type where FB_init arguments cannot stand."""
+        if isinstance(t, _FbInit):
+            raise self._err("FB_init arguments belong in a variable declaration",
+                            t.type.pos)
+        return t
 
     def subrange_type(self, base, low, high):
         return ir.SubrangeType(str(base), low, high, pos=self._pos(base))
@@ -346,18 +380,23 @@ class IRBuilder:
         return ir.VarBlock(kind.type, decls, qualifiers, pos=self._pos(kind))
 
     def var_decl(self, names, address, type_, init):
+        args = None
+        if isinstance(type_, _FbInit):
+            type_, args = type_.type, type_.args
         addr = str(address).upper() if address is not None else None
         if addr is not None and len(names) > 1:
             raise self._err("an AT address can be given to one variable only",
                             self._pos(names[1]))
-        return [ir.VarDecl(str(n), type_, init, addr, pos=self._pos(n)) for n in names]
+        return [ir.VarDecl(str(n), type_, init, addr, pos=self._pos(n), init_args=args)
+                for n in names]
 
     def config_path(self, *names):
         return _QualName(".".join(n.value for n in names), self._pos(names[0]))
 
     def config_decl(self, path, address, type_, init):
         """A VAR_CONFIG entry: ``Resource.Instance.Variable AT %QX1.0 : BOOL``."""
-        return [ir.VarDecl(str(path), type_, init, address.value.upper(), pos=path.pos)]
+        return [ir.VarDecl(str(path), self._plain(type_), init, address.value.upper(),
+                           pos=path.pos)]
 
     # ------------------------------------------------------------------ POUs
     def modifiers(self, *mods):
@@ -405,8 +444,10 @@ class IRBuilder:
             pou.actions = actions
         return pou
 
-    def program_pou(self, tok, name, var_blocks, items):
-        return self._pou("PROGRAM", tok, name, var_blocks, items)
+    def program_pou(self, tok, mods, name, var_blocks, items):
+        access, modifiers = self._split_modifiers(mods)
+        return self._pou("PROGRAM", tok, name, var_blocks, items, access=access,
+                         modifiers=modifiers)
 
     def fb_pou(self, tok, mods, name, extends, implements, var_blocks, items):
         access, modifiers = self._split_modifiers(mods)
@@ -416,11 +457,13 @@ class IRBuilder:
                          modifiers=modifiers)
 
     def function_pou(self, tok, mods, name, ret, var_blocks, items):
+        ret = self._plain(ret)
         access, modifiers = self._split_modifiers(mods)
         return self._pou("FUNCTION", tok, name, var_blocks, items, return_type=ret,
                          access=access, modifiers=modifiers)
 
     def method(self, tok, mods, name, ret, var_blocks, body):
+        ret = self._plain(ret)
         access, modifiers = self._split_modifiers(mods)
         return ir.Method(str(name), ret, var_blocks, body, access, modifiers,
                          pos=self._pos(tok))
@@ -430,7 +473,7 @@ class IRBuilder:
         return ir.Property(str(name), type_, list(accessors), access, modifiers,
                            pos=self._pos(tok))
 
-    def accessor(self, name, var_blocks, body, end):
+    def accessor(self, mods, name, var_blocks, body, end):
         kind = str(name).upper()
         if kind not in ("GET", "SET"):
             raise self._err(f"expected GET or SET in a PROPERTY, found '{name}'",
@@ -445,7 +488,7 @@ class IRBuilder:
     def action(self, tok, name, body):
         return ir.SfcAction(str(name), body, pos=self._pos(tok))
 
-    def interface(self, tok, name, extends, *items):
+    def interface(self, tok, mods, name, extends, *items):
         return ir.Interface(str(name), [str(e) for e in extends or []],
                             [i for i in items if isinstance(i, ir.Method)],
                             [i for i in items if isinstance(i, ir.Property)],
@@ -455,6 +498,7 @@ class IRBuilder:
         return list(decls)
 
     def type_decl(self, name, extends, type_, init):
+        type_ = self._plain(type_)
         if extends is not None:
             if not isinstance(type_, ir.StructType):
                 raise self._err("only a STRUCT type can EXTEND another", self._pos(name))
@@ -631,7 +675,9 @@ def describe_token(tok) -> str:
     return f"'{tok}'"
 
 
-_EXPRESSION_START = {"NAME", "INTEGER", "_LPAR", "MINUS", "PLUS", "NOT", "STRING_LIT"}
+# AND, OR, XOR and MOD also start an expression, called as functions: AND(a, b)
+_EXPRESSION_START = {"NAME", "INTEGER", "_LPAR", "MINUS", "PLUS", "NOT", "STRING_LIT", "AND",
+                     "OR", "XOR", "MOD"}
 _OP_NAMES = {"PLUS": "'+'", "MINUS": "'-'", "STAR": "'*'", "SLASH": "'/'", "POW": "'**'",
              "LT": "'<'", "GT": "'>'", "LE": "'<='", "GE": "'>='", "EQ": "'='", "NE": "'<>'",
              "AMP": "'&'"}

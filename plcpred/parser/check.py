@@ -218,6 +218,11 @@ class Checker:
             self._check_type(d.type, scope)
             if d.init is not None:
                 self._init(d.init, scope)
+            if d.init_args:
+                for a in d.init_args:
+                    self._expr(a.value, scope, None)
+                self.warn(d.pos, f"FB_init arguments of '{d.name}' are not applied: "
+                                 "plcpred does not run FB_init methods")
         extra = {m.name.upper() for m in pou.methods} | {p.name.upper() for p in pou.properties}
         extra |= {a.name.upper() for a in pou.actions}
         if pou.kind == "FUNCTION":
@@ -348,7 +353,7 @@ class Checker:
                 if s.else_body:
                     self._stmts(s.else_body, ctx)
             elif t is ir.For:
-                self._write_target(ir.Name(s.var, pos=s.pos), ctx)
+                self._write_target(s.target or ir.Name(s.var, pos=s.pos), ctx)
                 for e in (s.start, s.end, s.step):
                     if e is not None:
                         self._expr(e, ctx.scope, ctx)
@@ -366,9 +371,10 @@ class Checker:
     def _write_target(self, target, ctx):
         """Check an assignment target and record the write."""
         self._expr(target, ctx.scope, ctx, writing=True)
+        target = self._gvl_qualified(target, ctx.scope) or target
         base = target
         while isinstance(base, (ir.Member, ir.Index, ir.BitAccess, ir.Deref)):
-            base = base.base
+            base = self._gvl_qualified(base.base, ctx.scope) or base.base
         if isinstance(base, ir.DirectAddress):
             if base.address.startswith("%I"):
                 self.error(base.pos, f"cannot assign to input {base.address}")
@@ -430,6 +436,8 @@ class Checker:
         elif t is ir.Member:
             self._expr(e.base, scope, ctx, writing)
             self._check_member(e, scope, ctx)
+            if ctx is not None and not writing and self._gvl_qualified(e, scope):
+                ctx.usage.read.add(e.member.upper())
         elif t in (ir.BitAccess, ir.Deref):
             self._expr(e.base, scope, ctx, writing)
         elif t is ir.Index:
@@ -449,6 +457,14 @@ class Checker:
                 self.error(e.pos, f"unknown enumeration type '{e.type_name}'")
             elif e.value.upper() not in {v.upper() for v, _ in td.type.values}:
                 self.error(e.pos, f"enumeration {e.type_name} has no value '{e.value}'")
+
+    def _gvl_qualified(self, e, scope):
+        """``GVL.var`` as the Name ``var`` it stands for, else None."""
+        if (isinstance(e, ir.Member) and isinstance(e.base, ir.Name)
+                and e.base.name.upper() in self.g.gvls and e.base.name.upper() not in scope
+                and e.member.upper() in self.g.gvls[e.base.name.upper()]):
+            return ir.Name(e.member, pos=e.pos)
+        return None
 
     def _check_member(self, e: ir.Member, scope, ctx):
         if not isinstance(e.base, ir.Name):

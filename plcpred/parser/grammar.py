@@ -59,6 +59,9 @@ COMMON = r"""
      | FALSE -> bool_lit
      | ENUM_LIT -> enum_lit
      | _LPAR expr _RPAR
+     | fn_operator _LPAR args _RPAR -> operator_call
+// the operators IEC also defines as functions, called as such: AND(a, b), MOD(a, b)
+!fn_operator: AND | OR | XOR | MOD
 
 args: arg (_COMMA arg)*
 ?arg: expr -> pos_arg
@@ -86,7 +89,7 @@ case_stmt: CASE expr _OF case_part* [_ELSE stmt_list] _END_CASE
 case_head: case_label (_COMMA case_label)* _COLON
 ?case_label: expr
            | expr _DOTDOT expr -> case_range
-for_stmt: FOR NAME _ASSIGN expr _TO expr [_BY expr] _DO stmt_list _END_FOR
+for_stmt: FOR postfix _ASSIGN expr _TO expr [_BY expr] _DO stmt_list _END_FOR
 while_stmt: WHILE expr _DO stmt_list _END_WHILE
 repeat_stmt: REPEAT stmt_list _UNTIL expr _END_REPEAT
 exit_stmt: EXIT _SEMI
@@ -108,6 +111,7 @@ name_list: NAME (_COMMA NAME)*
           | POINTER _TO type_spec -> pointer_type
           | REFERENCE _TO type_spec -> pointer_type
           | NAME _LPAR expr _DOTDOT expr _RPAR -> subrange_type
+          | NAME _LPAR [args] _RPAR -> fb_init_type
           | _LPAR enum_value (_COMMA enum_value)* _RPAR [NAME] -> enum_type
           | STRUCT var_decl* _END_STRUCT -> struct_type
           | UNION var_decl* _END_UNION -> struct_type
@@ -138,9 +142,10 @@ start: _top_item*
 _top_item: program_pou | fb_pou | function_pou | type_block | interface | configuration
          | global_block | method | property | action
 
-program_pou: PROGRAM NAME var_blocks body_items _END_PROGRAM
-fb_pou: FUNCTION_BLOCK modifiers NAME [_EXTENDS qual_name] [_IMPLEMENTS qual_list] var_blocks body_items _END_FUNCTION_BLOCK
-function_pou: FUNCTION modifiers NAME [_COLON type_spec] var_blocks body_items _END_FUNCTION
+// a ';' after a header is accepted, as CODESYS and TwinCAT do
+program_pou: PROGRAM modifiers NAME _SEMI? var_blocks body_items _END_PROGRAM
+fb_pou: FUNCTION_BLOCK modifiers NAME [_EXTENDS qual_name] [_IMPLEMENTS qual_list] _SEMI? var_blocks body_items _END_FUNCTION_BLOCK
+function_pou: FUNCTION modifiers NAME [_COLON type_spec] _SEMI? var_blocks body_items _END_FUNCTION
 qual_list: qual_name (_COMMA qual_name)*
 modifiers: modifier*
 !modifier: PUBLIC | PRIVATE | PROTECTED | INTERNAL | ABSTRACT | FINAL
@@ -149,13 +154,13 @@ modifiers: modifier*
 body_items: _body_item*
 _body_item: stmt | step | transition | action | method | property
 
-method: METHOD modifiers NAME [_COLON type_spec] var_blocks stmt_list _END_METHOD
-property: PROPERTY modifiers NAME _COLON type_spec accessor* _END_PROPERTY
-accessor: NAME var_blocks stmt_list accessor_end
+method: METHOD modifiers NAME [_COLON type_spec] _SEMI? var_blocks stmt_list _END_METHOD
+property: PROPERTY modifiers NAME _COLON type_spec _SEMI? accessor* _END_PROPERTY
+accessor: modifiers NAME var_blocks stmt_list accessor_end
 !accessor_end: END_GET | END_SET
 action: ACTION NAME _COLON? stmt_list _END_ACTION
 
-interface: INTERFACE NAME [_EXTENDS qual_list] _iface_item* _END_INTERFACE
+interface: INTERFACE modifiers NAME [_EXTENDS qual_list] _SEMI? _iface_item* _END_INTERFACE
 _iface_item: method | property
 
 type_block: TYPE type_decl+ _END_TYPE

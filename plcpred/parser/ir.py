@@ -220,6 +220,8 @@ class VarDecl:
     init: "Initializer | None" = None
     address: str | None = None  # "%IX0.0", "%Q*"
     pos: Pos | None = _pos()
+    # CODESYS/TwinCAT FB_init arguments: ``fb : FB_T(5)``, ``fb : FB_T(a := 1)``
+    init_args: list[Arg] | None = None
 
 
 VAR_KINDS = ("VAR", "VAR_INPUT", "VAR_OUTPUT", "VAR_IN_OUT", "VAR_TEMP", "VAR_GLOBAL",
@@ -281,12 +283,15 @@ class Case:
 
 @dataclass(slots=True)
 class For:
+    """``var`` is the loop variable, or the variable whose element or member is the
+    control variable, ``target`` (``FOR a[1] := ...``, as CODESYS and TwinCAT allow)."""
     var: str
     start: Expr
     end: Expr
     step: Expr | None
     body: list["Stmt"]
     pos: Pos | None = _pos()
+    target: Expr | None = None
 
 
 @dataclass(slots=True)

@@ -23,7 +23,7 @@ REAL_MAX = {"REAL": 3.4028234663852886e38, "LREAL": 1.7976931348623157e308}
 # also keeps Python from converting thousands of digits
 INT_LITERAL_MAX = (1 << 64) - 1
 # durations are held as integer nanoseconds; LTIME's 64-bit range bounds them
-DURATION_MAX_NS = (1 << 63) - 1
+DURATION_MAX_NS = (1 << 64) - 1  # TwinCAT's LTIME is unsigned: LTIME#213503d23h34m33s709ms551us615ns
 _DIGITS = {2: "01", 8: "01234567", 10: "0123456789", 16: "0123456789abcdefABCDEF"}
 
 
@@ -37,7 +37,7 @@ def int_range(type_name: str) -> tuple[int, int]:
 
 def parse_int(text: str) -> int:
     """``1_000``, ``16#FF``, ``2#1010_0101``, ``8#17``, with an optional sign. Bases are
-    2, 8 and 16 (IEC 61131-3 6.3.2); the digits must belong to the base, and the value
+    2, 8 and 16 (IEC 61131-3 6.3.2) and the 10 CODESYS accepts; the digits must belong to the base, and the value
     must fit the widest integer type (64 bits)."""
     raw = text
     text = text.replace("_", "")
@@ -48,9 +48,10 @@ def parse_int(text: str) -> int:
     base, digits = 10, text
     if "#" in text:
         base_text, digits = text.split("#", 1)
-        if base_text not in ("2", "8", "16"):
-            raise ValueError(f"integer literal {raw!r}: base {base_text} (IEC bases are 2, "
-                             "8 and 16)")
+        # IEC bases are 2, 8 and 16; CODESYS and TwinCAT also accept 10#
+        if base_text not in ("2", "8", "10", "16"):
+            raise ValueError(f"integer literal {raw!r}: base {base_text} (the bases are 2, "
+                             "8, 10 and 16)")
         base = int(base_text)
     if not digits or any(c not in _DIGITS[base] for c in digits):
         raise ValueError(f"integer literal {raw!r}: {digits!r} are not base-{base} digits")
@@ -87,7 +88,7 @@ def parse_duration_ns(text: str) -> int:
         raise ValueError(f"malformed duration {text!r}")
     ns = sign * round(total)
     if abs(ns) > DURATION_MAX_NS:
-        raise ValueError(f"duration {text!r} is longer than LTIME holds (about 292 years)")
+        raise ValueError(f"duration {text!r} is longer than LTIME holds (about 584 years)")
     return ns
 
 

@@ -68,7 +68,8 @@ class _El:
         return "".join(parts), line, col
 
 
-def _parse_xml(text: str, filename: str) -> _El:
+def _parse_xml(text: str, filename: str, root: str = "project",
+               what: str = "a PLCopen XML file") -> _El:
     parser = expat.ParserCreate()
     root_holder: list[_El] = []
     stack: list[_El] = []
@@ -115,8 +116,8 @@ def _parse_xml(text: str, filename: str) -> _El:
     except expat.ExpatError as e:
         raise ProgramError(f"not well-formed XML: {expat.ErrorString(e.code)}", filename,
                            e.lineno, e.offset + 1) from None
-    if not root_holder or root_holder[0].tag != "project":
-        raise ProgramError("not a PLCopen XML file (the root element must be <project>)",
+    if not root_holder or root_holder[0].tag != root:
+        raise ProgramError(f"not {what} (the root element must be <{root}>)",
                            filename, 1, 1)
     return root_holder[0]
 
@@ -263,8 +264,9 @@ class _Importer:
             if lang.tag == "SFC":
                 return self.sfc(lang, pou_el)
             if lang.tag in ("FBD", "LD", "IL"):
-                raise self.error(lang, f"POU '{pou_name}': {lang.tag} bodies cannot be "
-                                       "converted (only ST and SFC are supported)")
+                # kept, not read: the project loads; only running this body is an error
+                return [ir.Opaque(f"the {lang.tag} body of POU '{pou_name}'",
+                                  pos=ir.Pos(self.file, lang.line, lang.col))]
         return []
 
     def pou(self, el: _El) -> ir.Pou:

@@ -124,6 +124,8 @@ def var_decl(d: ir.VarDecl, indent: str = "") -> str:
     if d.address:
         text += f" AT {d.address}"
     text += f" : {type_ref(d.type, indent)}"
+    if d.init_args is not None:
+        text += f"({', '.join(arg(a) for a in d.init_args)})"
     if d.init is not None:
         text += f" := {initializer(d.init)}"
     return text + ";"
@@ -174,7 +176,8 @@ def statement(s, indent: str) -> list[str]:
         return out
     if t is ir.For:
         by = f" BY {expr(s.step)}" if s.step is not None else ""
-        return ([f"{indent}FOR {s.var} := {expr(s.start)} TO {expr(s.end)}{by} DO"]
+        var = s.var if s.target is None else expr(s.target)
+        return ([f"{indent}FOR {var} := {expr(s.start)} TO {expr(s.end)}{by} DO"]
                 + statements(s.body, i2) + [f"{indent}END_FOR;"])
     if t is ir.While:
         return ([f"{indent}WHILE {expr(s.cond)} DO"] + statements(s.body, i2)

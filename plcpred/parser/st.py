@@ -10,12 +10,13 @@ from .names import validate_names
 _RUNNER = GrammarRunner(ST_GRAMMAR)
 
 
-def parse_st(text: str, filename: str = "<input>") -> ir.Program:
+def parse_st(text: str, filename: str = "<input>", validate: bool = True) -> ir.Program:
     """Parse IEC 61131-3 Structured Text (one or more POUs, TYPE blocks, interfaces,
     configurations, global variable lists). Raises :class:`ProgramError` with the file,
-    line and column of the first problem."""
+    line and column of the first problem. ``validate=False`` is for front ends that
+    build on this one and validate their whole result themselves."""
     tokenizer = Tokenizer(text, filename)
     program = _RUNNER.parse(tokenizer, filename)
     program.pragmas = [(p, ir.Pos(filename, line, col)) for p, line, col in tokenizer.pragmas]
     program.source = filename
-    return validate_names(program)
+    return validate_names(program) if validate else program

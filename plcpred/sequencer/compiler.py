@@ -833,7 +833,7 @@ class Compiler:
                 self._stmts(s.else_body, scope, ind + 1, loop)
                 e(ind + 1, "pass")
         elif isinstance(s, ir.For):
-            var = ir.Name(s.var, pos=pos)
+            var = s.target or ir.Name(s.var, pos=pos)
             vcode, vt = self._expr(var, scope)
             start, st0 = self._expr(s.start, scope)
             end, _ = self._expr(s.end, scope)
@@ -1698,6 +1698,8 @@ class _Flow:
             self.stmts(s.else_body or [])
         elif isinstance(s, ir.For):
             self.used.add(ident(s.var))
+            if s.target is not None:
+                self.use(s.target)
             for e in (s.start, s.end, s.step):
                 if e is not None:
                     self.use(e)

@@ -1,0 +1,304 @@
+"""TwinCAT 3 project files: ``.TcPOU``, ``.TcGVL``, ``.TcDUT``, ``.TcIO``, ``.TcTTO`` and
+whole projects (a ``.plcproj`` or a folder).
+
+A TwinCAT object file is XML whose CDATA sections hold plain ST: a POU's declaration and
+implementation, each method's, each property accessor's, each action's. The importer
+places every section at its own line and column of the XML file, fills the gaps with the
+keywords the XML structure stands for (``END_METHOD``, ``GET`` ... ``END_GET``, ``ACTION
+name:``, ``END_FUNCTION_BLOCK``) and parses the result as one ST text, so an error in any
+section points at the line and column of the ``.TcPOU`` file, and every construct the ST
+front end reads is read here too.
+
+* Bodies in a graphical language (SFC, FBD, LD, CFC, IL networks) are kept as
+  :class:`ir.Opaque` statements: the project loads and checks, with a warning, and only
+  executing such a body is an error. Transitions belong to SFC bodies and are skipped.
+* A GVL's name qualifies its globals (``GVL_IO.bStart``), as in TwinCAT.
+* A task object (``.TcTTO``) becomes a configuration: its cycle time is the task
+  INTERVAL and its POU calls are the programs that run, in order.
+"""
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+from . import ir
+from .errors import ProgramError
+from .names import is_identifier, validate_names
+from .plcopen import _El, _parse_xml
+from .st import parse_st
+
+OBJECT_SUFFIXES = (".tcpou", ".tcgvl", ".tcdut", ".tcio", ".tctto")
+# files a project folder is read from, besides TwinCAT objects
+_ST_SUFFIXES = (".st", ".iecst")
+_POU_KIND = re.compile(r"\b(PROGRAM|FUNCTION_BLOCK|FUNCTION|INTERFACE)\b", re.I)
+_COMMENTS = re.compile(r"\(\*[\s\S]*?\*\)|/\*[\s\S]*?\*/|//[^\n]*|\{[^}]*\}|'[^']*'|\"[^\"]*\"")
+
+
+class _Stitch:
+    """ST text assembled from pieces, each placed at its line and column in the XML file
+    when the text written so far allows (pieces arrive in document order), and keywords
+    placed in between."""
+
+    def __init__(self):
+        self.parts: list[str] = []
+        self.line, self.col = 1, 1
+        self.tail = ""  # the text on the current line
+
+    def _advance(self, text: str) -> None:
+        self.parts.append(text)
+        nls = text.count("\n")
+        if nls:
+            self.line += nls
+            self.col = len(text) - text.rfind("\n")
+            self.tail = text[text.rfind("\n") + 1:]
+        else:
+            self.col += len(text)
+            self.tail += text
+
+    def place(self, text: str, line: int, col: int) -> None:
+        if line > self.line:
+            self._advance("\n" * (line - self.line))
+        if line == self.line and col > self.col:
+            self._advance(" " * (col - self.col))
+        elif self.col > 1:
+            self._advance(" ")
+        self._advance(text)
+
+    def keyword(self, text: str) -> None:
+        # after a line comment, on a line of its own (it is then one line early, which
+        # only shifts a later piece that shares the closing tag's line)
+        self._advance(("\n" if "//" in self.tail else " ") + text + " ")
+
+    def text(self) -> str:
+        return "".join(self.parts)
+
+
+class _Importer:
+    def __init__(self, filename: str):
+        self.file = filename
+        self.gvl_names: list[str] = []
+        self.opaque: list[ir.Opaque] = []
+
+    def error(self, el: _El, message: str) -> ProgramError:
+        return ProgramError(message, self.file, el.line, el.col)
+
+    def name_of(self, el: _El) -> str:
+        """The element's Name attribute, which becomes ST text: an identifier or nothing."""
+        name = el.attrib.get("Name", "")
+        if not is_identifier(name):
+            raise self.error(el, f"<{el.tag}> Name={name[:60]!r} is not an IEC identifier")
+        return name
+
+    # ------------------------------------------------------------------ sections
+    def section(self, out: _Stitch, el: _El | None) -> str:
+        """Place the ST text under ``el`` (a Declaration or an ST element); returns it."""
+        if el is None:
+            return ""
+        text, line, col = el.all_text()
+        if text.strip():
+            out.place(text, line, col)
+        return text
+
+    def implementation(self, out: _Stitch, owner: _El, what: str) -> None:
+        impl = owner.find("Implementation")
+        if impl is None:
+            return
+        for lang in impl.children:
+            if lang.tag == "ST":
+                self.section(out, lang)
+                # a body that ends in a comment or a label still needs its statements closed
+                out.keyword(";")
+                return
+            if lang.tag:
+                # a marker parsed as an inline-code statement, swapped for the Opaque after
+                marker = f"{{{{#{len(self.opaque)}}}}}"
+                self.opaque.append(ir.Opaque(f"the {lang.tag} body of {what}",
+                                             pos=ir.Pos(self.file, lang.line, lang.col)))
+                out.place(marker, lang.line, lang.col)
+                return
+
+    # ------------------------------------------------------------------ objects
+    def pou(self, out: _Stitch, el: _El) -> None:
+        name = self.name_of(el)
+        decl = self.section(out, el.find("Declaration"))
+        kind = _POU_KIND.search(_COMMENTS.sub(" ", decl))
+        if kind is None:
+            raise self.error(el, f"POU '{name}': its declaration does not say PROGRAM, "
+                                 "FUNCTION_BLOCK or FUNCTION")
+        kind = kind.group(1).upper()
+        if kind == "INTERFACE":
+            return self.interface(out, el, name)
+        self.implementation(out, el, f"{kind.replace('_', ' ').lower()} {name}")
+        for child in el.children:
+            if child.tag == "Method":
+                self.section(out, child.find("Declaration"))
+                self.implementation(out, child, f"method {name}.{self.name_of(child)}")
+                out.keyword("END_METHOD")
+            elif child.tag == "Property":
+                self.property(out, child, f"{name}.{self.name_of(child)}")
+            elif child.tag == "Action":
+                action = self.name_of(child)
+                out.keyword(f"ACTION {action}:")
+                self.implementation(out, child, f"action {name}.{action}")
+                out.keyword("END_ACTION")
+        out.keyword(f"END_{kind}")
+
+    def property(self, out: _Stitch, el: _El, what: str, bodies: bool = True) -> None:
+        self.section(out, el.find("Declaration"))
+        for acc in el.children:
+            if acc.tag in ("Get", "Set"):
+                out.keyword(acc.tag.upper())
+                self.section(out, acc.find("Declaration"))
+                if bodies:
+                    self.implementation(out, acc, f"property {what} {acc.tag.upper()}")
+                out.keyword(f"END_{acc.tag.upper()}")
+        out.keyword("END_PROPERTY")
+
+    def interface(self, out: _Stitch, el: _El, name: str) -> None:
+        for child in el.children:
+            if child.tag == "Method":
+                self.section(out, child.find("Declaration"))
+                out.keyword("END_METHOD")
+            elif child.tag == "Property":
+                self.property(out, child, f"{name}.{self.name_of(child)}", bodies=False)
+        out.keyword("END_INTERFACE")
+
+    def task(self, el: _El) -> ir.Configuration:
+        """A .TcTTO task: CycleTime (microseconds) and the POUs it calls, in order."""
+        name = self.name_of(el)
+        pos = ir.Pos(self.file, el.line, el.col)
+        params = {}
+        cycle = el.find("CycleTime")
+        if cycle is not None:
+            text = cycle.all_text()[0].strip()
+            if not text.isdigit() or not 0 < int(text) <= 3_600_000_000:
+                raise self.error(cycle, f"<CycleTime> {text[:40]!r}: expected a whole number "
+                                        "of microseconds, 1..3600000000")
+            params["INTERVAL"] = ir.Literal(int(text) * 1000, "TIME", pos=pos)
+        resource = ir.Resource("PlcTask", None, tasks=[ir.Task(name, params, pos=pos)], pos=pos)
+        for call in el.findall("PouCall"):
+            target = call.find("Name")
+            if target is None:
+                continue
+            pou = target.all_text()[0].strip()
+            if not is_identifier(pou):
+                raise self.error(target, f"<PouCall> names {pou[:60]!r}, not an IEC identifier")
+            resource.programs.append(ir.ProgramInstance(pou, pou, name, pos=ir.Pos(
+                self.file, target.line, target.col)))
+        return ir.Configuration(f"{name}_config", resources=[resource], pos=pos)
+
+    def object_file(self, root: _El) -> ir.Program:
+        out = _Stitch()
+        configurations = []
+        for el in root.children:
+            if el.tag == "POU":
+                self.pou(out, el)
+            elif el.tag == "Itf":
+                self.name_of(el)
+                self.section(out, el.find("Declaration"))
+                self.interface(out, el, el.attrib["Name"])
+            elif el.tag == "DUT":
+                self.name_of(el)
+                self.section(out, el.find("Declaration"))
+            elif el.tag == "GVL":
+                self.gvl_names.append(self.name_of(el))
+                self.section(out, el.find("Declaration"))
+            elif el.tag == "Task":
+                configurations.append(self.task(el))
+            # other objects (visualisations, text lists, recipes, ...) hold no code
+        prog = parse_st(out.text(), self.file, validate=False)
+        prog.configurations.extend(configurations)
+        if self.gvl_names:
+            # one GVL object per file: all its VAR_GLOBAL blocks carry its name
+            for g in prog.globals:
+                g.name = self.gvl_names[0]
+        if self.opaque:
+            _replace_markers(prog, self.opaque)
+        return prog
+
+
+def _replace_markers(prog: ir.Program, opaque: list[ir.Opaque]) -> None:
+    """Swap the parsed ``{{#k}}`` marker statements for the Opaque nodes they stand for."""
+    def fix(body):
+        if not isinstance(body, list):
+            return
+        for i, s in enumerate(body):
+            if isinstance(s, ir.Opaque) and s.text.startswith("#") and s.text[1:].isdigit():
+                body[i] = opaque[int(s.text[1:])]
+
+    for pou in prog.pous:
+        fix(pou.body)
+        for m in pou.methods:
+            fix(m.body)
+        for a in pou.actions:
+            fix(a.body)
+        for p in pou.properties:
+            for acc in p.accessors:
+                fix(acc.body)
+
+
+def parse_twincat(text: str, filename: str = "<input>") -> ir.Program:
+    """Import one TwinCAT 3 object file (``.TcPOU``, ``.TcGVL``, ``.TcDUT``, ``.TcIO``,
+    ``.TcTTO``) into the IR."""
+    root = _parse_xml(text, filename, "TcPlcObject", "a TwinCAT 3 object file")
+    return validate_names(_Importer(filename).object_file(root))
+
+
+# --------------------------------------------------------------------------- projects
+
+def project_files(path: Path) -> list[Path]:
+    """The program files of a TwinCAT project: those a ``.plcproj`` compiles (in its
+    order), or for a folder, those of the one ``.plcproj`` under it, else every TwinCAT
+    object and ST file under it (sorted)."""
+    if path.is_dir():
+        projects = sorted(p for p in path.rglob("*") if p.suffix.lower() == ".plcproj")
+        if len(projects) > 1:
+            listed = ", ".join(str(p.relative_to(path)) for p in projects[:5])
+            raise ProgramError(f"the folder holds {len(projects)} PLC projects ({listed}"
+                               f"{', ...' if len(projects) > 5 else ''}): name one .plcproj "
+                               "or its folder", str(path), 0, 0)
+        if projects:
+            return project_files(projects[0])
+        files = sorted(p for p in path.rglob("*") if p.is_file()
+                       and p.suffix.lower() in OBJECT_SUFFIXES + _ST_SUFFIXES)
+        if not files:
+            raise ProgramError("the folder holds no program files (.TcPOU, .TcGVL, .TcDUT, "
+                               ".TcIO, .TcTTO, .st)", str(path), 0, 0)
+        return files
+    root = _parse_xml(_read(path), str(path), "Project", "a TwinCAT .plcproj file")
+    files = []
+    for group in root.findall("ItemGroup"):
+        for item in group.findall("Compile"):
+            include = item.attrib.get("Include", "").replace("\\", "/")
+            if Path(include).suffix.lower() not in OBJECT_SUFFIXES + _ST_SUFFIXES:
+                continue
+            target = Path(os.path.normpath(path.parent / include))
+            if not target.is_file():
+                raise ProgramError(f"<Compile Include={include!r}>: file not found",
+                                   str(path), item.line, item.col)
+            files.append(target)
+    return files
+
+
+def _read(path: Path) -> str:
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError:
+        return path.read_text(encoding="latin-1")
+    except OSError as e:
+        raise ProgramError(f"cannot read file: {e.strerror}", str(path), 0, 0) from None
+
+
+def merge(programs: list[ir.Program], source: str) -> ir.Program:
+    """One Program holding every file's POUs, types, interfaces, configurations and GVLs
+    (positions keep naming the file each came from)."""
+    out = ir.Program(source=source)
+    for p in programs:
+        out.pous += p.pous
+        out.types += p.types
+        out.interfaces += p.interfaces
+        out.configurations += p.configurations
+        out.globals += p.globals
+        out.pragmas += p.pragmas
+    return out
