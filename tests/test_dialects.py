@@ -148,3 +148,26 @@ def test_semicolons_after_headers_and_access_specifiers():
 def test_based_literals_in_base_10_and_the_unsigned_ltime_range():
     src = body("n : INT; t : LTIME;", "n := 10#12 + 2#1; t := LTIME#213503D23H34M33S709MS551US615NS;")
     assert trace(src, ("N", "T"), lambda k: {}, scans=1) == [(13, 2**64 - 1)]
+
+
+# ---------------------------------------------------------------- calls
+def test_implicit_en_eno_on_fb_and_function_calls():
+    src = ("FUNCTION F_Twice : INT\nVAR_INPUT\n  a : INT;\nEND_VAR\nF_Twice := 2 * a;\n"
+           "END_FUNCTION\n"
+           + body("c : CTU; go, ok, ok2 : BOOL; n, m : INT;",
+                  "c(EN := go, CU := NOT c.CU, PV := 100, ENO => ok);\nn := c.CV;\n"
+                  "m := F_Twice(EN := go, a := n, ENO => ok2);"))
+    got = trace(src, ("N", "M", "OK", "OK2"), lambda k: {"GO": k in (0, 1, 2, 5)}, scans=6)
+    # the counter counts only on scans where EN is TRUE (its CU toggles only then, too)
+    assert got == [(1, 2, True, True), (1, 2, True, True), (2, 4, True, True),
+                   (2, 4, False, False), (2, 4, False, False), (2, 4, True, True)]
+    assert problems(src) == []
+
+
+def test_assigning_to_ones_own_input_runs_with_a_warning():
+    src = ("FUNCTION_BLOCK FB_Clip\nVAR_INPUT\n  x : INT;\nEND_VAR\nVAR_OUTPUT\n  y : INT;\n"
+           "END_VAR\nIF x > 10 THEN x := 10; END_IF\ny := x;\nEND_FUNCTION_BLOCK\n"
+           + body("fb : FB_Clip; r : INT;", "fb(x := 25);\nr := fb.y;"))
+    errors, warnings = check_program(parse_st(src, "t.st"))
+    assert errors == [] and any("assignment to input 'x'" in w.message for w in warnings)
+    assert trace(src, ("R",), lambda k: {}, scans=1) == [(10,)]

@@ -391,7 +391,9 @@ class Checker:
                 self.error(target.pos, f"cannot assign to constant '{base.name}'")
             elif var.kind == "VAR_INPUT" and (ctx.method is None
                                               or var.owner == ctx.method.name):
-                self.error(target.pos, f"cannot assign to input '{base.name}'")
+                # IEC forbids it; CODESYS, TwinCAT and Beremiz accept it, and real code does it
+                self.warn(target.pos, f"assignment to input '{base.name}' (accepted as "
+                                      "CODESYS and TwinCAT do; IEC 61131-3 forbids it)")
             elif (var.decl.address or "").startswith("%I"):
                 self.error(target.pos, f"cannot assign to input '{base.name}' "
                                        f"(located at {var.decl.address})")
@@ -535,7 +537,8 @@ class Checker:
             if params is not None and a.name is not None:
                 ins, outs, type_name = params
                 wanted = outs if a.output else ins
-                if a.name.upper() not in wanted:
+                implicit = "ENO" if a.output else "EN"  # IEC: every call has EN and ENO
+                if a.name.upper() not in wanted and a.name.upper() != implicit:
                     kind = "output" if a.output else "input"
                     self.error(a.pos, f"{type_name} has no {kind} '{a.name}'")
             if a.output:

@@ -774,9 +774,49 @@ class Compiler:
             self._jump = saved
         e(ind + 1, "break", pos)
 
+    def _en_eno(self, s, scope: Scope):
+        """The IEC EN/ENO of a call (``fb(EN := c, ENO => ok)``, ``x := F(EN := c, a)``) as
+        the IF it stands for: run the call only when EN is TRUE, ENO := EN. None when the
+        statement has no such call or the callee declares EN/ENO itself."""
+        call = s.call if isinstance(s, ir.CallStmt) else \
+            s.value if isinstance(s, ir.Assign) and s.op == ":=" else None
+        if not isinstance(call, ir.Call):
+            return None
+        en = [a for a in call.args if (a.name or "").upper() == "EN" and not a.output]
+        eno = [a for a in call.args if (a.name or "").upper() == "ENO" and a.output]
+        if not (en or eno) or self._declares_en(call.func, scope):
+            return None
+        rest = ir.Call(call.func, [a for a in call.args if a not in en and a not in eno],
+                       pos=call.pos)
+        inner = ir.CallStmt(rest, pos=s.pos) if isinstance(s, ir.CallStmt) else \
+            ir.Assign(s.target, rest, s.op, pos=s.pos)
+        cond = en[0].value if en else ir.Literal(True, "BOOL", pos=s.pos)
+        then = [inner] + [ir.Assign(a.value, ir.Literal(True, "BOOL"), ":=", pos=a.pos)
+                          for a in eno if a.value is not None]
+        other = [ir.Assign(a.value, ir.Literal(False, "BOOL"), ":=", pos=a.pos)
+                 for a in eno if a.value is not None]
+        return ir.If([(cond, then)], other or None, pos=s.pos)
+
+    def _declares_en(self, func, scope: Scope) -> bool:
+        if isinstance(func, ir.Name) and ident(func.name) in self.functions \
+                and ident(func.name) not in scope.names:
+            return any(ident(d.name) in ("EN", "ENO")
+                       for d in self.functions[ident(func.name)].decls())
+        try:
+            target = self._fb_instance(func, scope)
+        except CompileError:
+            return False
+        if target is None or not isinstance(target[1], FbT):
+            return False
+        return any(target[1].var(k) is not None for k in ("EN", "ENO"))
+
     def _stmt(self, s, scope: Scope, ind: int, loop: bool):
         e = self.src.emit
         pos = s.pos
+        if isinstance(s, (ir.CallStmt, ir.Assign)):
+            desugared = self._en_eno(s, scope)
+            if desugared is not None:
+                return self._stmt(desugared, scope, ind, loop)
         if isinstance(s, ir.Assign):
             if s.op == "REF=":
                 code, t = self._ref_of(s.value, scope)
