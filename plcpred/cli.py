@@ -43,15 +43,24 @@ def cmd_check(args) -> int:
     from .parser import ProgramError, load_program
     from .parser.check import check_program
 
+    from .parser.libraries import library_program
+
     parsed = {}
     failed = False
     for path in args.programs:
         try:
-            parsed[path] = load_program(path)
+            parsed[path] = load_program(path, libraries=False)
         except ProgramError as e:
             print(e, file=sys.stderr)
             failed = True
     context = list(parsed.values())
+    if not args.syntax_only:
+        try:
+            # what the files use from libraries: checked against, not reported on
+            context.append(library_program(context, args.lib))
+        except ProgramError as e:
+            print(e, file=sys.stderr)
+            return 1
     results = {path: ([], []) if args.syntax_only else check_program(program, context)
                for path, program in parsed.items()}
     if not args.syntax_only and not any(errors for errors, _ in results.values()):
@@ -412,6 +421,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("programs", nargs="+", metavar="PROGRAM")
     p.add_argument("--syntax-only", action="store_true",
                    help="skip semantic checks (for fragments using libraries not at hand)")
+    p.add_argument("--lib", action="append", default=[], metavar="PATH",
+                   help="declarations of a library the programs use: an ST, TwinCAT or "
+                        "PLCopen file, a .plcproj or a folder (repeatable; its name is "
+                        "its namespace, as in Lib.FB_X). Stubs of common vendor libraries "
+                        "are built in")
     p.set_defaults(func=cmd_check)
 
     p = sub.add_parser("timeline", help="run a machine's program into output-bit timelines",

@@ -141,6 +141,15 @@ class Machine:
     lines: list[Line] = field(default_factory=list)
     # a BOOL that rises (or a counter that counts up) once per machine cycle or part
     cycle_signal: str | None = None
+    # declarations of vendor libraries the program uses (files or folders)
+    library_paths: list[Path] = field(default_factory=list)
+
+    def read_program(self, path=None):
+        """The machine's program (or the one at ``path``), with what it uses from its
+        libraries."""
+        from .parser import load_program
+        return load_program(self.program_path if path is None else path,
+                            lib_dirs=self.library_paths)
 
     def consumer(self, name: str) -> Consumer:
         for c in self.consumers:
@@ -150,7 +159,7 @@ class Machine:
 
 
 _MACHINE_KEYS = {"name", "program", "scan_ms", "supply_bar_g", "atmosphere_kpa", "ambient_c",
-                 "cycle_signal"}
+                 "cycle_signal", "libraries"}
 _INPUT_KEYS = {"signal", "pulses_s", "pulse_ms", "period_s", "offset_s", "jitter_s", "seed",
                "initial"}
 _CONSUMER_KEYS = {"name", "kind", "valve", "bore_mm", "rod_mm", "stroke_mm", "tube_id_mm",
@@ -499,6 +508,13 @@ def machine_from_data(data: dict, path) -> Machine:
         machine.cycle_signal = _signal_name(r, "cycle_signal", data["machine"]["cycle_signal"])
     if machine.ambient_c <= -273.15:
         raise r.error("ambient_c must be above absolute zero")
+    libraries = data["machine"].get("libraries", [])
+    if not isinstance(libraries, list) or not all(isinstance(x, str) and x for x in libraries):
+        raise r.error('libraries must be a list of paths, like ["libs/MyLib/"]')
+    for lib in libraries:
+        machine.library_paths.append((path.parent / lib).resolve())
+        if not machine.library_paths[-1].exists():
+            raise r.error(f"library '{lib}' not found (looked for {machine.library_paths[-1]})")
     if not machine.program_path.exists():
         raise r.error(f"program file '{program}' not found (looked for "
                       f"{machine.program_path})")
@@ -667,8 +683,13 @@ def save_machine(data: dict, source: Machine, path, header: str = "") -> None:
     from .output import atomic_write_text
 
     path = Path(path)
-    rel = Path(os.path.relpath(source.program_path, path.resolve().parent)).as_posix()
-    data["machine"]["program"] = rel if rel.count("../") <= 2 else \
-        source.program_path.as_posix()
+
+    def near(target: Path) -> str:
+        rel = Path(os.path.relpath(target, path.resolve().parent)).as_posix()
+        return rel if rel.count("../") <= 2 else target.as_posix()
+
+    data["machine"]["program"] = near(source.program_path)
+    if source.library_paths:
+        data["machine"]["libraries"] = [near(p) for p in source.library_paths]
     machine_from_data(data, path)
     atomic_write_text(path, dump_machine_toml(data, header))

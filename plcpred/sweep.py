@@ -151,11 +151,10 @@ def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
     from .air import predict
     from .air.sizing import size
     from .machine import machine_from_data, read_machine_data
-    from .parser import load_program
 
     data = read_machine_data(machine_path)
     base = machine_from_data(data, machine_path)
-    program = load_program(program_path or base.program_path)
+    program = base.read_program(program_path)
     machine, program = apply_settings(data, machine_path, program, scenario)
     result = predict(machine, horizon_s, dt=dt_s, program=program)
     s = size(result.profile, hours_per_year=hours, sec_kwh_per_nm3=sec,
@@ -196,11 +195,10 @@ def sweep(machine_path, settings: list[Setting], horizon_s: float, dt_s=None,
     combos = scenarios(settings)
     # fail fast, in this process, on settings that cannot apply
     from .machine import machine_from_data, read_machine_data
-    from .parser import load_program
     data = read_machine_data(machine_path)
     base = machine_from_data(data, machine_path)
     program_path = str(program) if program is not None else None
-    prog = load_program(program_path or base.program_path)
+    prog = base.read_program(program_path)
     for sc in combos:
         apply_settings(data, machine_path, prog, sc)
     bar = _Progress(len(combos), progress)

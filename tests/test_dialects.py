@@ -171,3 +171,14 @@ def test_assigning_to_ones_own_input_runs_with_a_warning():
     errors, warnings = check_program(parse_st(src, "t.st"))
     assert errors == [] and any("assignment to input 'x'" in w.message for w in warnings)
     assert trace(src, ("R",), lambda k: {}, scans=1) == [(10,)]
+
+
+def test_a_method_called_by_its_bare_name_inside_its_fb_and_a_derived_one():
+    src = ("FUNCTION_BLOCK FB_A\nVAR\n  n : INT;\nEND_VAR\nBump(2);\n"
+           "METHOD Bump : INT\nVAR_INPUT\n  k : INT;\nEND_VAR\nn := n + k;\nBump := n;\nEND_METHOD\n"
+           "END_FUNCTION_BLOCK\n"
+           "FUNCTION_BLOCK FB_B EXTENDS FB_A\nVAR_OUTPUT\n  m : INT;\nEND_VAR\nm := Bump(10);\n"
+           "END_FUNCTION_BLOCK\n"
+           + body("a : FB_A; b : FB_B; r : INT;", "a(); b(); r := a.n * 100 + b.m;"))
+    assert trace(src, ("R",), lambda k: {}, scans=2) == [(210,), (420,)]
+    assert problems(src) == []

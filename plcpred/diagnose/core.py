@@ -209,7 +209,6 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     None: aligned by correlation within ``max_offset_s``, default half the run up to
     120 s); ``effects``: names to try (default: all that apply)."""
     from ..machine import Machine, load_machine
-    from ..parser import load_program
     from ..sequencer import unfold
 
     if not isinstance(machine, Machine):
@@ -238,7 +237,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     sequenced = all(tl is None for tl in io)
     if sequenced and not hasattr(program, "pous"):
         # parsed once for every unfold (timing effects run the sequencer again)
-        program = load_program(machine.program_path if program is None else program)
+        program = machine.read_program(program)
     for run, tl, off in zip(runs, io, offsets):
         window = max_offset_s if max_offset_s is not None else min(
             120.0, max(2.0, 0.5 * run.span_s))

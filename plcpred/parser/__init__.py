@@ -10,20 +10,33 @@ from .st import parse_st
 __all__ = ["ir", "ProgramError", "ProgramWarning", "parse_st", "load_program"]
 
 
-def load_program(path) -> "ir.Program":
+def load_program(path, libraries: bool = True, lib_dirs=()) -> "ir.Program":
     """Read and parse a program: an ST file (``.st``, also ``.iecst``, ``.txt``), a
     ``.seq`` chart, a PLCopen ``.xml`` export, a TwinCAT 3 object file (``.TcPOU``,
     ``.TcGVL``, ``.TcDUT``, ``.TcIO``, ``.TcTTO``), or a whole project: a TwinCAT
     ``.plcproj`` or a folder. A file is read by what it holds when its name says
-    otherwise (a ``.TcPOU`` saved as ``.st``). Errors name the file, line and column."""
+    otherwise (a ``.TcPOU`` saved as ``.st``). Errors name the file, line and column.
+
+    With ``libraries``, what the program uses from vendor libraries (the shipped stubs,
+    and declarations under ``lib_dirs``) is added to it (see :mod:`.libraries`)."""
+    program = _load(path)
+    if not libraries:
+        return program
+    from .libraries import library_program
+    return program.merge(library_program([program], lib_dirs))
+
+
+def _load(path) -> "ir.Program":
     from pathlib import Path
 
     from . import twincat
 
     p = Path(path)
     if p.is_dir() or p.suffix.lower() == ".plcproj":
-        files = twincat.project_files(p)
-        return twincat.merge([load_program(f) for f in files], str(path))
+        from functools import reduce
+        merged = reduce(ir.Program.merge, [_load(f) for f in twincat.project_files(p)])
+        merged.source = str(path)
+        return merged
     text = twincat._read(p)
     kind = _sniff(text) or p.suffix.lower()
     if kind == ".seq":

@@ -93,6 +93,14 @@ class _Globals:
             other |= {a.name.upper() for a in p.actions}
         return ins, outs, other
 
+    def fb_internals(self, type_name: str) -> set[str]:
+        """The VAR (and VAR_STAT, VAR_INST) variables of a user FB type and its bases."""
+        pou = self.pous.get(type_name.upper())
+        if pou is None or pou.kind != "FUNCTION_BLOCK":
+            return set()
+        return {d.name.upper() for p in self.fb_chain(pou) for b in p.var_blocks
+                if b.kind in ("VAR", "VAR_STAT", "VAR_INST") for d in b.decls}
+
     def fb_chain(self, pou: ir.Pou) -> list[ir.Pou]:
         """The POU, its base, its base's base ... (stopping at an unknown base or a cycle)."""
         chain, seen = [], set()
@@ -223,8 +231,10 @@ class Checker:
                     self._expr(a.value, scope, None)
                 self.warn(d.pos, f"FB_init arguments of '{d.name}' are not applied: "
                                  "plcpred does not run FB_init methods")
-        extra = {m.name.upper() for m in pou.methods} | {p.name.upper() for p in pou.properties}
-        extra |= {a.name.upper() for a in pou.actions}
+        extra = set()
+        for p in self.g.fb_chain(pou):   # inherited members by bare name too
+            extra |= {m.name.upper() for m in p.methods} | {x.name.upper() for x in p.properties}
+            extra |= {a.name.upper() for a in p.actions}
         if pou.kind == "FUNCTION":
             extra.add(pou.name.upper())
         if pou.kind == "FUNCTION_BLOCK":
@@ -488,7 +498,10 @@ class Checker:
             return
         members = self.g.fb_members(type_name)
         if members is not None:
-            if e.member.upper() not in set().union(*members):
+            if e.member.upper() in self.g.fb_internals(type_name):
+                self.warn(e.pos, f"'{e.base.name}.{e.member}' uses an internal variable of "
+                                 f"{type_name} (CODESYS and TwinCAT allow it; IEC does not)")
+            elif e.member.upper() not in set().union(*members):
                 self.error(e.pos, f"'{e.base.name}' ({type_name}) has no input, output, method "
                                   f"or property '{e.member}'")
             return

@@ -550,7 +550,10 @@ class Program:
         raise KeyError(name)
 
     def merge(self, other: "Program") -> "Program":
+        """Both programs' contents in one (positions keep naming their files); the
+        source is this one's."""
         return Program(self.pous + other.pous, self.types + other.types,
                        self.interfaces + other.interfaces,
                        self.configurations + other.configurations,
-                       self.globals + other.globals, self.pragmas + other.pragmas)
+                       self.globals + other.globals, self.pragmas + other.pragmas,
+                       self.source)

@@ -76,6 +76,9 @@ SIZEOF ADR BITADR REF INDEXOF LOWER_BOUND UPPER_BOUND __NEW __DELETE __ISVALIDRE
 __QUERYINTERFACE __QUERYPOINTER TIME LTIME NOW
 """.split())
 
+# vendor functions built in (Tc2_System and CODESYS SysMem): whole values, see the runtime
+VENDOR_FUNCTIONS = frozenset("MEMCPY MEMMOVE MEMSET MEMCMP".split())
+
 # X_TO_Y, TO_Y, TRUNC_INT, ... conversion functions
 _CONVERSION = re.compile(
     r"^(?:(?:[A-Z_]+)_TO_[A-Z_]+|TO_[A-Z_]+|TRUNC_[A-Z]+|[A-Z]+_TRUNC_[A-Z]+|"
@@ -84,4 +87,4 @@ _CONVERSION = re.compile(
 
 def is_standard_function(name: str) -> bool:
     up = name.upper()
-    return up in STANDARD_FUNCTIONS or bool(_CONVERSION.match(up))
+    return up in STANDARD_FUNCTIONS or up in VENDOR_FUNCTIONS or bool(_CONVERSION.match(up))

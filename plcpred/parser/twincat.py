@@ -288,17 +288,3 @@ def _read(path: Path) -> str:
         return path.read_text(encoding="latin-1")
     except OSError as e:
         raise ProgramError(f"cannot read file: {e.strerror}", str(path), 0, 0) from None
-
-
-def merge(programs: list[ir.Program], source: str) -> ir.Program:
-    """One Program holding every file's POUs, types, interfaces, configurations and GVLs
-    (positions keep naming the file each came from)."""
-    out = ir.Program(source=source)
-    for p in programs:
-        out.pous += p.pous
-        out.types += p.types
-        out.interfaces += p.interfaces
-        out.configurations += p.configurations
-        out.globals += p.globals
-        out.pragmas += p.pragmas
-    return out

@@ -119,7 +119,6 @@ def emulate(machine, horizon="60s", truth=None, seed: int | None = None,
     """Run ``machine`` (a path or a loaded Machine; with ``truth``, a truth file applied
     to it) in closed loop with the physics plant over ``horizon``."""
     from ..machine import Machine, check_against_program
-    from ..parser import load_program
     from ..sequencer import Sequencer, parse_horizon
     from .truth import load_real_machine
 
@@ -129,10 +128,8 @@ def emulate(machine, horizon="60s", truth=None, seed: int | None = None,
                                     truth)
     horizon_ns = parse_horizon(horizon)
     horizon_s = horizon_ns / 1e9
-    if program is None:
-        program = load_program(machine.program_path)
-    elif not hasattr(program, "pous"):
-        program = load_program(program)
+    if program is None or not hasattr(program, "pous"):
+        program = machine.read_program(program)
     check_against_program(machine, program)
     plant = PlantModel(machine)
     timeline = Sequencer(program, machine, plant=plant).run(horizon_ns, tiling=False)

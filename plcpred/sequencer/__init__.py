@@ -27,15 +27,12 @@ def unfold(machine, horizon="60s", scan_stepping: bool = False, tiling: bool = T
     (constructs the executor cannot run), :class:`ExecutionError` (run-time faults such as
     a watchdog) or :class:`~plcpred.machine.MachineError` (machine file)."""
     from ..machine import Machine, check_against_program, load_machine
-    from ..parser import load_program
 
     if not isinstance(machine, Machine):
         machine = load_machine(machine)
     horizon_ns = parse_horizon(horizon)
-    if program is None:
-        program = load_program(machine.program_path)
-    elif not hasattr(program, "pous"):
-        program = load_program(program)
+    if program is None or not hasattr(program, "pous"):
+        program = machine.read_program(program)
     check_against_program(machine, program)
     timeline = Sequencer(program, machine).run(horizon_ns, scan_stepping=scan_stepping,
                                                tiling=tiling, max_events=max_events)

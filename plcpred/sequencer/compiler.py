@@ -1351,6 +1351,12 @@ class Compiler:
             if scope.fb is not None and scope.fb.action(key) is not None \
                     and key not in scope.names:
                 return "self.a_" + key + "()", ty.VOID
+            if scope.fb is not None and scope.fb.method(key) is not None \
+                    and key not in scope.names:
+                # a method of the FB (or one it inherits) by bare name, as THIS^.name
+                this = ir.Member(ir.Deref(ir.Name("THIS", pos=f.pos), pos=f.pos), f.name,
+                                 pos=f.pos)
+                return self._call_expr(ir.Call(this, call.args, pos=call.pos), scope)
             if is_standard_function(key) and key not in scope.names:
                 return self._std_function(key, call, scope)
             if key in scope.names:
@@ -1564,6 +1570,12 @@ class Compiler:
         if key == "SIZEOF":
             need(1)
             return f"_sizeof({codes[0]})", ty.DINT
+        if key in ("MEMCPY", "MEMMOVE", "MEMSET", "MEMCMP"):
+            need(3)
+            where = _pos_args(call.pos)
+            fn = "_memcpy" if key in ("MEMCPY", "MEMMOVE") else "_" + key.lower()
+            return f"{fn}({', '.join(codes[:3])}, {where})", \
+                ty.DINT if key == "MEMCMP" else ty.elementary("UDINT")
         raise _err(call, f"standard function {key} is not supported by the executor")
 
     # ---------------------------------------------------------------- conversions

@@ -128,6 +128,70 @@ def _opaque(what, file, line, col):
                              "bodies", file, line, col)
 
 
+def _fields(obj) -> list[str]:
+    names = [n for cls in type(obj).__mro__ for n in getattr(cls, "__slots__", ())]
+    return names + list(getattr(obj, "__dict__", ()))
+
+
+def _deref(p, what, where):
+    if p is None:
+        raise rtm.ExecutionError(f"{what}: a null pointer", *where)
+    return p.get() if isinstance(p, rtm.Ref) else p
+
+
+def _replace(dest, value):
+    """Store ``value`` where pointer ``dest`` points: a Ref, an array or an object."""
+    if isinstance(dest, rtm.Ref):
+        dest.set(value)
+    elif isinstance(dest, list):
+        dest[:] = value
+    else:
+        for k in _fields(dest):
+            setattr(dest, k, getattr(value, k))
+
+
+def _memcpy(dest, src, n, *where):
+    """MEMCPY/MEMMOVE of whole values: the source's value becomes the destination's.
+    Bytes are not modelled, so both must hold values of one type."""
+    value, current = _deref(src, "MEMCPY source", where), _deref(dest, "MEMCPY", where)
+    if type(value) is not type(current):
+        raise rtm.ExecutionError(
+            f"MEMCPY from a {type(value).__name__} to a {type(current).__name__}: plcpred "
+            "copies whole values of one type, not bytes", *where)
+    _replace(dest, _copy(value))
+    return n
+
+
+def _zero(v):
+    if isinstance(v, bool):
+        return False
+    if isinstance(v, (int, float, str)):
+        return type(v)()
+    if isinstance(v, list):
+        return [_zero(x) for x in v]
+    if v is None or isinstance(v, rtm.Ref):
+        return None
+    out = _copy(v)
+    for k in _fields(out):
+        setattr(out, k, _zero(getattr(out, k)))
+    return out
+
+
+def _memset(dest, fill, n, *where):
+    """MEMSET to zero: every element and member of the value becomes 0/FALSE/''."""
+    if fill != 0:
+        raise rtm.ExecutionError(f"MEMSET with the fill value {fill}: plcpred models only "
+                                 "clearing to 0", *where)
+    _replace(dest, _zero(_deref(dest, "MEMSET", where)))
+    return n
+
+
+def _memcmp(a, b, n, *where):
+    """MEMCMP of whole values: 0 when equal, else 1."""
+    va, vb = _deref(a, "MEMCMP", where), _deref(b, "MEMCMP", where)
+    return 0 if _snap_any(va, {}) == _snap_any(vb, {}) else 1
+
+
 def _sizeof(v):
     return 1 if isinstance(v, bool) else 8
 
@@ -165,7 +229,7 @@ def _namespace(timers: list, sfcs: list) -> dict:
         "_unlisted": _unlisted,
         "_setattrs": _setattrs, "_nest": _nest, "_copy": _copy, "_snap_any": _snap_any,
         "_refkey": _refkey, "_for_range": _for_range, "_watchdog": _watchdog,
-        "_opaque": _opaque,
+        "_opaque": _opaque, "_memcpy": _memcpy, "_memset": _memset, "_memcmp": _memcmp,
         "_chkidx": rtm.check_index, "_getbit": rtm.getbit, "_setbit": rtm.setbit,
         "_wrap": rtm.wrap, "_idiv": rtm.idiv, "_imod": rtm.imod, "_fdiv": rtm.fdiv,
         "_fmod": __import__("math").fmod, "_tmul": rtm.tmul, "_tdiv": rtm.tdiv,

@@ -1,0 +1,198 @@
+"""Vendor libraries: the declarations (and, where it matters to timing, the behaviour) of
+what real programs use from libraries that are not in their source.
+
+plcpred ships ST stubs of the common ones under ``plcpred/libraries/`` (Beckhoff
+Tc2_System and Tc2_Utilities basics, CODESYS Util, PLCopen motion as Tc2_MC2 and
+SM3_Basic name it); the IEC standard blocks (Tc2_Standard, CODESYS Standard) are built
+in. A user adds their own library declarations as ST, TwinCAT or PLCopen files or
+folders (``plcpred check --lib DIR``, ``libraries = [...]`` in the machine file).
+
+* Only what a program refers to is taken from a library (and what that needs in turn),
+  so a library's other POUs cost nothing and cannot clash with the program's own names.
+  A name the program defines itself always wins.
+* A library's namespace qualifies its names in TwinCAT and CODESYS (``Tc2_System.MEMCPY``,
+  ``TcUnit.FB_TestSuite``): the qualifier is dropped where it names a known library.
+"""
+from __future__ import annotations
+
+import dataclasses
+import functools
+from pathlib import Path
+
+from . import ir
+
+SHIPPED_DIR = Path(__file__).resolve().parent.parent / "libraries"
+# namespaces whose blocks plcpred knows without a file: the IEC standard library
+BUILTIN_NAMESPACES = {"TC2_STANDARD", "STANDARD", "IEC_61131", "TC2_SYSTEM"}
+
+
+@dataclasses.dataclass
+class Library:
+    """Everything one library declares, by upper-case name."""
+    namespace: str
+    pous: dict[str, ir.Pou]
+    types: dict[str, ir.TypeDecl]
+    interfaces: dict[str, ir.Interface]
+    globals: list[ir.GlobalVars]
+
+
+def _library(program: ir.Program, namespace: str) -> Library:
+    return Library(namespace,
+                   {p.name.upper(): p for p in program.pous},
+                   {t.name.upper(): t for t in program.types},
+                   {i.name.upper(): i for i in program.interfaces},
+                   list(program.globals))
+
+
+@functools.lru_cache(maxsize=None)
+def shipped() -> tuple[Library, ...]:
+    """The stubs plcpred ships (parsed once per process)."""
+    from . import load_program
+    libs = []
+    for f in sorted(SHIPPED_DIR.glob("*.st")):
+        prog = load_program(f, libraries=False)
+        namespaces = [p[0] for p in prog.pragmas if p[0].lower().startswith("{library ")]
+        for pragma in namespaces or ["{library " + f.stem + "}"]:
+            for ns in pragma[len("{library "):-1].replace(",", " ").split():
+                libs.append(_library(prog, ns))
+    return tuple(libs)
+
+
+def user_libraries(paths) -> list[Library]:
+    """Libraries from files or folders the user names; the namespace is the file's or
+    folder's name (a .plcproj's stem)."""
+    from . import load_program
+    return [_library(load_program(Path(p), libraries=False), Path(p).stem or Path(p).name)
+            for p in paths]
+
+
+# ------------------------------------------------------------------------- namespaces
+
+def strip_namespaces(program: ir.Program, namespaces: set[str]) -> None:
+    """Drop a library qualifier (``Tc2_System.MEMCPY`` -> ``MEMCPY``) wherever the program
+    writes one: in type names, EXTENDS/IMPLEMENTS and expressions. A qualifier that is
+    also one of the program's own variables or GVLs is left alone."""
+    own = {g.name.upper() for g in program.globals if g.name}
+    ns = {n.upper() for n in namespaces} - own
+
+    def strip(name):
+        if isinstance(name, str) and "." in name:
+            head, rest = name.split(".", 1)
+            if head.upper() in ns:
+                return rest
+        return name
+
+    for pou in program.pous:
+        pou.extends = strip(pou.extends)
+        pou.implements = [strip(i) for i in pou.implements]
+    for itf in program.interfaces:
+        itf.extends = [strip(i) for i in itf.extends]
+    stack = [program]
+    while stack:
+        node = stack.pop()
+        for f in dataclasses.fields(node):
+            value = getattr(node, f.name)
+            if isinstance(value, ir.NamedType):
+                value.name = strip(value.name)
+            new = _unqualified(value, ns)
+            if new is not value:
+                setattr(node, f.name, new)
+                value = new
+            _push(stack, value, ns)
+
+
+def _unqualified(value, ns):
+    """``NS.x`` (a Member of the Name of a namespace) as the Name ``x``."""
+    if isinstance(value, ir.Member) and isinstance(value.base, ir.Name) \
+            and value.base.name.upper() in ns:
+        return ir.Name(value.member, pos=value.pos)
+    return value
+
+
+def _push(stack, value, ns):
+    if dataclasses.is_dataclass(value):
+        stack.append(value)
+    elif isinstance(value, (list, tuple)):
+        for i, v in enumerate(value):
+            if isinstance(value, list):
+                new = _unqualified(v, ns)
+                if new is not v:
+                    value[i] = v = new
+            _push(stack, v, ns)
+    elif isinstance(value, dict):
+        for v in value.values():
+            _push(stack, v, ns)
+
+
+# ------------------------------------------------------------------------- selection
+
+def _referenced(node) -> set[str]:
+    """Every name (upper case) a piece of IR refers to."""
+    names, stack = set(), [node]
+    while stack:
+        n = stack.pop()
+        if isinstance(n, (list, tuple)):
+            stack.extend(n)
+            continue
+        if isinstance(n, dict):
+            stack.extend(n.values())
+            continue
+        if not dataclasses.is_dataclass(n):
+            continue
+        if isinstance(n, (ir.Name, ir.NamedType)):
+            names.add(n.name.upper())
+        elif isinstance(n, ir.Pou):
+            names.update(x.upper() for x in [n.extends or ""] + n.implements if x)
+        elif isinstance(n, ir.Interface):
+            names.update(x.upper() for x in n.extends)
+        for f in dataclasses.fields(n):
+            stack.append(getattr(n, f.name))
+    return names
+
+
+def _defined(programs) -> set[str]:
+    out = set()
+    for p in programs:
+        out.update(x.name.upper() for x in p.pous)
+        out.update(x.name.upper() for x in p.types)
+        out.update(x.name.upper() for x in p.interfaces)
+        for g in p.globals:
+            out.update(d.name.upper() for d in g.block.decls)
+            if g.name:
+                out.add(g.name.upper())
+    return out
+
+
+def library_program(programs: list[ir.Program], paths=()) -> ir.Program:
+    """What ``programs`` use from the libraries (user libraries first, then the shipped
+    stubs), as one Program; library qualifiers in ``programs`` are dropped."""
+    libs = user_libraries(paths) + list(shipped())
+    namespaces = {lib.namespace for lib in libs} | BUILTIN_NAMESPACES
+    for p in programs:
+        strip_namespaces(p, namespaces)
+    out = ir.Program(source="<libraries>")
+    have = _defined(programs)
+    wanted = set().union(*(_referenced(p) for p in programs)) - have
+    while wanted:
+        name = wanted.pop()
+        for lib in libs:
+            found = lib.pous.get(name) or lib.types.get(name) or lib.interfaces.get(name)
+            gvl = None if found else next(
+                (g for g in lib.globals if name in {d.name.upper() for d in g.block.decls}
+                 or (g.name or "").upper() == name), None)
+            if found is None and gvl is None:
+                continue
+            item = found or gvl
+            if isinstance(item, ir.Pou):
+                out.pous.append(item)
+            elif isinstance(item, ir.TypeDecl):
+                out.types.append(item)
+            elif isinstance(item, ir.Interface):
+                out.interfaces.append(item)
+            else:
+                out.globals.append(item)
+            new = _defined([out]) | have
+            wanted |= _referenced(item) - new
+            have = new
+            break
+    return out

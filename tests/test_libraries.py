@@ -1,0 +1,170 @@
+"""Vendor libraries: the shipped stubs, user libraries, namespaces and MEM* built-ins."""
+import pytest
+
+from plcpred.cli import main
+from plcpred.machine import load_machine
+from plcpred.parser import load_program, parse_st
+from plcpred.sequencer import ExecutionError, unfold
+from plcpred.sequencer.executor import ProgramInstance
+
+MS = 1_000_000
+
+
+def run_file(path, scans, setup=None, scan_ms=10, **kw):
+    """(program instance, per-scan snapshots of the PROGRAM) of a program file."""
+    inst = ProgramInstance(load_program(path, **kw))
+    prog = inst.programs[0]
+    for k in range(scans):
+        if setup:
+            setup(prog, k)
+        inst.guard(inst.scan, k * scan_ms * MS)
+        yield k, prog
+
+
+def write(tmp_path, name, text):
+    f = tmp_path / name
+    f.parent.mkdir(parents=True, exist_ok=True)
+    f.write_text(text)
+    return f
+
+
+def test_codesys_util_blink_high_then_low_and_namespaced(tmp_path, capsys):
+    f = write(tmp_path, "p.st", "PROGRAM P\nVAR\n  b : Util.BLINK;\n  go, q : BOOL;\nEND_VAR\n"
+              "b(ENABLE := go, TIMEHIGH := T#30MS, TIMELOW := T#20MS, OUT => q);\nEND_PROGRAM\n")
+    outs = [p.Q for _, p in run_file(f, 14, lambda p, k: setattr(p, "GO", k >= 2))]
+    # ENABLE from 20 ms: TRUE for 30 ms, FALSE for 20 ms, TRUE again, ...
+    assert outs == [False, False, True, True, True, False, False, True, True, True, False,
+                    False, True, True]
+    assert main(["check", str(f)]) == 0
+    assert "warning" not in capsys.readouterr().err     # the stub's own findings stay out
+
+
+def test_motion_move_completes_after_its_trapezoidal_profile(tmp_path):
+    f = write(tmp_path, "m.st", """PROGRAM P
+VAR
+    ax : AXIS_REF;
+    pwr : MC_Power;
+    mv : Tc2_MC2.MC_MoveAbsolute;
+    rel : MC_MoveRelative;
+    go, done, done2 : BOOL;
+END_VAR
+pwr(Axis := ax, Enable := TRUE);
+mv(Axis := ax, Execute := go, Position := 100.0, Velocity := 50.0, Acceleration := 100.0,
+   Deceleration := 100.0, Done => done);
+rel(Axis := ax, Execute := done, Distance := -10.0, Velocity := 50.0, Acceleration := 100.0,
+    Deceleration := 100.0, Done => done2);
+END_PROGRAM
+""")
+    done_at = done2_at = None
+    for k, p in run_file(f, 400, lambda p, k: setattr(p, "GO", k >= 1)):
+        if p.DONE and done_at is None:
+            done_at = k
+        if p.DONE2 and done2_at is None:
+            done2_at = k
+    # 0 -> 100 at 50/s with 100/s2 ramps: 0.5 s + 75/50 s + 0.5 s = 2.5 s after the edge
+    assert (done_at - 1) * 10 == pytest.approx(2500, abs=10)
+    # then 10 back, a triangle: 2 * sqrt(10 / 100) s = 0.632 s
+    assert (done2_at - done_at) * 10 == pytest.approx(632, abs=10)
+    assert p.AX.ACTUALPOSITION == pytest.approx(90.0)
+
+
+def test_user_library_by_option_and_by_machine_file(tmp_path, capsys, samples_dir):
+    lib = write(tmp_path, "libs/ValveLib/FB_Pulse.st", """FUNCTION_BLOCK FB_Pulse
+VAR_INPUT
+    bStart : BOOL;
+    tOn : TIME;
+END_VAR
+VAR_OUTPUT
+    bValve : BOOL;
+END_VAR
+VAR
+    tp : TP;
+END_VAR
+tp(IN := bStart, PT := tOn, Q => bValve);
+END_FUNCTION_BLOCK
+""").parent
+    prog = write(tmp_path, "station.st", """PROGRAM Main
+VAR
+    bGo AT %IX0.0 : BOOL;
+    bOut AT %QX0.0 : BOOL;
+    fb : ValveLib.FB_Pulse;
+END_VAR
+fb(bStart := bGo, tOn := T#300MS, bValve => bOut);
+END_PROGRAM
+""")
+    assert main(["check", str(prog)]) == 1
+    assert "FB_Pulse" in capsys.readouterr().err
+    assert main(["check", "--lib", str(lib), str(prog)]) == 0
+    machine = write(tmp_path, "station.toml", """[machine]
+program = "station.st"
+libraries = ["libs/ValveLib/"]
+supply_bar_g = 6.0
+
+[[input]]
+signal = "bGo"
+period_s = 2.0
+pulse_ms = 50
+
+[[consumer]]
+name = "blow"
+kind = "nozzle"
+orifice_mm = 1.0
+Cd = 0.8
+valve = "bOut"
+""")
+    tl = unfold(load_machine(machine), "10s")
+    assert tl.count_rising("bOut") == 5
+    assert tl.on_time_s("bOut") == pytest.approx(1.5, abs=0.05)
+    bad = write(tmp_path, "bad.toml", machine.read_text().replace("libs/ValveLib/", "nope/"))
+    with pytest.raises(Exception, match=r"\[machine\].*library 'nope/' not found"):
+        load_machine(bad)
+
+
+SRC_MEM = """TYPE ST_P : STRUCT a : INT; b : ARRAY[0..2] OF BOOL; END_STRUCT END_TYPE
+PROGRAM P
+VAR
+    x, y : ST_P;
+    arr1, arr2 : ARRAY[1..3] OF INT;
+    n : INT;
+    same, differ, same2 : DINT;
+END_VAR
+x.a := 7; x.b[1] := TRUE; arr1[2] := 5;
+MEMCPY(ADR(y), ADR(x), SIZEOF(x));
+MEMCPY(destAddr := ADR(arr2), srcAddr := ADR(arr1), n := SIZEOF(arr1));
+same := MEMCMP(ADR(x), ADR(y), SIZEOF(x));
+MEMSET(ADR(x), 0, SIZEOF(x));
+differ := MEMCMP(ADR(x), ADR(y), SIZEOF(x));
+Tc2_System.MEMCPY(ADR(n), ADR(arr1[2]), 2);
+same2 := MEMCMP(ADR(n), ADR(arr2[2]), 2);
+END_PROGRAM
+"""
+
+
+def test_memcpy_memset_memcmp_on_whole_values(tmp_path):
+    f = write(tmp_path, "mem.st", SRC_MEM)
+    _, p = list(run_file(f, 1))[-1]
+    assert (p.Y.A, list(p.Y.B), list(p.ARR2)) == (7, [False, True, False], [0, 5, 0])
+    assert (p.X.A, list(p.X.B)) == (0, [False, False, False])
+    assert (p.SAME, p.DIFFER, p.N, p.SAME2) == (0, 1, 5, 0)
+    f = write(tmp_path, "bad.st", SRC_MEM.replace("ADR(y), ADR(x)", "ADR(arr1), ADR(x)"))
+    with pytest.raises(ExecutionError, match="whole values of one type"):
+        list(run_file(f, 1))
+
+
+def test_a_name_the_program_defines_wins_over_a_library(tmp_path):
+    f = write(tmp_path, "p.st", """FUNCTION_BLOCK BLINK
+VAR_OUTPUT
+    OUT : BOOL := TRUE;
+END_VAR
+END_FUNCTION_BLOCK
+PROGRAM P
+VAR
+    b : BLINK;
+    q : BOOL;
+END_VAR
+b(OUT => q);
+END_PROGRAM
+""")
+    prog = load_program(f)
+    assert [p.name for p in prog.pous] == ["BLINK", "P"]
+    assert parse_st(f.read_text(), str(f)) == load_program(f, libraries=False)
