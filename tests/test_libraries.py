@@ -168,3 +168,21 @@ END_PROGRAM
     prog = load_program(f)
     assert [p.name for p in prog.pous] == ["BLINK", "P"]
     assert parse_st(f.read_text(), str(f)) == load_program(f, libraries=False)
+
+
+def test_tc2_utilities_trim_and_cpu_counter(tmp_path):
+    f = write(tmp_path, "t.st", """PROGRAM P
+VAR
+    s, r : STRING := '   padded  ';
+    cnt : GETCPUCOUNTER;
+    lo : UDINT;
+END_VAR
+s := F_LTrim('   padded  ');
+r := F_RTrim(s);
+cnt();
+lo := cnt.cpuCntLoDW;
+END_PROGRAM
+""")
+    snaps = [(p.S, p.R, p.LO) for _, p in run_file(f, 3)]
+    assert [x[:2] for x in snaps] == [("padded  ", "padded")] * 3
+    assert [x[2] for x in snaps] == [0, 100_000, 200_000]   # 100 ns ticks at 10 ms scans
