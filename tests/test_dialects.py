@@ -182,3 +182,38 @@ def test_a_method_called_by_its_bare_name_inside_its_fb_and_a_derived_one():
            + body("a : FB_A; b : FB_B; r : INT;", "a(); b(); r := a.n * 100 + b.m;"))
     assert trace(src, ("R",), lambda k: {}, scans=2) == [(210,), (420,)]
     assert problems(src) == []
+
+
+def test_set_and_reset_assignments_and_a_variable_named_s():
+    src = body("q, r, s, go, eq : BOOL; arr : ARRAY[0..1] OF BOOL := [FALSE, TRUE];",
+               "q S= go;\narr[1] R= go;\nr R= s;\ns := go;\neq := s = TRUE;")
+    got = trace(src, ("Q", "EQ"), lambda k: {"GO": k == 1}, scans=3)
+    assert got == [(False, False), (True, True), (True, False)]   # S= holds, = compares
+    prog = parse_st(src, "t.st")
+    assert [s.op for s in prog.pou("P").body] == ["S=", "R=", "R=", ":=", ":="]
+
+
+def test_twincat_conditional_return_and_trailing_commas():
+    src = ("INTERFACE I_A\nEND_INTERFACE\nINTERFACE I_B\nEND_INTERFACE\n"
+           "FUNCTION_BLOCK FB_A IMPLEMENTS I_A, I_B,\nVAR_INPUT\n  go : BOOL;\nEND_VAR\n"
+           "VAR_OUTPUT\n  n : INT;\nEND_VAR\nRETURN(NOT go);\nn := n + 1;\nEND_FUNCTION_BLOCK\n"
+           + body("fb : FB_A; x : BOOL; m : INT;", "fb(go := x,\n);\nm := fb.n;"))
+    assert trace(src, ("M",), lambda k: {"X": k != 1}, scans=4) == [(1,), (1,), (2,), (3,)]
+    assert problems(src) == []
+
+
+def test_fb_init_arguments_on_a_namespaced_type():
+    src = ("FUNCTION_BLOCK FB_Rng\nVAR_INPUT\n  seed : INT;\nEND_VAR\nEND_FUNCTION_BLOCK\n"
+           + body("r : Lib.FB_Rng(0); s : Lib.FB_Rng; sub : INT(0..9);", ""))
+    decl = next(parse_st(src, "t.st").pou("P").decls())
+    assert (decl.type.name, len(decl.init_args)) == ("Lib.FB_Rng", 1)
+
+
+def test_chained_assignment_and_return_with_an_assignment():
+    src = ("FUNCTION_BLOCK FB_A\nVAR_INPUT\n  t : REAL;\nEND_VAR\nVAR_OUTPUT\n  bInit : BOOL;\n"
+           "  n : INT;\nEND_VAR\nRETURN(bInit := t <= 0);\nn := n + 1;\nEND_FUNCTION_BLOCK\n"
+           + body("fb : FB_A; a, b : INT; m : INT; k : REAL;",
+                  "a := b := 7;\nCASE a OF 7: a := b := 8; END_CASE\nfb(t := k);\nm := fb.n;"))
+    got = trace(src, ("A", "B", "M"), lambda k: {"K": float(k % 2)}, scans=3)
+    assert got == [(8, 8, 0), (8, 8, 1), (8, 8, 1)]
+    assert problems(src) == []

@@ -191,3 +191,22 @@ def test_beremiz_style_export_with_layout_data_and_uppercase_string():
     assert label.init == ir.Literal("hi", "STRING")
     from plcpred.parser.check import check_program
     assert check_program(prog)[0] == []
+
+
+@pytest.mark.parametrize("interval, ns", [("PT0.05S", 50_000_000), ("00:00:00.1", 100_000_000),
+                                          ("P0DT0H1M0S", 60_000_000_000), ("T#20ms", 20_000_000)])
+def test_task_intervals_as_xsd_durations_and_clock_times(interval, ns):
+    xml = project(
+        pous='<pou name="P" pouType="program"><body><ST><xhtml:p>;</xhtml:p></ST></body></pou>',
+        instances='<configuration name="C"><resource name="R">'
+                  f'<task name="T" interval="{interval}" priority="1">'
+                  '<pouInstance name="p" typeName="P"/></task></resource></configuration>')
+    task = parse_plcopen(xml, "t.xml").configurations[0].resources[0].tasks[0]
+    assert task.params["INTERVAL"].value == ns
+
+
+def test_a_task_interval_that_is_no_duration_is_named():
+    xml = project(instances='<configuration name="C"><resource name="R">'
+                            '<task name="T" interval="PT" priority="1"/></resource></configuration>')
+    with pytest.raises(ProgramError, match="task interval 'PT'"):
+        parse_plcopen(xml, "t.xml")

@@ -45,12 +45,24 @@ class _FbInit:
         self.args = args
 
 
+class _Several(list):
+    """Statements one construct stands for (``a := b := 0;``), spliced into the list."""
+
+
 class _CaseHead:
     __slots__ = ("labels", "pos")
 
     def __init__(self, labels, pos):
         self.labels = labels
         self.pos = pos
+
+
+def _spliced(items):
+    for item in items:
+        if isinstance(item, _Several):
+            yield from item
+        else:
+            yield item
 
 
 class IRBuilder:
@@ -196,7 +208,7 @@ class IRBuilder:
     def stmt_list(self, *stmts):
         out = []
         prev = None
-        for s in stmts:
+        for s in _spliced(stmts):
             # ``END_IF;``: the semicolon vendors accept after a compound statement is not an
             # empty statement of its own.
             if type(s) is ir.Empty and isinstance(prev, _COMPOUND):
@@ -209,8 +221,19 @@ class IRBuilder:
     def assign(self, target, value):
         return ir.Assign(target, value, pos=target.pos)
 
+    def chained_assign(self, first, second, value):
+        """``a := b := v;`` (CODESYS, TwinCAT): b := v, then a := b."""
+        return _Several([ir.Assign(second, value, pos=second.pos),
+                         ir.Assign(first, second, pos=first.pos)])
+
     def ref_assign(self, target, value):
         return ir.Assign(target, value, "REF=", pos=target.pos)
+
+    def set_assign(self, target, value):
+        return ir.Assign(target, value, "S=", pos=target.pos)
+
+    def reset_assign(self, target, value):
+        return ir.Assign(target, value, "R=", pos=target.pos)
 
     def attempt_assign(self, target, value):
         return ir.Assign(target, value, "?=", pos=target.pos)
@@ -233,7 +256,7 @@ class IRBuilder:
         else_body = rest[-1]
         branches: list[ir.CaseBranch] = []
         prev = None
-        for part in rest[:-1]:
+        for part in _spliced(rest[:-1]):
             if isinstance(part, _CaseHead):
                 branches.append(ir.CaseBranch(part.labels, [], pos=part.pos))
             elif not branches:
@@ -280,6 +303,15 @@ class IRBuilder:
     def return_stmt(self, tok):
         return ir.Return(pos=self._pos(tok))
 
+    def conditional_return(self, tok, cond):
+        """TwinCAT's ``RETURN(cond);``: return when ``cond`` is TRUE."""
+        return ir.If([(cond, [ir.Return(pos=self._pos(tok))])], pos=self._pos(tok))
+
+    def conditional_return_assign(self, tok, target, value):
+        """``RETURN(x := cond);``: x := cond, then return when x is TRUE."""
+        return _Several([ir.Assign(target, value, pos=target.pos),
+                         self.conditional_return(tok, target)])
+
     def empty_stmt(self):
         return ir.Empty()
 
@@ -322,7 +354,7 @@ class IRBuilder:
         return ir.PointerType(target, tok.type == "REFERENCE", pos=self._pos(tok))
 
     def fb_init_type(self, name, args):
-        return _FbInit(ir.NamedType(str(name), pos=self._pos(name)), args or [])
+        return _FbInit(ir.NamedType(str(name), pos=name.pos), args or [])
 
     def _plain(self, t):
         """A type where FB_init arguments cannot stand."""
@@ -332,7 +364,7 @@ class IRBuilder:
         return t
 
     def subrange_type(self, base, low, high):
-        return ir.SubrangeType(str(base), low, high, pos=self._pos(base))
+        return ir.SubrangeType(str(base), low, high, pos=base.pos)
 
     def enum_type(self, *parts):
         base = parts[-1]

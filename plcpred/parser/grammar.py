@@ -13,7 +13,7 @@ the parse tree. Two choices keep the grammar LALR(1) and fast:
 
 TERMINALS = """
 %declare INLINE_CODE NAME INTEGER REAL TYPED_LIT TIME_LIT DT_LIT TOD_LIT DATE_LIT ENUM_LIT STRING_LIT WSTRING_LIT ADDRESS
-%declare _ASSIGN _OUTASSIGN LE GE NE POW _DOTDOT _ATTEMPT PLUS MINUS STAR SLASH LT GT EQ _LPAR _RPAR _LSQB _RSQB _COMMA _SEMI _COLON _DOT _CARET AMP _ARROW _REFASSIGN
+%declare _ASSIGN _OUTASSIGN LE GE NE POW _DOTDOT _ATTEMPT PLUS MINUS STAR SLASH LT GT EQ _LPAR _RPAR _LSQB _RSQB _COMMA _SEMI _COLON _DOT _CARET AMP _ARROW _REFASSIGN _SETASSIGN _RESETASSIGN
 %declare PROGRAM _END_PROGRAM FUNCTION _END_FUNCTION FUNCTION_BLOCK _END_FUNCTION_BLOCK METHOD _END_METHOD
 %declare PROPERTY _END_PROPERTY INTERFACE _END_INTERFACE _EXTENDS _IMPLEMENTS END_GET END_SET
 %declare VAR VAR_INPUT VAR_OUTPUT VAR_IN_OUT VAR_TEMP VAR_GLOBAL VAR_EXTERNAL VAR_STAT VAR_INST VAR_CONFIG VAR_ACCESS _END_VAR
@@ -63,7 +63,7 @@ COMMON = r"""
 // the operators IEC also defines as functions, called as such: AND(a, b), MOD(a, b)
 !fn_operator: AND | OR | XOR | MOD
 
-args: arg (_COMMA arg)*
+args: arg (_COMMA arg)* _COMMA?
 ?arg: expr -> pos_arg
     | NAME _ASSIGN expr -> named_arg
     | NAME _OUTASSIGN postfix -> out_arg
@@ -71,15 +71,18 @@ args: arg (_COMMA arg)*
 
 // ------------------------------------------------------------------ statements
 stmt_list: stmt*
-?stmt: assign | ref_assign | attempt_assign | call_stmt | if_stmt | case_stmt | for_stmt
+?stmt: assign | ref_assign | set_assign | reset_assign | attempt_assign | call_stmt | if_stmt | case_stmt | for_stmt
      | while_stmt | repeat_stmt | exit_stmt | continue_stmt | return_stmt | empty_stmt
      | jmp_stmt | label_stmt | inline_stmt
-?stmt_nolabel: assign | ref_assign | attempt_assign | call_stmt | if_stmt | case_stmt
+?stmt_nolabel: assign | ref_assign | set_assign | reset_assign | attempt_assign | call_stmt | if_stmt | case_stmt
              | for_stmt | while_stmt | repeat_stmt | exit_stmt | continue_stmt | return_stmt
              | empty_stmt | jmp_stmt | inline_stmt
 
 assign: postfix _ASSIGN expr _SEMI
+      | postfix _ASSIGN postfix _ASSIGN expr _SEMI -> chained_assign
 ref_assign: postfix _REFASSIGN expr _SEMI
+set_assign: postfix _SETASSIGN expr _SEMI
+reset_assign: postfix _RESETASSIGN expr _SEMI
 attempt_assign: postfix _ATTEMPT expr _SEMI
 call_stmt: postfix _SEMI
 if_stmt: IF expr _THEN stmt_list elsif* [_ELSE stmt_list] _END_IF
@@ -95,6 +98,8 @@ repeat_stmt: REPEAT stmt_list _UNTIL expr _END_REPEAT
 exit_stmt: EXIT _SEMI
 continue_stmt: CONTINUE _SEMI
 return_stmt: RETURN _SEMI
+           | RETURN _LPAR expr _RPAR _SEMI -> conditional_return
+           | RETURN _LPAR postfix _ASSIGN expr _RPAR _SEMI -> conditional_return_assign
 empty_stmt: _SEMI
 jmp_stmt: JMP NAME _SEMI
 label_stmt: NAME _COLON
@@ -110,8 +115,8 @@ name_list: NAME (_COMMA NAME)*
           | _ARRAY _LSQB array_dim (_COMMA array_dim)* _RSQB _OF type_spec -> array_type
           | POINTER _TO type_spec -> pointer_type
           | REFERENCE _TO type_spec -> pointer_type
-          | NAME _LPAR expr _DOTDOT expr _RPAR -> subrange_type
-          | NAME _LPAR [args] _RPAR -> fb_init_type
+          | qual_name _LPAR expr _DOTDOT expr _RPAR -> subrange_type
+          | qual_name _LPAR [args] _RPAR -> fb_init_type
           | _LPAR enum_value (_COMMA enum_value)* _RPAR [NAME] -> enum_type
           | STRUCT var_decl* _END_STRUCT -> struct_type
           | UNION var_decl* _END_UNION -> struct_type
@@ -146,7 +151,7 @@ _top_item: program_pou | fb_pou | function_pou | type_block | interface | config
 program_pou: PROGRAM modifiers NAME _SEMI? var_blocks body_items _END_PROGRAM
 fb_pou: FUNCTION_BLOCK modifiers NAME [_EXTENDS qual_name] [_IMPLEMENTS qual_list] _SEMI? var_blocks body_items _END_FUNCTION_BLOCK
 function_pou: FUNCTION modifiers NAME [_COLON type_spec] _SEMI? var_blocks body_items _END_FUNCTION
-qual_list: qual_name (_COMMA qual_name)*
+qual_list: qual_name (_COMMA qual_name)* _COMMA?
 modifiers: modifier*
 !modifier: PUBLIC | PRIVATE | PROTECTED | INTERNAL | ABSTRACT | FINAL
 

@@ -88,6 +88,8 @@ OPERATORS = {
     "->": "_ARROW",
 }
 
+_VARIABLE_END = {"NAME", "_RSQB", "_RPAR", "_CARET"}
+
 # Leading white space is part of every match, which halves the number of matches.
 _MASTER = re.compile(r"""\s*(?:
  (?P<lc>//[^\n]*)
@@ -131,6 +133,28 @@ class Tokenizer:
         return ProgramError(message, self.filename, line, col)
 
     def __iter__(self):
+        """Tokens, with the CODESYS/TwinCAT set and reset assignments ``x S= c;`` and
+        ``x R= c;`` joined into one token: an ``S`` or ``R`` written right against ``=``
+        after the end of a variable (a name, ``]``, ``)`` or ``^``)."""
+        tokens = self._tokens()
+        prev = None
+        for tok in tokens:
+            if tok.type == "NAME" and tok.value.upper() in ("S", "R") and prev is not None \
+                    and prev.type in _VARIABLE_END:
+                nxt = next(tokens, None)
+                if nxt is not None and nxt.type == "EQ" and nxt.line == tok.line \
+                        and nxt.column == tok.column + 1:
+                    tok = Token("_SETASSIGN" if tok.value.upper() == "S" else "_RESETASSIGN",
+                                tok.value.upper() + "=", tok.line, tok.column)
+                else:
+                    yield tok
+                    prev, tok = tok, nxt
+                    if tok is None:
+                        return
+            yield tok
+            prev = tok
+
+    def _tokens(self):
         text = self.text
         n = len(text)
         pos = 0

@@ -8,6 +8,8 @@ position in the XML file, so errors point at the file's line and column.
 """
 from __future__ import annotations
 
+import re
+
 from xml.parsers import expat
 
 from . import ir
@@ -25,6 +27,9 @@ _VAR_KINDS = {"localVars": "VAR", "inputVars": "VAR_INPUT", "outputVars": "VAR_O
 _POU_KINDS = {"program": "PROGRAM", "functionBlock": "FUNCTION_BLOCK", "function": "FUNCTION"}
 
 
+_XSD_DURATION = re.compile(r"P(?:(?P<d>\d+(?:\.\d+)?)D)?T?(?:(?P<h>\d+(?:\.\d+)?)H)?"
+                           r"(?:(?P<m>\d+(?:\.\d+)?)M)?(?:(?P<s>\d+(?:\.\d+)?)S)?")
+_CLOCK = re.compile(r"(?P<d>)(?P<h>\d{1,2}):(?P<m>\d{1,2}):(?P<s>\d{1,2}(?:\.\d+)?)")
 MAX_XML_DEPTH = 500  # a PLCopen file nests about 12 deep; FBD/LD layouts a few more
 
 
@@ -166,6 +171,20 @@ class _Importer:
     def expr_text(self, text: str, line: int = 0, col: int = 1):
         wrapped = self._padded(text, line, col, "PROGRAM __plcopen_expr __x :=")
         return parse_st(wrapped + "\n;END_PROGRAM", self.file).pous[0].body[0].value
+
+    def interval(self, el: _El, value: str):
+        """A task interval: an ST TIME literal (``T#50ms``) or, as the PLCopen schema types
+        it, an xsd:duration (``PT0.05S``) or a clock time (``00:00:00.1``)."""
+        text = value.strip()
+        m = _XSD_DURATION.fullmatch(text) or _CLOCK.fullmatch(text)
+        if m is None:
+            return self.value_text(el, value)
+        d, h, mi, s = (float(m.group(g) or 0) for g in ("d", "h", "m", "s"))
+        ns = round((((d * 24 + h) * 60 + mi) * 60 + s) * 1e9)
+        if not 0 < ns < 10**15:
+            raise self.error(el, f"task interval {value[:40]!r} is not a positive duration "
+                                 "below 11 days")
+        return ir.Literal(ns, "TIME", pos=ir.Pos(self.file, el.line, el.col))
 
     def value_text(self, el: _El, value: str):
         try:
@@ -488,7 +507,7 @@ class _Importer:
             for t in r.findall("task"):
                 params = {}
                 if t.attrib.get("interval"):
-                    params["INTERVAL"] = self.value_text(t, self.req(t, "interval"))
+                    params["INTERVAL"] = self.interval(t, self.req(t, "interval"))
                 if t.attrib.get("priority"):
                     params["PRIORITY"] = self.value_text(t, self.req(t, "priority"))
                 if t.attrib.get("single"):
