@@ -18,6 +18,8 @@ What counts:
 * *project check*: no error when checked with the other files of its project (the files
   its ``.plcproj`` compiles, or else those of its folder) and the libraries it uses
   (the shipped stubs; TcUnit for the TcUnit examples, as ``--lib`` would give it);
+* *+extern*: the project check with ``--allow-external`` (names of libraries that are
+  not at hand are warnings);
 * a *traceback* is any exception that is not plcpred's positioned error.
 """
 from __future__ import annotations
@@ -93,6 +95,7 @@ def group_of(path: Path, project: Path) -> Path:
 class Tally:
     def __init__(self):
         self.files = self.syntax = self.file_ok = self.project_ok = self.tracebacks = 0
+        self.external_ok = 0
         self.problems: list[str] = []
 
 
@@ -106,12 +109,12 @@ def _load(path: Path, tally: Tally):
         return None, f"{path}: TRACEBACK\n{traceback.format_exc(limit=3)}"
 
 
-def _check(program, context, tally: Tally, libs=()):
+def _check(program, context, tally: Tally, libs=(), external=False):
     """Errors of ``program`` checked with ``context`` and what they use from libraries,
-    as ``plcpred check`` does."""
+    as ``plcpred check`` does (``--allow-external`` with ``external``)."""
     try:
         context = list(context) + [library_program([program, *context], libs)]
-        return [str(e) for e in check_program(program, context)[0]]
+        return [str(e) for e in check_program(program, context, external)[0]]
     except Exception:  # noqa: BLE001
         tally.tracebacks += 1
         return [f"{program.source}: TRACEBACK in check\n{traceback.format_exc(limit=3)}"]
@@ -141,6 +144,7 @@ def measure(project: Path, libs=()) -> Tally:
                 t.problems.append(errors[0])
             else:
                 t.project_ok += 1
+            t.external_ok += not _check(loaded[f], context, t, libs, external=True)
     return t
 
 
@@ -160,19 +164,20 @@ def main(argv=None) -> int:
         return 2
     pct = lambda a, b: f"{100 * a / b:5.1f} %" if b else "    -"  # noqa: E731
     print(f"{'project':38} {'files':>5} {'syntax':>8} {'file chk':>8} {'proj chk':>8} "
-          f"{'tracebk':>7}")
+          f"{'+extern':>8} {'tracebk':>7}")
     total = Tally()
     for project in projects:
         t = measure(project, [args.root / p for p in LIBRARIES.get(project.name, [])])
-        for k in ("files", "syntax", "file_ok", "project_ok", "tracebacks"):
+        for k in ("files", "syntax", "file_ok", "project_ok", "external_ok", "tracebacks"):
             setattr(total, k, getattr(total, k) + getattr(t, k))
         print(f"{project.name[:38]:38} {t.files:5} {pct(t.syntax, t.files):>8} "
-              f"{pct(t.file_ok, t.files):>8} {pct(t.project_ok, t.files):>8} {t.tracebacks:7}")
+              f"{pct(t.file_ok, t.files):>8} {pct(t.project_ok, t.files):>8} "
+              f"{pct(t.external_ok, t.files):>8} {t.tracebacks:7}")
         for problem in t.problems[:args.failures]:
             print("    " + problem.replace("\n", "\n    ")[:400])
     t = total
     print(f"{'all':38} {t.files:5} {pct(t.syntax, t.files):>8} {pct(t.file_ok, t.files):>8} "
-          f"{pct(t.project_ok, t.files):>8} {t.tracebacks:7}")
+          f"{pct(t.project_ok, t.files):>8} {pct(t.external_ok, t.files):>8} {t.tracebacks:7}")
     return 1 if total.tracebacks else 0
 
 

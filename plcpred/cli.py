@@ -41,7 +41,7 @@ def _summary(program) -> str:
 
 def cmd_check(args) -> int:
     from .parser import ProgramError, load_program
-    from .parser.check import check_program
+    from .parser.check import ExternalWarning, check_program
 
     from .parser.libraries import library_program
 
@@ -61,9 +61,12 @@ def cmd_check(args) -> int:
         except ProgramError as e:
             print(e, file=sys.stderr)
             return 1
-    results = {path: ([], []) if args.syntax_only else check_program(program, context)
+    results = {path: ([], []) if args.syntax_only else
+               check_program(program, context, args.allow_external)
                for path, program in parsed.items()}
-    if not args.syntax_only and not any(errors for errors, _ in results.values()):
+    externals = any(isinstance(w, ExternalWarning) for _, ws in results.values() for w in ws)
+    if not args.syntax_only and not externals and \
+            not any(errors for errors, _ in results.values()):
         compile_error = _compile_check(context)
         if compile_error is not None:
             path = next((p for p in parsed if p == compile_error.file), next(iter(parsed)))
@@ -421,6 +424,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("programs", nargs="+", metavar="PROGRAM")
     p.add_argument("--syntax-only", action="store_true",
                    help="skip semantic checks (for fragments using libraries not at hand)")
+    p.add_argument("--allow-external", action="store_true",
+                   help="names nothing at hand declares (types, FBs, functions, library "
+                        "qualifiers) are warnings, not errors: for code that uses a library "
+                        "you do not have. Such a project cannot run, so the compile check "
+                        "is skipped")
     p.add_argument("--lib", action="append", default=[], metavar="PATH",
                    help="declarations of a library the programs use: an ST, TwinCAT or "
                         "PLCopen file, a .plcproj or a folder (repeatable; its name is "

@@ -186,3 +186,24 @@ END_PROGRAM
     snaps = [(p.S, p.R, p.LO) for _, p in run_file(f, 3)]
     assert [x[:2] for x in snaps] == [("padded  ", "padded")] * 3
     assert [x[2] for x in snaps] == [0, 100_000, 200_000]   # 100 ns ticks at 10 ms scans
+
+
+def test_allow_external_turns_names_of_missing_libraries_into_warnings(tmp_path, capsys):
+    f = write(tmp_path, "p.st", """FUNCTION_BLOCK FB_Test EXTENDS TcUnit.FB_TestSuite IMPLEMENTS I_Missing
+VAR
+    log : FsCommon.FB_Logger;
+    n : INT;
+END_VAR
+n := GeneralConstants.MAX_AXES + F_Missing(n);
+END_FUNCTION_BLOCK
+""")
+    assert main(["check", str(f)]) == 1
+    err = capsys.readouterr().err
+    errors = [line for line in err.splitlines() if "warning:" not in line]
+    assert len(errors) == 5                  # type, EXTENDS, IMPLEMENTS, qualifier, function
+    assert main(["check", "--allow-external", str(f)]) == 0
+    captured = capsys.readouterr()
+    assert captured.err.count("taken as external") == 5 and "ok (6 warnings)" in captured.out
+    # a real mistake stays an error
+    f.write_text(f.read_text().replace("n := ", "nn := "))
+    assert main(["check", "--allow-external", str(f)]) == 1

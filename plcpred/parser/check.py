@@ -122,8 +122,10 @@ class _Globals:
 
 
 class Checker:
-    def __init__(self, program: ir.Program, context: list[ir.Program] = ()):
+    def __init__(self, program: ir.Program, context: list[ir.Program] = (),
+                 allow_external: bool = False):
         self.program = program
+        self.allow_external = allow_external
         self.g = _Globals([program, *[c for c in context if c is not program]])
         self.errors: list[ProgramError] = []
         self.warnings: list[ProgramWarning] = []
@@ -135,6 +137,15 @@ class Checker:
 
     def warn(self, pos, message):
         self.warnings.append(at(pos, message, ProgramWarning))
+
+    def missing(self, pos, message):
+        """A name nothing at hand declares: an error, or with ``allow_external`` a warning
+        (it may come from a library the check was not given)."""
+        if self.allow_external:
+            self.warnings.append(at(pos, f"{message}: taken as external (declared in a "
+                                         "library not at hand)", ExternalWarning))
+        else:
+            self.error(pos, message)
 
     # ------------------------------------------------------------------ entry
     def run(self):
@@ -189,7 +200,7 @@ class Checker:
             if not (up in ELEMENTARY_TYPES or up in self.g.types or up in STANDARD_FBS
                     or up in self.g.interfaces
                     or (up in self.g.pous and self.g.pous[up].kind == "FUNCTION_BLOCK")):
-                self.error(t.pos, f"unknown type '{t.name}' (not an elementary type, a TYPE, "
+                self.missing(t.pos, f"unknown type '{t.name}' (not an elementary type, a TYPE, "
                                   "or a function block)")
         elif isinstance(t, ir.ArrayType):
             for lo, hi in t.dims:
@@ -217,10 +228,10 @@ class Checker:
     def _check_pou(self, pou: ir.Pou):
         self._dups([(d.name, d.pos) for d in pou.decls()], "declaration of")
         if pou.extends and pou.extends.upper() not in self.g.pous:
-            self.error(pou.pos, f"unknown FB type '{pou.extends}' in EXTENDS")
+            self.missing(pou.pos, f"unknown FB type '{pou.extends}' in EXTENDS")
         for name in pou.implements:
             if name.upper() not in self.g.interfaces:
-                self.error(pou.pos, f"unknown interface '{name}' in IMPLEMENTS")
+                self.missing(pou.pos, f"unknown interface '{name}' in IMPLEMENTS")
         scope = self._pou_vars(pou)
         for d in pou.decls():
             self._check_type(d.type, scope)
@@ -446,6 +457,11 @@ class Checker:
             elif ctx is not None and not writing:
                 ctx.usage.read.add(e.name.upper())
         elif t is ir.Member:
+            if self.allow_external and type(e.base) is ir.Name \
+                    and not self._resolve(e.base.name, scope, ctx):
+                # Lib.X or GVL.X of a library not at hand
+                self.missing(e.base.pos, f"undeclared name '{e.base.name}'")
+                return
             self._expr(e.base, scope, ctx, writing)
             self._check_member(e, scope, ctx)
             if ctx is not None and not writing and self._gvl_qualified(e, scope):
@@ -542,7 +558,7 @@ class Checker:
                 outs = {d.name.upper() for d in pou.decls("VAR_OUTPUT")}
                 params = (ins, outs, pou.name)
             elif not (is_standard_function(key) or (ctx is not None and key in ctx.extra)):
-                self.error(func.pos, f"unknown function or function block instance "
+                self.missing(func.pos, f"unknown function or function block instance "
                                      f"'{func.name}'")
         else:
             self._expr(func, scope, ctx)
@@ -591,8 +607,14 @@ def _sub_bodies(s):
         yield s.body
 
 
-def check_program(program: ir.Program, context: list[ir.Program] = ()):
-    """Run the semantic checks. Returns (errors, warnings), each sorted by position."""
-    c = Checker(program, context).run()
+class ExternalWarning(ProgramWarning):
+    """A name taken as declared by a library that is not at hand (``allow_external``)."""
+
+
+def check_program(program: ir.Program, context: list[ir.Program] = (),
+                  allow_external: bool = False):
+    """Run the semantic checks. Returns (errors, warnings), each sorted by position. With
+    ``allow_external``, names nothing at hand declares are warnings (ExternalWarning)."""
+    c = Checker(program, context, allow_external).run()
     key = lambda e: (e.file, e.line, e.col)  # noqa: E731
     return sorted(c.errors, key=key), sorted(c.warnings, key=key)
