@@ -46,6 +46,12 @@ SOURCES = [
     ("tcunit/ExampleProjects", "c2e644cd9db3757ec95f6725925d5c5bd354e586", "none stated"),
     ("klauer/blark", "1922eed94885f41fcc2974981e1041196f7f99f6", "GPL-2.0"),
     ("wonka929/OSCAT_OpenPLC", "7805d6df1fba4b0de666a1a720b51971c7af8afa", "none stated"),
+    ("pcdshub/lcls-twincat-motion", "3cec6ffe2ceeb9a2852dab8a508c346c0da3addf",
+     "SLAC (BSD-like)"),
+    ("fisothemes/FisoThemes-Controller-Toolbox-Library-for-TwinCAT",
+     "1ff02710f784887dcf1db1d203d9abb06030a05c", "MIT"),
+    ("MichielVanwelsenaere/HomeAutomation.CoDeSys3", "298b7bfd73761792e480cad00f342dc38d54a763",
+     "MIT"),
 ]
 # libraries a project uses that another fetched project provides (as --lib would give them)
 LIBRARIES = {

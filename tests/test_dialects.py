@@ -217,3 +217,14 @@ def test_chained_assignment_and_return_with_an_assignment():
     got = trace(src, ("A", "B", "M"), lambda k: {"K": float(k % 2)}, scans=3)
     assert got == [(8, 8, 0), (8, 8, 1), (8, 8, 1)]
     assert problems(src) == []
+
+
+def test_empty_output_bindings_and_empty_declarations():
+    src = ("FUNCTION_BLOCK FB_A\nVAR_OUTPUT\n  q : BOOL := TRUE;\n  n : INT := 3;\nEND_VAR\n"
+           "END_FUNCTION_BLOCK\n"
+           + body("fb : FB_A;; t : TON;; m : INT;",
+                  "fb(q =>, n => m);\nt(IN := TRUE, PT := T#0MS, Q => , ET =>\n);"))
+    assert trace(src, ("M",), lambda k: {}, scans=1) == [(3,)]
+    assert problems(src) == []
+    from plcpred.parser.printer import to_st
+    assert parse_st(to_st(parse_st(src, "t.st")), "t.st") == parse_st(src, "t.st")

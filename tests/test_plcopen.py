@@ -210,3 +210,13 @@ def test_a_task_interval_that_is_no_duration_is_named():
                             '<task name="T" interval="PT" priority="1"/></resource></configuration>')
     with pytest.raises(ProgramError, match="task interval 'PT'"):
         parse_plcopen(xml, "t.xml")
+
+
+def test_a_pou_instance_with_an_empty_type_name_runs_the_program_it_is_named_after():
+    xml = project(
+        pous='<pou name="PRG_A" pouType="program"><body><ST><xhtml:p>;</xhtml:p></ST></body></pou>',
+        instances='<configuration name="C"><resource name="R"><task name="T" interval="PT0.2S" '
+                  'priority="1"><pouInstance name="PRG_A" typeName=""/></task></resource>'
+                  '</configuration>')
+    pi = parse_plcopen(xml, "t.xml").configurations[0].resources[0].programs[0]
+    assert (pi.name, pi.type_name, pi.task) == ("PRG_A", "PRG_A", "T")

@@ -572,7 +572,8 @@ class Checker:
                     self.error(a.pos, f"{type_name} has no {kind} '{a.name}'")
             if a.output:
                 if ctx is not None:
-                    self._write_target(a.value, ctx)
+                    if a.value is not None:   # an empty binding, Q => ,
+                        self._write_target(a.value, ctx)
                 continue
             self._expr(a.value, scope, ctx)
             # a variable handed to a user POU may be written through VAR_IN_OUT

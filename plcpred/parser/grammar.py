@@ -66,8 +66,8 @@ COMMON = r"""
 args: arg (_COMMA arg)* _COMMA?
 ?arg: expr -> pos_arg
     | NAME _ASSIGN expr -> named_arg
-    | NAME _OUTASSIGN postfix -> out_arg
-    | NOT NAME _OUTASSIGN postfix -> neg_out_arg
+    | NAME _OUTASSIGN [postfix] -> out_arg
+    | NOT NAME _OUTASSIGN [postfix] -> neg_out_arg
 
 // ------------------------------------------------------------------ statements
 stmt_list: stmt*
@@ -133,7 +133,7 @@ enum_value: NAME [_ASSIGN expr]
 field_init: NAME _ASSIGN initializer
 
 var_blocks: var_block*
-var_block: var_kind var_qualifier* var_decl* _END_VAR
+var_block: var_kind var_qualifier* (var_decl | _SEMI)* _END_VAR
 !var_kind: VAR | VAR_INPUT | VAR_OUTPUT | VAR_IN_OUT | VAR_TEMP | VAR_GLOBAL | VAR_EXTERNAL
          | VAR_STAT | VAR_INST | VAR_CONFIG | VAR_ACCESS
 !var_qualifier: CONSTANT | RETAIN | NON_RETAIN | PERSISTENT

@@ -141,6 +141,11 @@ class _Importer:
         except KeyError:
             raise self.error(el, f"<{el.tag}> needs a '{name}' attribute") from None
 
+    def type_name(self, pi: _El) -> str:
+        """A pouInstance's typeName; CODESYS leaves it empty when the instance is named
+        after its PROGRAM."""
+        return pi.attrib.get("typeName") or self.req(pi, "name")
+
     def int_attr(self, el: _El, name: str, default: int, low: int = 0,
                  high: int = 1 << 31) -> int:
         """An optional whole-number attribute in [low, high], or an error naming it."""
@@ -516,11 +521,11 @@ class _Importer:
                                          pos=ir.Pos(self.file, t.line, t.col)))
                 for pi in t.findall("pouInstance"):
                     res.programs.append(ir.ProgramInstance(self.req(pi, "name"),
-                                                           self.req(pi, "typeName"),
+                                                           self.type_name(pi),
                                                            self.req(t, "name"),
                                                            pos=ir.Pos(self.file, pi.line, pi.col)))
             for pi in r.findall("pouInstance"):
-                res.programs.append(ir.ProgramInstance(self.req(pi, "name"), self.req(pi, "typeName"),
+                res.programs.append(ir.ProgramInstance(self.req(pi, "name"), self.type_name(pi),
                                                        pos=ir.Pos(self.file, pi.line, pi.col)))
             cfg.resources.append(res)
         return cfg

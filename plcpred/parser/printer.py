@@ -76,7 +76,8 @@ def arg(a: ir.Arg) -> str:
     if a.name is None:
         return expr(a.value)
     if a.output:
-        return f"{'NOT ' if a.negated else ''}{a.name} => {expr(a.value)}"
+        target = "" if a.value is None else " " + expr(a.value)
+        return f"{'NOT ' if a.negated else ''}{a.name} =>{target}"
     return f"{a.name} := {expr(a.value)}"
 
 
