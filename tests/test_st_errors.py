@@ -15,7 +15,20 @@ from plcpred.parser import ProgramError, parse_st
     ("PROGRAM P\nVAR x INT; END_VAR\nEND_PROGRAM", 2, 7, ["identifier 'INT'", "':'"]),
     ("PROGRAM P\nCASE x OF\n  y := 1;\nEND_CASE\nEND_PROGRAM", 3, 3, ["CASE label"]),
     ("PROGRAM P\nx;\nEND_PROGRAM", 2, 1, ["':='"]),
-    ("PROGRAM P\nIF a THEN\n  x := 1;\nEND_WHILE\nEND_PROGRAM", 4, 1, ["END_WHILE", "END_IF"]),
+    # a statement left open: at the statement, naming the token that ended it and its line
+    ("PROGRAM P\nIF a THEN\n  x := 1;\nEND_WHILE\nEND_PROGRAM", 2, 1,
+     ["IF is not closed", "END_IF", "END_WHILE at line 4"]),
+    ("PROGRAM P\nVAR x : BOOL; END_VAR\nIF x THEN\n  x := 1;\nEND_PROGRAM", 3, 1,
+     ["IF is not closed: expected END_IF before keyword END_PROGRAM at line 5"]),
+    ("PROGRAM P\nWHILE a DO\n  FOR i := 1 TO 3 DO\n    x := 1;\nEND_WHILE\nEND_PROGRAM", 3, 3,
+     ["FOR is not closed", "END_FOR", "END_WHILE at line 5"]),
+    ("PROGRAM P\nCASE n OF\n1: x := 1;\nFUNCTION_BLOCK F\nEND_FUNCTION_BLOCK", 2, 1,
+     ["CASE is not closed", "FUNCTION_BLOCK at line 4"]),
+    ("PROGRAM P\nREPEAT\n  x := 1;\nEND_PROGRAM", 2, 1, ["UNTIL ... END_REPEAT"]),
+    ("PROGRAM P\nIF a THEN\n  x := 1;\n", 2, 1, ["IF is not closed", "end of the file"]),
+    ("PROGRAM P\nIF a THEN x := 1;\nELSEIF b THEN x := 2;\nEND_IF\nEND_PROGRAM", 3, 1,
+     ["did you mean ELSIF"]),
+    ("PROGRAM P\nx ?= 1 2;\nEND_PROGRAM", 2, 8, ["'2'"]),
     ("PROGRAM P\nINITIAL_STEP A: x(Q); END_STEP\nEND_PROGRAM", 2, 17, ["qualifier 'Q'"]),
     ("PROGRAM P\nSTEP A: END_STEP\nEND_PROGRAM", 1, 1, ["INITIAL_STEP"]),
     ("FUNCTION_BLOCK F\nPROPERTY P : INT\nFETCH P := 1; END_GET\nEND_PROPERTY\nEND_FUNCTION_BLOCK",
@@ -28,3 +41,16 @@ def test_syntax_error_positions(src, line, col, fragments):
     assert (err.file, err.line, err.col) == ("prog.st", line, col), str(err)
     for f in fragments:
         assert f in err.message, err.message
+
+
+@pytest.mark.parametrize("src", [
+    "PROGRAM P\nx ?= 1 2;\nEND_PROGRAM", "PROGRAM P\nx REF= ;\nEND_PROGRAM",
+    "PROGRAM P\nVAR a : INT END_VAR\nEND_PROGRAM", "PROGRAM P\nx S= 1 2;\nEND_PROGRAM",
+    "PROGRAM P\na := b c;\nEND_PROGRAM", "PROGRAM P\nfb(a := 1 b := 2);\nEND_PROGRAM",
+])
+def test_messages_use_no_internal_token_names(src):
+    with pytest.raises(ProgramError) as ei:
+        parse_st(src, "prog.st")
+    for internal in ("ATTEMPT", "REFASSIGN", "SETASSIGN", "INLINE_CODE", "_SEMI", "NAME", "$END",
+                     "_LIT"):
+        assert internal not in ei.value.message

@@ -689,8 +689,18 @@ TOKEN_NAMES = {
     "_ASSIGN": "':='", "_OUTASSIGN": "'=>'", "_DOTDOT": "'..'", "_LPAR": "'('",
     "_RPAR": "')'", "_LSQB": "'['", "_RSQB": "']'", "_COMMA": "','", "_SEMI": "';'",
     "_COLON": "':'", "_DOT": "'.'", "_CARET": "'^'", "_ARROW": "'->'",
-    "$END": "end of file",
+    "_ATTEMPT": "'?='", "_REFASSIGN": "'REF='", "_SETASSIGN": "'S='", "_RESETASSIGN": "'R='",
+    "INLINE_CODE": "an inline code block", "DT_LIT": "a literal", "TOD_LIT": "a literal",
+    "DATE_LIT": "a literal", "$END": "end of file",
 }
+# statements that stay open until their END_ keyword, and what ends them
+_OPENERS = {"IF": "_END_IF", "CASE": "_END_CASE", "FOR": "_END_FOR", "WHILE": "_END_WHILE",
+            "REPEAT": "_END_REPEAT"}
+# tokens that end a statement list: a closer, or what starts the next POU or member
+_LIST_ENDERS = {"PROGRAM", "FUNCTION_BLOCK", "FUNCTION", "METHOD", "PROPERTY", "ACTION", "TYPE",
+                "INTERFACE", "END_GET", "END_SET", "CONFIGURATION"}
+_NOT_ST = {"ELSEIF": "ELSIF", "ELSE_IF": "ELSIF", "ELIF": "ELSIF", "ENDIF": "END_IF",
+           "ENDCASE": "END_CASE", "ENDFOR": "END_FOR", "ENDWHILE": "END_WHILE"}
 _OPERATOR_TOKENS = {"PLUS", "MINUS", "STAR", "SLASH", "POW", "MOD", "LT", "GT", "LE", "GE",
                     "EQ", "NE", "AND", "AMP", "AND_THEN", "XOR", "OR", "OR_ELSE"}
 _LITERAL_TOKENS = {"TYPED_LIT", "TIME_LIT", "DT_LIT", "TOD_LIT", "DATE_LIT", "ENUM_LIT",
@@ -818,7 +828,8 @@ class GrammarRunner:
                     act = states[state_stack[-1]].get(ttype)
                     if act is None:
                         raise _syntax_error(None if tok is _END else tok,
-                                            _expected(states[state_stack[-1]]), feed, filename)
+                                            _expected(states[state_stack[-1]]), feed, filename,
+                                            value_stack)
                     if act[0]:
                         push_state(act[1])
                         push_value(tok)
@@ -911,8 +922,26 @@ def _expected(row) -> set[str]:
     return {s for s in row if s.isupper()}
 
 
-def _syntax_error(tok, expected, feed: _Recording, filename: str) -> ProgramError:
+def _syntax_error(tok, expected, feed: _Recording, filename: str,
+                  value_stack=()) -> ProgramError:
     expected = set(expected)
+    for t in (tok, feed.prev):
+        if t is not None and t.type == "NAME" and t.value.upper() in _NOT_ST:
+            return ProgramError(f"{t.value.upper()} is not Structured Text: did you mean "
+                                f"{_NOT_ST[t.value.upper()]}?", filename, t.line, t.column)
+    # the innermost statement still open, when the token is one that would have closed it
+    opened = next((v for v in reversed(value_stack) if isinstance(v, Token)
+                   and v.type in _OPENERS), None)
+    ender = tok is None or tok.type.startswith("_END_") or tok.type in _LIST_ENDERS
+    if opened is not None and ender and _OPENERS[opened.type] in expected | {
+            "_END_REPEAT" if "_UNTIL" in expected else ""}:
+        closer = _OPENERS[opened.type].lstrip("_")
+        if opened.type == "REPEAT" and "_UNTIL" in expected:
+            closer = "UNTIL ... END_REPEAT"
+        found = "the end of the file" if tok is None else \
+            f"{describe_token(tok)} at line {tok.line}"
+        return ProgramError(f"{opened.type} is not closed: expected {closer} before {found}",
+                            filename, opened.line, opened.column)
     if tok is None:  # end of input
         prev = feed.last
         line = prev.line if prev is not None else 1
