@@ -228,3 +228,15 @@ def test_empty_output_bindings_and_empty_declarations():
     assert problems(src) == []
     from plcpred.parser.printer import to_st
     assert parse_st(to_st(parse_st(src, "t.st")), "t.st") == parse_st(src, "t.st")
+
+
+def test_null_ref_to_bit_literals_partial_access_and_empty_initialisers():
+    src = ("TYPE ST_X : STRUCT a : INT := 4; END_STRUCT END_TYPE\n"
+           + body("p : POINTER TO INT; r : REF_TO INT; b : BOOL; s : ST_X := (); "
+                  "w : WORD := 16#0005; q0, q1, q2 : BOOL; n : INT := 7; m, k : INT; wasnull : BOOL;",
+                  "wasnull := p = NULL;\nIF p = NULL THEN p := ADR(n); END_IF\nm := p^;\n"
+                  "r := REF(n);\nk := r^ + s.a;\nb := BIT#1;\n"
+                  "q0 := w.%X0; q1 := w.%X1; q2 := w.%X2;"))
+    got = trace(src, ("WASNULL", "M", "K", "B", "Q0", "Q1", "Q2"), lambda k: {}, scans=2)
+    assert got == [(True, 7, 11, True, True, False, True), (False, 7, 11, True, True, False, True)]
+    assert problems(src) == []

@@ -447,6 +447,8 @@ class Checker:
             return True
         if key in STANDARD_FBS or key in ELEMENTARY_TYPES or is_standard_function(key):
             return True
+        if key == "NULL":  # CODESYS/TwinCAT: the null pointer
+            return True
         return False
 
     def _expr(self, e, scope, ctx, writing=False):

@@ -18,7 +18,7 @@ TERMINALS = """
 %declare PROPERTY _END_PROPERTY INTERFACE _END_INTERFACE _EXTENDS _IMPLEMENTS END_GET END_SET
 %declare VAR VAR_INPUT VAR_OUTPUT VAR_IN_OUT VAR_TEMP VAR_GLOBAL VAR_EXTERNAL VAR_STAT VAR_INST VAR_CONFIG VAR_ACCESS _END_VAR
 %declare CONSTANT RETAIN NON_RETAIN PERSISTENT _AT
-%declare TYPE _END_TYPE STRUCT _END_STRUCT UNION _END_UNION _ARRAY _OF POINTER REFERENCE _TO STRING WSTRING
+%declare TYPE _END_TYPE STRUCT _END_STRUCT UNION _END_UNION _ARRAY _OF POINTER REFERENCE REF_TO _TO STRING WSTRING
 %declare IF _THEN _ELSIF _ELSE _END_IF CASE _END_CASE FOR _BY _DO _END_FOR WHILE _END_WHILE REPEAT _UNTIL _END_REPEAT
 %declare EXIT CONTINUE RETURN JMP AND OR XOR NOT MOD AND_THEN OR_ELSE TRUE FALSE
 %declare CONFIGURATION _END_CONFIGURATION RESOURCE _END_RESOURCE TASK
@@ -115,6 +115,7 @@ name_list: NAME (_COMMA NAME)*
           | _ARRAY _LSQB array_dim (_COMMA array_dim)* _RSQB _OF type_spec -> array_type
           | POINTER _TO type_spec -> pointer_type
           | REFERENCE _TO type_spec -> pointer_type
+          | REF_TO type_spec -> pointer_type
           | qual_name _LPAR expr _DOTDOT expr _RPAR -> subrange_type
           | qual_name _LPAR [args] _RPAR -> fb_init_type
           | _LPAR enum_value (_COMMA enum_value)* _RPAR [NAME] -> enum_type
@@ -127,7 +128,8 @@ enum_value: NAME [_ASSIGN expr]
 
 ?initializer: expr
             | _LSQB array_item (_COMMA array_item)* _RSQB -> array_init
-            | _LPAR field_init (_COMMA field_init)* _RPAR -> struct_init
+            | _LPAR field_init (_COMMA field_init)* _COMMA? _RPAR -> struct_init
+            | _LPAR _RPAR -> struct_init
 ?array_item: initializer -> single_item
            | INTEGER _LPAR [initializer] _RPAR -> repeated_item
 field_init: NAME _ASSIGN initializer

@@ -247,6 +247,8 @@ def parse_typed_literal(text: str):
     """``INT#-5``, ``REAL#1.5``, ``BOOL#TRUE``, ``WORD#16#FF``, ``STRING#'x'`` ->
     (value, type name)."""
     type_name, value = text.split("#", 1)
+    if type_name == "BIT":  # CODESYS: a BOOL stored as one bit of a structure
+        type_name = "BOOL"
     if type_name == "BOOL":
         v = value.upper()
         if v in ("TRUE", "1"):

@@ -1215,6 +1215,8 @@ class Compiler:
             return str(v), t
         if key in ("TRUE", "FALSE"):
             return ("True" if key == "TRUE" else "False"), BOOL
+        if key == "NULL":  # CODESYS/TwinCAT: the null pointer
+            return "None", PtrT(ty.elementary("BYTE"))
         raise _err(x, f"'{x.name}' is not declared here")
 
     def _member(self, x: ir.Member, scope: Scope):
