@@ -51,7 +51,8 @@ def cmd_check(args) -> int:
         try:
             parsed[path] = load_program(path, libraries=False)
         except ProgramError as e:
-            print(e, file=sys.stderr)
+            for err in [e, *getattr(e, "more", ())]:   # every syntax error, up to 20
+                print(err, file=sys.stderr)
             failed = True
     context = list(parsed.values())
     if not args.syntax_only:

@@ -54,3 +54,31 @@ def test_messages_use_no_internal_token_names(src):
     for internal in ("ATTEMPT", "REFASSIGN", "SETASSIGN", "INLINE_CODE", "_SEMI", "NAME", "$END",
                      "_LIT"):
         assert internal not in ei.value.message
+
+
+def test_all_syntax_errors_of_a_file_are_reported_up_to_20(tmp_path, capsys):
+    from plcpred.cli import main
+    src = ("PROGRAM P\nVAR x : INT; y : BOOL; END_VAR\nx := 1 2;\ny := TRUE;\nx := ;\n"
+           "IF y THEN\n  x := 3 +;\nEND_IF\nx := x * ;\nEND_PROGRAM\n")
+    with pytest.raises(ProgramError) as ei:
+        parse_st(src, "e.st")
+    found = [(e.line, e.col) for e in [ei.value, *ei.value.more]]
+    assert found == [(3, 8), (5, 6), (7, 11), (9, 10)]
+    f = tmp_path / "e.st"
+    f.write_text(src)
+    assert main(["check", str(f)]) == 1
+    assert len(capsys.readouterr().err.strip().splitlines()) == 4
+    # a correct file after recovery parses the same as ever; 30 errors stop at 20
+    many = "PROGRAM P\nVAR x : INT; END_VAR\n" + "x := 1 2;\n" * 30 + "END_PROGRAM\n"
+    with pytest.raises(ProgramError) as ei:
+        parse_st(many, "m.st")
+    assert 1 + len(ei.value.more) == 20
+
+
+def test_recovery_reports_an_error_in_a_later_pou_and_stops_at_a_bad_character():
+    src = ("FUNCTION_BLOCK A\nVAR x : INT; END_VAR\nx := ;\nEND_FUNCTION_BLOCK\n"
+           "PROGRAM P\nVAR y : INT; END_VAR\ny := y + ;\ny := 1 # 2;\nEND_PROGRAM\n")
+    with pytest.raises(ProgramError) as ei:
+        parse_st(src, "e.st")
+    found = [(e.line, e.message[:20]) for e in [ei.value, *ei.value.more]]
+    assert [line for line, _ in found] == [3, 7, 8]

@@ -819,35 +819,96 @@ class GrammarRunner:
             value_stack = []
             push_state = state_stack.append
             push_value = value_stack.append
-            for tok in itertools.chain(tokenizer, (_END,)):
-                if tok is not _END:
-                    feed.prev = feed.last
-                    feed.last = tok
-                ttype = tok.type
-                while True:
-                    act = states[state_stack[-1]].get(ttype)
-                    if act is None:
-                        raise _syntax_error(None if tok is _END else tok,
-                                            _expected(states[state_stack[-1]]), feed, filename,
-                                            value_stack)
-                    if act[0]:
-                        push_state(act[1])
-                        push_value(tok)
-                        break
-                    size, origin, callback = act[1]
-                    if callback is None:  # pass-through: the value stays where it is
-                        del state_stack[-1]
-                    else:
-                        if size:
-                            args = value_stack[-size:]
-                            del state_stack[-size:]
-                            del value_stack[-size:]
+            errors: list[ProgramError] = []
+            tokens = itertools.chain(tokenizer, (_END,))
+            try:
+                for tok in tokens:
+                    if tok is not _END:
+                        feed.prev = feed.last
+                        feed.last = tok
+                    ttype = tok.type
+                    while True:
+                        act = states[state_stack[-1]].get(ttype)
+                        if act is None:
+                            errors.append(_syntax_error(None if tok is _END else tok,
+                                                        _expected(states[state_stack[-1]]), feed,
+                                                        filename, value_stack))
+                            tok = _resume(tok, errors, tokens, states, state_stack, value_stack)
+                            ttype = tok.type
+                            continue
+                        if act[0]:
+                            push_state(act[1])
+                            push_value(tok)
+                            break
+                        size, origin, callback = act[1]
+                        if callback is None:  # pass-through: the value stays where it is
+                            del state_stack[-1]
                         else:
-                            args = []
-                        push_value(callback(args))
-                    push_state(states[state_stack[-1]][origin][1])
-                    if tok is _END and state_stack[-1] == end_state:
-                        return value_stack[-1]
+                            if size:
+                                args = value_stack[-size:]
+                                del state_stack[-size:]
+                                del value_stack[-size:]
+                            else:
+                                args = []
+                            if errors:  # after recovery the values may not fit the rule
+                                try:
+                                    value = callback(args)
+                                except Exception:  # noqa: BLE001 - report what was found
+                                    raise _with_more(errors) from None
+                                push_value(value)
+                            else:
+                                push_value(callback(args))
+                        push_state(states[state_stack[-1]][origin][1])
+                        if tok is _END and state_stack[-1] == end_state:
+                            if errors:
+                                raise _with_more(errors)
+                            return value_stack[-1]
+            except ProgramError as e:   # the tokenizer's, or a builder's, after earlier ones
+                if not errors or e in errors:
+                    raise
+                errors.append(e)
+                raise _with_more(errors) from None
+
+
+MAX_SYNTAX_ERRORS = 20
+
+
+def _with_more(errors: list[ProgramError]) -> ProgramError:
+    """The first error, carrying the others (``.more``) for those who list them all."""
+    first = errors[0]
+    first.more = errors[1:MAX_SYNTAX_ERRORS]
+    return first
+
+
+def _resume(tok, errors, tokens, states, state_stack, value_stack):
+    """Panic-mode recovery after a syntax error, so that one run reports the file's
+    other errors too: skip to the next ';', unwind to the innermost statement list (the
+    IF, CASE, loop or POU body the error is in) and resume there with the ';' as an empty
+    statement. Raises the errors when there is no such place, at the end of the file, or
+    after MAX_SYNTAX_ERRORS; later errors on the line of the previous one (knock-on
+    effects of the first) are not reported."""
+    if len(errors) >= MAX_SYNTAX_ERRORS or tok is _END:
+        raise _with_more(errors)
+    if len(errors) > 1 and errors[-1].line <= errors[-2].line:
+        errors.pop()
+    while tok.type != "_SEMI":
+        try:
+            tok = next(tokens)
+        except ProgramError as e:  # the tokenizer's: a bad character or literal
+            errors.append(e)
+            raise _with_more(errors) from None
+        if tok is _END:
+            raise _with_more(errors)
+    def in_statement_list(state):   # where a statement may start, ';' among them
+        row = states[state]
+        return "_SEMI" in row and "IF" in row
+
+    while len(state_stack) > 1 and not in_statement_list(state_stack[-1]):
+        del state_stack[-1]
+        del value_stack[-1]
+    if not in_statement_list(state_stack[-1]):
+        raise _with_more(errors)
+    return tok
 
 
 class _Splice(list):

@@ -5,7 +5,9 @@ from ..errors import PlcpredError
 
 
 class ProgramError(PlcpredError):
-    """A problem at ``file:line:col``. ``str()`` gives the one-line form the CLI prints."""
+    """A problem at ``file:line:col``. ``str()`` gives the one-line form the CLI prints.
+    A syntax error carries the file's further syntax errors in ``more``."""
+    more: tuple = ()
 
     def __init__(self, message: str, file: str = "<input>", line: int = 0, col: int = 0):
         super().__init__(message)
