@@ -457,6 +457,10 @@ def _meter(file: str, table: dict) -> Meter:
                  line=r.string("line"))
 
 
+_PROGRAM_SUFFIXES = {".st", ".iecst", ".seq", ".xml", ".tcpou", ".tcgvl", ".tcdut", ".tcio",
+                     ".tctto", ".plcproj"}
+
+
 def load_machine(path) -> Machine:
     """Read and validate a machine file. Raises :class:`MachineError`."""
     return machine_from_data(read_machine_data(path), path)
@@ -466,6 +470,11 @@ def read_machine_data(path) -> dict:
     """The machine file's TOML as a dict (not yet validated)."""
     path = Path(path)
     file = str(path)
+    if path.is_dir() or path.suffix.lower() in _PROGRAM_SUFFIXES:
+        raise MachineError(file, "", "this is a PLC program, not a machine file: commands that "
+                                     "run a machine take its TOML machine file, which names "
+                                     "the program (program = \"...\"); `plcpred check` reads "
+                                     "programs")
     try:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
     except OSError as e:

@@ -165,3 +165,11 @@ def test_a_plcproj_naming_a_missing_file_and_a_folder_of_two_projects(tmp_path):
     shutil.copytree(PROJECT, tmp_path / "B")
     with pytest.raises(ProgramError, match="2 PLC projects"):
         load_program(tmp_path)
+
+
+@pytest.mark.parametrize("program", ["sfc_press.st", "twincat_project",
+                                     "twincat_project/ClampStation/POUs/MAIN.TcPOU"])
+def test_a_program_given_where_a_machine_file_is_wanted_is_named(program, capsys):
+    assert main(["predict", str(SAMPLES / program), "--horizon", "1s", "--out", "/nonexistent"]) != 0
+    err = capsys.readouterr().err
+    assert "PLC program, not a machine file" in err and "Traceback" not in err
