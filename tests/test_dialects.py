@@ -240,3 +240,16 @@ def test_null_ref_to_bit_literals_partial_access_and_empty_initialisers():
     got = trace(src, ("WASNULL", "M", "K", "B", "Q0", "Q1", "Q2"), lambda k: {}, scans=2)
     assert got == [(True, 7, 11, True, True, False, True), (False, 7, 11, True, True, False, True)]
     assert problems(src) == []
+
+
+def test_keywords_as_names_where_the_vendors_allow_them():
+    src = ("TYPE ST_Cfg : STRUCT\n  Program : INT;\n  Internal : BOOL;\n  Reference : REAL;\n"
+           "END_STRUCT END_TYPE\n"
+           "PROGRAM INTERNAL P\nVAR\n  Configuration : ST_Cfg;\n  Internal : BOOL;\n"
+           "  p : REFERENCE TO INT;\n  n : INT;\nEND_VAR\n"
+           "Configuration.Program := Configuration.Program + 1;\nInternal := NOT Internal;\n"
+           "Configuration.Internal := Internal AND TRUE;\nn := Configuration.Program * 2;\n"
+           "END_PROGRAM\n")
+    assert trace(src, ("N", "INTERNAL"), lambda k: {}, scans=2) == [(2, True), (4, False)]
+    assert problems(src) == []
+    assert parse_st(src, "t.st").pou("P").access == "INTERNAL"

@@ -89,6 +89,15 @@ OPERATORS = {
 }
 
 _VARIABLE_END = {"NAME", "_RSQB", "_RPAR", "_CARET"}
+# keywords that vendors let programs use as names, when the context says it is one
+SOFT_KEYWORDS = frozenset({"INTERNAL", "REFERENCE", "CONFIGURATION", "RESOURCE", "PROGRAM",
+                           "PUBLIC", "PRIVATE", "PROTECTED", "ABSTRACT", "FINAL"})
+_AFTER_A_NAME = {"_COLON", "_ASSIGN", "_SEMI", "_COMMA", "_RPAR", "_DOT", "_LSQB", "_OUTASSIGN",
+                 "_RSQB", "PLUS", "MINUS", "STAR", "SLASH", "EQ", "NE", "LT", "GT", "LE", "GE",
+                 "_CARET", "_THEN", "_DO"}
+_BEFORE_A_NAME = {"_ASSIGN", "_LPAR", "_COMMA", "PLUS", "MINUS", "STAR", "SLASH", "EQ", "NE",
+                  "LT", "GT", "LE", "GE", "_LSQB", "_OUTASSIGN"}
+_WORD = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
 # Leading white space is part of every match, which halves the number of matches.
 _MASTER = re.compile(r"""\s*(?:
@@ -134,26 +143,34 @@ class Tokenizer:
         return ProgramError(message, self.filename, line, col)
 
     def __iter__(self):
-        """Tokens, with the CODESYS/TwinCAT set and reset assignments ``x S= c;`` and
-        ``x R= c;`` joined into one token: an ``S`` or ``R`` written right against ``=``
-        after the end of a variable (a name, ``]``, ``)`` or ``^``)."""
-        tokens = self._tokens()
+        """Tokens, with two readings that need a neighbour:
+
+        * the CODESYS/TwinCAT set and reset assignments ``x S= c;`` and ``x R= c;`` are
+          one token: an ``S`` or ``R`` right against ``=`` after the end of a variable (a
+          name, ``]``, ``)`` or ``^``);
+        * a keyword is a name where the vendors allow one: after ``.`` (``st.Program``),
+          and, for the modifier-like keywords of :data:`SOFT_KEYWORDS`, where only a name
+          can stand (``Internal : BOOL;``, ``x := Reference + 1;``)."""
         prev = None
-        for tok in tokens:
-            if tok.type == "NAME" and tok.value.upper() in ("S", "R") and prev is not None \
-                    and prev.type in _VARIABLE_END:
+        tokens = self._tokens()
+        tok = next(tokens, None)
+        while tok is not None:
+            nxt = next(tokens, None)
+            if tok.type == "NAME" and prev is not None and prev.type in _VARIABLE_END \
+                    and tok.value.upper() in ("S", "R") and nxt is not None \
+                    and nxt.type == "EQ" and nxt.line == tok.line \
+                    and nxt.column == tok.column + 1:
+                tok = Token("_SETASSIGN" if tok.value.upper() == "S" else "_RESETASSIGN",
+                            tok.value.upper() + "=", tok.line, tok.column)
                 nxt = next(tokens, None)
-                if nxt is not None and nxt.type == "EQ" and nxt.line == tok.line \
-                        and nxt.column == tok.column + 1:
-                    tok = Token("_SETASSIGN" if tok.value.upper() == "S" else "_RESETASSIGN",
-                                tok.value.upper() + "=", tok.line, tok.column)
-                else:
-                    yield tok
-                    prev, tok = tok, nxt
-                    if tok is None:
-                        return
+            elif tok.type != "NAME" and _WORD.fullmatch(tok.value) and (
+                    (prev is not None and prev.type == "_DOT")
+                    or (tok.value.upper() in SOFT_KEYWORDS and (
+                        nxt is None or nxt.type in _AFTER_A_NAME
+                        or (prev is not None and prev.type in _BEFORE_A_NAME)))):
+                tok = Token("NAME", tok.value, tok.line, tok.column)
             yield tok
-            prev = tok
+            prev, tok = tok, nxt
 
     def _tokens(self):
         text = self.text
