@@ -62,3 +62,14 @@ def test_lexical_errors_carry_line_and_column(text, line, col, fragment):
     assert (ei.value.line, ei.value.col) == (line, col)
     assert fragment in ei.value.message
     assert str(ei.value).startswith(f"f.st:{line}:{col}: ")
+
+
+def test_comments_nest_and_an_unbalanced_one_is_read_the_matiec_way():
+    from plcpred.parser import parse_st
+    nested = "PROGRAM P\nVAR x : INT; END_VAR\n(* a (* nested *) comment *)\nx := 1;\nEND_PROGRAM\n"
+    assert len(parse_st(nested).pou("P").body) == 1
+    # matiec does not nest: '(*' inside a comment opens nothing, the first '*)' closes it
+    flat = "PROGRAM P\nVAR x : INT; END_VAR\n(* from (* OSCAT *)\nx := 1;\nEND_PROGRAM\n"
+    assert len(parse_st(flat).pou("P").body) == 1
+    with pytest.raises(Exception, match="never closed"):
+        parse_st("PROGRAM P\n(* open\nEND_PROGRAM\n")

@@ -279,6 +279,10 @@ class Tokenizer:
             pos = end
 
     def _nested_comment_end(self, pos: int, line: int, col: int) -> int:
+        """Where a ``(*`` comment ends. CODESYS and TwinCAT nest comments; matiec (Beremiz,
+        OpenPLC) does not, so a ``(*`` inside a comment opens nothing there. Nesting is
+        read first; a comment that nesting leaves open to the end of the file but that a
+        ``*)`` closes is read the non-nesting way."""
         text = self.text
         depth = 0
         i = pos
@@ -286,6 +290,9 @@ class Tokenizer:
             a = text.find("(*", i)
             b = text.find("*)", i)
             if b < 0:
+                first = text.find("*)", pos + 2)
+                if first >= 0:
+                    return first + 2
                 raise self.error("comment '(*' is never closed", line, col)
             if 0 <= a < b:
                 depth += 1
