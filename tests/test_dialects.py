@@ -253,3 +253,9 @@ def test_keywords_as_names_where_the_vendors_allow_them():
     assert trace(src, ("N", "INTERNAL"), lambda k: {}, scans=2) == [(2, True), (4, False)]
     assert problems(src) == []
     assert parse_st(src, "t.st").pou("P").access == "INTERNAL"
+
+
+def test_an_empty_type_block_as_b_and_r_writes_it():
+    prog = parse_st("TYPE\nEND_TYPE\nTYPE\n  E : (A, B);\nEND_TYPE\n" + body("e : E;", "e := B;"),
+                    "t.typ")
+    assert [t.name for t in prog.types] == ["E"]

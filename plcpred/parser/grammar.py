@@ -170,7 +170,7 @@ action: ACTION NAME _COLON? stmt_list _END_ACTION
 interface: INTERFACE modifiers NAME [_EXTENDS qual_list] _SEMI? _iface_item* _END_INTERFACE
 _iface_item: method | property
 
-type_block: TYPE type_decl+ _END_TYPE
+type_block: TYPE type_decl* _END_TYPE
 type_decl: NAME [_EXTENDS qual_name] _COLON type_spec [_ASSIGN initializer] _SEMI?
 
 global_block: var_block
