@@ -38,7 +38,7 @@ from plcpred.parser import ProgramError, load_program  # noqa: E402
 from plcpred.parser import _sniff  # noqa: E402
 from plcpred.parser.check import check_program  # noqa: E402
 from plcpred.parser.libraries import library_program  # noqa: E402
-from plcpred.parser.twincat import OBJECT_SUFFIXES, _read  # noqa: E402
+from plcpred.parser.twincat import OBJECT_SUFFIXES, read_source  # noqa: E402
 
 # (GitHub repository, commit, licence as the repository states it)
 SOURCES = [
@@ -80,7 +80,7 @@ def program_files(project: Path) -> list[Path]:
         suffix = p.suffix.lower()
         if suffix in ST_SUFFIXES + OBJECT_SUFFIXES:
             out.append(p)
-        elif suffix == ".xml" and _sniff(_read(p)[:4096]) == ".xml":
+        elif suffix == ".xml" and _sniff(read_source(p)[:4096]) == ".xml":
             out.append(p)
     return out
 

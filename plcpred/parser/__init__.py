@@ -1,8 +1,10 @@
 """Front ends that turn PLC programs into the typed IR of :mod:`plcpred.parser.ir`.
 
 * :func:`parse_st` - IEC 61131-3 Structured Text (``.st``)
-* :func:`load_program` - any supported file, chosen by extension
+* :func:`load_program` - any supported file or TwinCAT project, chosen by content and extension
 """
+import re
+
 from . import ir
 from .errors import ProgramError, ProgramWarning
 from .st import parse_st
@@ -37,7 +39,7 @@ def _load(path) -> "ir.Program":
         merged = reduce(ir.Program.merge, [_load(f) for f in twincat.project_files(p)])
         merged.source = str(path)
         return merged
-    text = twincat._read(p)
+    text = twincat.read_source(p)
     kind = _sniff(text) or p.suffix.lower()
     if kind == ".seq":
         from .seq import parse_seq
@@ -54,21 +56,15 @@ def _load(path) -> "ir.Program":
     return parse_st(text, str(path))
 
 
-_XML_ROOT = None
+_XML_ROOT = re.compile(r"\s*(?:<\?xml[^>]*\?>\s*)?(?:<!--[\s\S]*?-->\s*)*<(?:\w+:)?(\w+)")
+_MACHINE_TABLE = re.compile(r"^\s*\[machine\]\s*$", re.M)
 
 
 def _sniff(text: str) -> str | None:
     """What a file holds when its content says so: an XML root element we know, or a
     machine file's ``[machine]`` table."""
-    import re
-
-    global _XML_ROOT
-    if _XML_ROOT is None:
-        _XML_ROOT = re.compile(r"\s*(?:<\?xml[^>]*\?>\s*)?(?:<!--[\s\S]*?-->\s*)*<(?:\w+:)?(\w+)")
     head = text[:4096]
     m = _XML_ROOT.match(head)
     if m:
         return {"TcPlcObject": ".tcpou", "project": ".xml"}.get(m.group(1))
-    if re.search(r"^\s*\[machine\]\s*$", head, re.M):
-        return "machine"
-    return None
+    return "machine" if _MACHINE_TABLE.search(head) else None

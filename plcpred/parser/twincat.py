@@ -266,7 +266,7 @@ def project_files(path: Path) -> list[Path]:
             raise ProgramError("the folder holds no program files (.TcPOU, .TcGVL, .TcDUT, "
                                ".TcIO, .TcTTO, .st)", str(path), 0, 0)
         return files
-    root = _parse_xml(_read(path), str(path), "Project", "a TwinCAT .plcproj file")
+    root = _parse_xml(read_source(path), str(path), "Project", "a TwinCAT .plcproj file")
     files = []
     for group in root.findall("ItemGroup"):
         for item in group.findall("Compile"):
@@ -281,7 +281,8 @@ def project_files(path: Path) -> list[Path]:
     return files
 
 
-def _read(path: Path) -> str:
+def read_source(path: Path) -> str:
+    """A program file's text: UTF-8 (a BOM dropped), else Latin-1 as older tools write it."""
     try:
         return path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError:
