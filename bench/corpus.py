@@ -52,6 +52,7 @@ SOURCES = [
      "1ff02710f784887dcf1db1d203d9abb06030a05c", "MIT"),
     ("MichielVanwelsenaere/HomeAutomation.CoDeSys3", "298b7bfd73761792e480cad00f342dc38d54a763",
      "MIT"),
+    ("beremiz/beremiz", "9eb53af357cda387989c086aee00a211ef95689a", "GPL-2.0"),
 ]
 # libraries a project uses that another fetched project provides (as --lib would give them)
 LIBRARIES = {

@@ -220,3 +220,31 @@ def test_a_pou_instance_with_an_empty_type_name_runs_the_program_it_is_named_aft
                   '</configuration>')
     pi = parse_plcopen(xml, "t.xml").configurations[0].resources[0].programs[0]
     assert (pi.name, pi.type_name, pi.task) == ("PRG_A", "PRG_A", "T")
+
+
+def test_type_and_value_errors_point_at_their_elements():
+    from plcpred.parser.check import check_program
+    xml = project(pous='<pou name="P" pouType="program"><interface><localVars>'
+                       '<variable name="a"><type><derived name="NoSuchType"/></type></variable>'
+                       '<variable name="n"><type><INT/></type><initialValue>'
+                       '<simpleValue value="missing_const + 1"/></initialValue></variable>'
+                       '</localVars></interface><body><ST><xhtml:p>;</xhtml:p></ST></body></pou>')
+    errors, _ = check_program(parse_plcopen(xml, "p.xml"))
+    lines = xml.splitlines()
+    assert [(e.file, e.line) for e in errors] == [("p.xml", len(lines) - 2)] * 2
+    assert [e.col > 1 for e in errors] == [True, True]
+
+
+def test_beremiz_logger_and_python_blocks_come_from_the_shipped_stub(tmp_path):
+    from plcpred.parser import load_program
+    from plcpred.parser.check import check_program
+    f = tmp_path / "plc.xml"
+    f.write_text(project(pous='<pou name="P" pouType="program"><interface><localVars>'
+                              '<variable name="log"><type><derived name="LOGGER"/></type></variable>'
+                              '<variable name="py"><type><derived name="python_eval"/></type></variable>'
+                              '<variable name="v"><type><derived name="HMI_INT"/></type></variable>'
+                              '</localVars></interface><body><ST><xhtml:p><![CDATA['
+                              'log(TRIG := TRUE, MSG := \'x\', LEVEL := INFO); py(TRIG := TRUE, CODE := \'1\');'
+                              ' v := v + 1;]]></xhtml:p></ST></body></pou>'))
+    errors, _ = check_program(load_program(f))
+    assert errors == []

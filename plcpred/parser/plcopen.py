@@ -8,6 +8,7 @@ position in the XML file, so errors point at the file's line and column.
 """
 from __future__ import annotations
 
+import dataclasses
 import re
 
 from xml.parsers import expat
@@ -127,6 +128,22 @@ def _parse_xml(text: str, filename: str, root: str = "project",
     return root_holder[0]
 
 
+def _place(node, pos: ir.Pos) -> None:
+    """Give every node of a parsed attribute value the position of its element."""
+    stack = [node]
+    while stack:
+        n = stack.pop()
+        if isinstance(n, list):
+            stack.extend(n)
+        elif dataclasses.is_dataclass(n):
+            for f in dataclasses.fields(n):
+                v = getattr(n, f.name)
+                if f.name == "pos":
+                    setattr(n, "pos", pos)
+                elif isinstance(v, list) or dataclasses.is_dataclass(v):
+                    stack.append(v)
+
+
 class _Importer:
     def __init__(self, filename: str):
         self.file = filename
@@ -192,10 +209,13 @@ class _Importer:
         return ir.Literal(ns, "TIME", pos=ir.Pos(self.file, el.line, el.col))
 
     def value_text(self, el: _El, value: str):
+        """An attribute's ST value; its nodes point at the element that holds it."""
         try:
-            return self.expr_text(value, 0)
+            expr = self.expr_text(value, 0)
         except ProgramError as e:
             raise self.error(el, f"bad value {value!r}: {e.message}") from None
+        _place(expr, ir.Pos(self.file, el.line, el.col))
+        return expr
 
     # ------------------------------------------------------------------ types
     def type_of(self, el: _El | None, where: _El) -> ir.TypeRef:
@@ -203,15 +223,16 @@ class _Importer:
             raise self.error(where, "missing <type>")
         t = el.children[0]
         tag = t.tag
+        here = ir.Pos(self.file, t.line, t.col)
         if tag.upper() in ELEMENTARY:
-            return ir.NamedType(tag.upper())
+            return ir.NamedType(tag.upper(), pos=here)
         if tag.lower() in ("string", "wstring"):  # TC6 writes them lower case; some tools don't
             # a number, or a constant's name (CODESYS writes STRING(MAX_LEN) so)
             length = (t.attrib.get("length") or "").strip()
             return ir.StringType(tag.lower() == "wstring",
                                  self.value_text(t, length) if length else None)
         if tag == "derived":
-            return ir.NamedType(self.req(t, "name"))
+            return ir.NamedType(self.req(t, "name"), pos=here)
         if tag == "array":
             dims = []
             for d in t.findall("dimension"):
