@@ -259,3 +259,19 @@ def test_an_empty_type_block_as_b_and_r_writes_it():
     prog = parse_st("TYPE\nEND_TYPE\nTYPE\n  E : (A, B);\nEND_TYPE\n" + body("e : E;", "e := B;"),
                     "t.typ")
     assert [t.name for t in prog.types] == ["E"]
+
+
+def test_r_edge_and_f_edge_inputs_see_the_edge_of_the_value_passed():
+    src = ("FUNCTION_BLOCK FB_Count\nVAR_INPUT\n  up : BOOL R_EDGE;\n  down : BOOL F_EDGE;\n"
+           "END_VAR\nVAR_OUTPUT\n  n, m : INT;\nEND_VAR\nIF up THEN n := n + 1; END_IF\n"
+           "IF down THEN m := m + 1; END_IF\nEND_FUNCTION_BLOCK\n"
+           + body("fb : FB_Count; x : BOOL; n, m : INT;", "fb(up := x, down := x);\nn := fb.n; m := fb.m;"))
+    # x: F T T F T F: rises at scans 1 and 4, falls at 3 and 5
+    xs = [False, True, True, False, True, False]
+    got = trace(src, ("N", "M"), lambda k: {"X": xs[k]}, scans=6)
+    assert got == [(0, 0), (1, 0), (1, 0), (1, 1), (2, 1), (2, 2)]
+    assert problems(src) == []
+    from plcpred.parser.printer import to_st
+    assert parse_st(to_st(parse_st(src, "t.st")), "t.st") == parse_st(src, "t.st")
+    with pytest.raises(Exception, match="expected R_EDGE, F_EDGE"):
+        parse_st(body("x : BOOL EDGY;", ""), "t.st")

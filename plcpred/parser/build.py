@@ -411,7 +411,10 @@ class IRBuilder:
         decls = [d for r in rest if isinstance(r, list) for d in r]
         return ir.VarBlock(kind.type, decls, qualifiers, pos=self._pos(kind))
 
-    def var_decl(self, names, address, type_, init):
+    def var_decl(self, names, address, type_, edge, init):
+        if edge is not None and str(edge).upper() not in ("R_EDGE", "F_EDGE"):
+            raise self._err(f"expected R_EDGE, F_EDGE, ':=' or ';' after the type, found "
+                            f"'{edge}'", self._pos(edge))
         args = None
         if isinstance(type_, _FbInit):
             type_, args = type_.type, type_.args
@@ -419,8 +422,9 @@ class IRBuilder:
         if addr is not None and len(names) > 1:
             raise self._err("an AT address can be given to one variable only",
                             self._pos(names[1]))
-        return [ir.VarDecl(str(n), type_, init, addr, pos=self._pos(n), init_args=args)
-                for n in names]
+        edge = str(edge).upper() if edge is not None else None
+        return [ir.VarDecl(str(n), type_, init, addr, pos=self._pos(n), init_args=args,
+                           edge=edge) for n in names]
 
     def config_path(self, *names):
         return _QualName(".".join(n.value for n in names), self._pos(names[0]))

@@ -139,7 +139,7 @@ var_block: var_kind var_qualifier* (var_decl | _SEMI)* _END_VAR
 !var_kind: VAR | VAR_INPUT | VAR_OUTPUT | VAR_IN_OUT | VAR_TEMP | VAR_GLOBAL | VAR_EXTERNAL
          | VAR_STAT | VAR_INST | VAR_CONFIG | VAR_ACCESS
 !var_qualifier: CONSTANT | RETAIN | NON_RETAIN | PERSISTENT
-var_decl: name_list [_AT ADDRESS] _COLON type_spec [_ASSIGN initializer] _SEMI
+var_decl: name_list [_AT ADDRESS] _COLON type_spec [NAME] [_ASSIGN initializer] _SEMI
         | config_path _AT ADDRESS _COLON type_spec [_ASSIGN initializer] _SEMI -> config_decl
 config_path: NAME (_DOT NAME)+
 """

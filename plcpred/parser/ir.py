@@ -222,6 +222,8 @@ class VarDecl:
     pos: Pos | None = _pos()
     # CODESYS/TwinCAT FB_init arguments: ``fb : FB_T(5)``, ``fb : FB_T(a := 1)``
     init_args: list[Arg] | None = None
+    # an input's edge qualifier: "R_EDGE" or "F_EDGE" (``x : BOOL R_EDGE;``)
+    edge: str | None = None
 
 
 VAR_KINDS = ("VAR", "VAR_INPUT", "VAR_OUTPUT", "VAR_IN_OUT", "VAR_TEMP", "VAR_GLOBAL",

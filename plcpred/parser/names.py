@@ -64,6 +64,7 @@ _ENUM_FIELDS = {
     (ir.ActionAssoc, "qualifier"): frozenset(ir.ACTION_QUALIFIERS),
     (ir.PropertyAccessor, "kind"): frozenset({"GET", "SET"}),
     (ir.Pou, "kind"): _POU_KINDS,
+    (ir.VarDecl, "edge"): frozenset({"R_EDGE", "F_EDGE"}),
 }
 # type and interface references may be qualified with a library namespace (``Lib.T``);
 # VAR_CONFIG / VAR_ACCESS declarations name instance paths (``Res.Inst.var``)

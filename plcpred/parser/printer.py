@@ -127,6 +127,8 @@ def var_decl(d: ir.VarDecl, indent: str = "") -> str:
     text += f" : {type_ref(d.type, indent)}"
     if d.init_args is not None:
         text += f"({', '.join(arg(a) for a in d.init_args)})"
+    if d.edge:
+        text += f" {d.edge}"
     if d.init is not None:
         text += f" := {initializer(d.init)}"
     return text + ";"

@@ -369,7 +369,10 @@ class Compiler:
         own = [d for b in pou.var_blocks if b.kind != "VAR_EXTERNAL" for d in b.decls]
         base = fb.base.cls_name if fb.base else "k_FbBase"
         e(0, f"class {fb.cls_name}({base}):", pou.pos)
-        slots = [ident(d.name) for d in own] + (["_sfc"] if pou.is_sfc else [])
+        edges = [d for d in own if d.edge]
+        # an edge input's previous value (generated names have a lower-case letter)
+        slots = [ident(d.name) for d in own] + [f"_e_{ident(d.name)}" for d in edges] + (
+            ["_sfc"] if pou.is_sfc else [])
         e(1, "__slots__ = (" + "".join(f"'{k}', " for k in slots) + ")")
         e(1, "def __init__(self):")
         if fb.base:
@@ -377,6 +380,8 @@ class Compiler:
         for d in own:
             t = scope.names[ident(d.name)][1]
             e(2, f"self.{ident(d.name)} = {self._init(t, d.init, scope, d)}", d.pos)
+        for d in edges:
+            e(2, f"self._e_{ident(d.name)} = False", d.pos)
         if pou.is_sfc:
             e(2, f"self._sfc = _SfcRuntime({self._sfc_spec(fb, scope)}, self)")
             e(2, "_register(self._sfc)")
@@ -410,6 +415,7 @@ class Compiler:
         self.sinks[fb.name] = sinks
         parts = [self._snap_code(f"self.{ident(d.name)}", scope.names[ident(d.name)][1])
                  for d in own if d not in temps and ident(d.name) not in sinks]
+        parts += [f"self._e_{ident(d.name)}" for d in edges]
         if pou.is_sfc:
             parts.append("self._sfc.key(rel)")
         if fb.base:
@@ -1118,8 +1124,16 @@ class Compiler:
             if name not in ins:
                 raise _err(arg, f"'{arg.name}' is not an input of {t.name}")
             vcode, vt = self._expr(arg.value, scope)
-            e(ind, f"{f}.{name} = {self._to(vcode, vt, mtype(name), arg.value, copy=True)}",
-              arg.pos or pos)
+            value = self._to(vcode, vt, mtype(name), arg.value, copy=True)
+            edge = t.var(name).edge if isinstance(t, FbT) else None
+            if edge:   # the input is TRUE in the call where the value rose (fell)
+                v = self.src.temp("v")
+                e(ind, f"{v} = {value}", arg.pos or pos)
+                seen = f"{v} and not {f}._e_{name}" if edge == "R_EDGE" else \
+                    f"not {v} and {f}._e_{name}"
+                e(ind, f"{f}._e_{name}, {f}.{name} = {v}, ({seen})", arg.pos or pos)
+            else:
+                e(ind, f"{f}.{name} = {value}", arg.pos or pos)
         if isinstance(t, StdFbT):
             e(ind, f"{f}.execute(_now)", pos)
         else:
