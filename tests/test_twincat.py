@@ -173,3 +173,23 @@ def test_a_program_given_where_a_machine_file_is_wanted_is_named(program, capsys
     assert main(["predict", str(SAMPLES / program), "--horizon", "1s", "--out", "/nonexistent"]) != 0
     err = capsys.readouterr().err
     assert "PLC program, not a machine file" in err and "Traceback" not in err
+
+
+def test_a_missing_name_names_the_libraries_the_project_references_and_plcpred_lacks(
+        tmp_path, capsys):
+    shutil.copytree(PROJECT, tmp_path / "P")
+    proj = tmp_path / "P" / "ClampStation.plcproj"
+    proj.write_text(proj.read_text().replace(
+        "  <ItemGroup>\n    <PlaceholderReference",
+        '  <ItemGroup>\n    <PlaceholderReference Include="Vendor Lib">\n'
+        "      <Namespace>Vendor_Lib</Namespace>\n    </PlaceholderReference>\n"
+        '    <PlaceholderReference Include="Tc2_System">\n'
+        "      <Namespace>Tc2_System</Namespace>\n    </PlaceholderReference>\n"
+        "    <PlaceholderReference", 1))
+    main_pou = tmp_path / "P" / "POUs" / "MAIN.TcPOU"
+    main_pou.write_text(main_pou.read_text().replace("nParts    : UDINT;",
+                                                     "nParts    : UDINT;\n    fbX : Vendor_Lib.FB_X;"))
+    assert main(["check", str(tmp_path / "P")]) == 1
+    err = capsys.readouterr().err
+    assert "unknown type 'Vendor_Lib.FB_X'" in err
+    assert "libraries plcpred does not have: Vendor_Lib;" in err      # Tc2_* are known

@@ -38,6 +38,7 @@ class _Globals:
     """Everything visible from every POU."""
 
     def __init__(self, programs: list[ir.Program]):
+        self.programs = programs
         self.vars: dict[str, _Var] = {}
         self.pous: dict[str, ir.Pou] = {}
         self.types: dict[str, ir.TypeDecl] = {}
@@ -144,8 +145,24 @@ class Checker:
         if self.allow_external:
             self.warnings.append(at(pos, f"{message}: taken as external (declared in a "
                                          "library not at hand)", ExternalWarning))
-        else:
-            self.error(pos, message)
+            return
+        missing = self._libraries_not_at_hand()
+        if missing:
+            message += (f" (the project uses libraries plcpred does not have: "
+                        f"{', '.join(missing)}; give their declarations with --lib, or check "
+                        "with --allow-external)")
+        self.error(pos, message)
+
+    def _libraries_not_at_hand(self) -> list[str]:
+        """Libraries the project's .plcproj references that are neither shipped as stubs
+        nor given (their namespaces)."""
+        if not hasattr(self, "_missing_libs"):
+            from .libraries import BUILTIN_NAMESPACES, shipped
+            known = BUILTIN_NAMESPACES | {lib.namespace.upper() for lib in shipped()}
+            refs = [p[len("{library-reference "):-1] for prog in self.g.programs
+                    for p, _ in prog.pragmas if p.startswith("{library-reference ")]
+            self._missing_libs = sorted({r for r in refs if r.upper() not in known})
+        return self._missing_libs
 
     # ------------------------------------------------------------------ entry
     def run(self):

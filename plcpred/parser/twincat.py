@@ -281,6 +281,29 @@ def project_files(path: Path) -> list[Path]:
     return files
 
 
+def project_references(path: Path) -> list[str]:
+    """The namespaces of the libraries a project references (its .plcproj's
+    PlaceholderReference and LibraryReference items), for naming the ones not at hand."""
+    if path.is_dir():
+        projects = [p for p in path.rglob("*") if p.suffix.lower() == ".plcproj"]
+        if len(projects) != 1:
+            return []
+        path = projects[0]
+    if path.suffix.lower() != ".plcproj":
+        return []
+    root = _parse_xml(read_source(path), str(path), "Project", "a TwinCAT .plcproj file")
+    out = []
+    for group in root.findall("ItemGroup"):
+        for item in group.children:
+            if item.tag in ("PlaceholderReference", "LibraryReference"):
+                ns = item.find("Namespace")
+                name = (ns.all_text()[0] if ns is not None else "").strip() or \
+                    item.attrib.get("Include", "").split(",")[0].strip()
+                if name:
+                    out.append(name)
+    return out
+
+
 def read_source(path: Path) -> str:
     """A program file's text: UTF-8 (a BOM dropped), else Latin-1 as older tools write it."""
     try:
