@@ -275,3 +275,16 @@ def test_r_edge_and_f_edge_inputs_see_the_edge_of_the_value_passed():
     assert parse_st(to_st(parse_st(src, "t.st")), "t.st") == parse_st(src, "t.st")
     with pytest.raises(Exception, match="expected R_EDGE, F_EDGE"):
         parse_st(body("x : BOOL EDGY;", ""), "t.st")
+
+
+def test_an_iec_class_is_a_function_block_of_methods():
+    src = ("CLASS C_Counter\nVAR\n  x : INT;\nEND_VAR\nMETHOD PUBLIC Bump : INT\nx := x + 1;\n"
+           "Bump := x;\nEND_METHOD\nEND_CLASS\n"
+           "CLASS C_Twice EXTENDS C_Counter\nMETHOD PUBLIC Bump : INT\nBump := SUPER^.Bump() * 2;\n"
+           "END_METHOD\nEND_CLASS\n"
+           + body("c : C_Twice; n : INT; Class : INT;", "n := c.Bump(); Class := 1;"))
+    assert trace(src, ("N",), lambda k: {}, scans=3) == [(2,), (4,), (6,)]
+    assert problems(src) == []
+    assert parse_st(src, "t.st").pou("C_Twice").kind == "FUNCTION_BLOCK"
+    with pytest.raises(Exception, match="statements belong in its methods"):
+        parse_st("CLASS C\nVAR x : INT; END_VAR\nx := 1;\nEND_CLASS\n", "t.st")

@@ -25,6 +25,7 @@ OP_TEXT = {"AMP": "AND", "EQ": "=", "NE": "<>", "LT": "<", "GT": ">", "LE": "<="
 ACCESS = {"PUBLIC", "PRIVATE", "PROTECTED", "INTERNAL"}
 TIMED_QUALIFIERS = {"L", "D", "SD", "DS", "SL"}
 _COMPOUND = (ir.If, ir.Case, ir.For, ir.While, ir.Repeat)
+_STATEMENT_TYPES = tuple(ir.Stmt.__args__)
 
 
 class _QualName(str):
@@ -491,6 +492,14 @@ class IRBuilder:
                          extends=str(extends) if extends else None,
                          implements=[str(i) for i in implements or []], access=access,
                          modifiers=modifiers)
+
+    def class_pou(self, tok, mods, name, extends, implements, var_blocks, items):
+        """A CLASS is read as the FUNCTION_BLOCK it is equivalent to (no body of its own:
+        statements outside its methods are an error)."""
+        if any(isinstance(i, _STATEMENT_TYPES) and type(i) is not ir.Empty for i in items):
+            raise self._err(f"CLASS {name}: statements belong in its methods",
+                            self._pos(tok))
+        return self.fb_pou(tok, mods, name, extends, implements, var_blocks, items)
 
     def function_pou(self, tok, mods, name, ret, var_blocks, items):
         ret = self._plain(ret)
@@ -1012,6 +1021,12 @@ def _syntax_error(tok, expected, feed: _Recording, filename: str,
         line = prev.line if prev is not None else 1
         col = (prev.column + len(prev)) if prev is not None else 1
         # at the end of the file the useful hint is the construct left open
+        pou = next((v for v in reversed(value_stack) if isinstance(v, Token)
+                    and "_END_" + v.type in expected), None)
+        if pou is not None:
+            return ProgramError(f"unexpected end of file; expected END_{pou.type} (the "
+                                f"{pou.type} at line {pou.line} is not closed)", filename,
+                                line, col)
         closers = {t for t in expected if t.startswith("_END_")}
         return ProgramError(f"unexpected end of file; expected "
                             f"{describe_expected(closers or expected)}", filename, line, col)

@@ -22,7 +22,7 @@ TERMINALS = """
 %declare IF _THEN _ELSIF _ELSE _END_IF CASE _END_CASE FOR _BY _DO _END_FOR WHILE _END_WHILE REPEAT _UNTIL _END_REPEAT
 %declare EXIT CONTINUE RETURN JMP AND OR XOR NOT MOD AND_THEN OR_ELSE TRUE FALSE
 %declare CONFIGURATION _END_CONFIGURATION RESOURCE _END_RESOURCE TASK
-%declare PUBLIC PRIVATE PROTECTED INTERNAL ABSTRACT FINAL
+%declare PUBLIC PRIVATE PROTECTED INTERNAL ABSTRACT FINAL CLASS _END_CLASS
 %declare INITIAL_STEP STEP _END_STEP TRANSITION _FROM _END_TRANSITION ACTION _END_ACTION
 """
 
@@ -146,12 +146,14 @@ config_path: NAME (_DOT NAME)+
 
 ST_TOP = r"""
 start: _top_item*
-_top_item: program_pou | fb_pou | function_pou | type_block | interface | configuration
+_top_item: program_pou | fb_pou | class_pou | function_pou | type_block | interface | configuration
          | global_block | method | property | action
 
 // a ';' after a header is accepted, as CODESYS and TwinCAT do
 program_pou: PROGRAM modifiers NAME _SEMI? var_blocks body_items _END_PROGRAM
 fb_pou: FUNCTION_BLOCK modifiers NAME [_EXTENDS qual_name] [_IMPLEMENTS qual_list] _SEMI? var_blocks body_items _END_FUNCTION_BLOCK
+// IEC 61131-3 ed.3 CLASS: a function block whose behaviour is all in its methods
+class_pou: CLASS modifiers NAME [_EXTENDS qual_name] [_IMPLEMENTS qual_list] _SEMI? var_blocks body_items _END_CLASS
 function_pou: FUNCTION modifiers NAME [_COLON type_spec] _SEMI? var_blocks body_items _END_FUNCTION
 qual_list: qual_name (_COMMA qual_name)* _COMMA?
 modifiers: modifier*
