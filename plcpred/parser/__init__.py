@@ -39,7 +39,8 @@ def _load(path) -> "ir.Program":
         merged = reduce(ir.Program.merge, [_load(f) for f in twincat.project_files(p)])
         merged.source = str(path)
         # kept for naming the libraries a check misses (see check.Checker.missing)
-        merged.pragmas += [(f"{{library-reference {name}}}", ir.Pos(str(path), 0, 0))
+        from .libraries import reference_pragma
+        merged.pragmas += [(reference_pragma(name), ir.Pos(str(path), 0, 0))
                            for name in twincat.project_references(p)]
         return merged
     text = twincat.read_source(p)

@@ -624,17 +624,11 @@ class IRBuilder:
         prog = ir.Program()
         last_pou = None
         for item in items:
-            if isinstance(item, ir.Pou):
-                prog.pous.append(item)
-                last_pou = item
-            elif isinstance(item, list):  # TYPE block
+            if isinstance(item, list):  # TYPE block
                 prog.types.extend(item)
-            elif isinstance(item, ir.Interface):
-                prog.interfaces.append(item)
-            elif isinstance(item, ir.Configuration):
-                prog.configurations.append(item)
-            elif isinstance(item, ir.GlobalVars):
-                prog.globals.append(item)
+            elif prog.add(item):
+                if isinstance(item, ir.Pou):
+                    last_pou = item
             else:  # a METHOD, PROPERTY or ACTION written after its POU (TwinCAT/CODESYS export)
                 if last_pou is None:
                     raise self._err(f"{type(item).__name__.upper()} '{item.name}' stands before "

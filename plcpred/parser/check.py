@@ -81,7 +81,7 @@ class _Globals:
         pou = self.pous.get(up)
         if pou is None or pou.kind != "FUNCTION_BLOCK":
             return None
-        ins, outs, other = set(), set(), set()
+        ins, outs = set(), set()
         for p in self.fb_chain(pou):
             for b in p.var_blocks:
                 names = {d.name.upper() for d in b.decls}
@@ -89,10 +89,16 @@ class _Globals:
                     ins |= names
                 elif b.kind == "VAR_OUTPUT":
                     outs |= names
-            other |= {m.name.upper() for m in p.methods}
-            other |= {pr.name.upper() for pr in p.properties}
-            other |= {a.name.upper() for a in p.actions}
-        return ins, outs, other
+        return ins, outs, self.callables(pou)
+
+    def callables(self, pou: ir.Pou) -> set[str]:
+        """Methods, properties and actions of a POU and those it inherits."""
+        out = set()
+        for p in self.fb_chain(pou):
+            out |= {m.name.upper() for m in p.methods}
+            out |= {pr.name.upper() for pr in p.properties}
+            out |= {a.name.upper() for a in p.actions}
+        return out
 
     def fb_internals(self, type_name: str) -> set[str]:
         """The VAR (and VAR_STAT, VAR_INST) variables of a user FB type and its bases."""
@@ -127,6 +133,7 @@ class Checker:
                  allow_external: bool = False):
         self.program = program
         self.allow_external = allow_external
+        self._missing_libs = None  # see _libraries_not_at_hand
         self.g = _Globals([program, *[c for c in context if c is not program]])
         self.errors: list[ProgramError] = []
         self.warnings: list[ProgramWarning] = []
@@ -156,12 +163,11 @@ class Checker:
     def _libraries_not_at_hand(self) -> list[str]:
         """Libraries the project's .plcproj references that are neither shipped as stubs
         nor given (their namespaces)."""
-        if not hasattr(self, "_missing_libs"):
-            from .libraries import BUILTIN_NAMESPACES, shipped
+        if self._missing_libs is None:
+            from .libraries import BUILTIN_NAMESPACES, referenced_libraries, shipped
             known = BUILTIN_NAMESPACES | {lib.namespace.upper() for lib in shipped()}
-            refs = [p[len("{library-reference "):-1] for prog in self.g.programs
-                    for p, _ in prog.pragmas if p.startswith("{library-reference ")]
-            self._missing_libs = sorted({r for r in refs if r.upper() not in known})
+            self._missing_libs = sorted({r for r in referenced_libraries(self.g.programs)
+                                         if r.upper() not in known})
         return self._missing_libs
 
     # ------------------------------------------------------------------ entry
@@ -259,10 +265,7 @@ class Checker:
                     self._expr(a.value, scope, None)
                 self.warn(d.pos, f"FB_init arguments of '{d.name}' are not applied: "
                                  "plcpred does not run FB_init methods")
-        extra = set()
-        for p in self.g.fb_chain(pou):   # inherited members by bare name too
-            extra |= {m.name.upper() for m in p.methods} | {x.name.upper() for x in p.properties}
-            extra |= {a.name.upper() for a in p.actions}
+        extra = self.g.callables(pou)   # by bare name, inherited ones too
         if pou.kind == "FUNCTION":
             extra.add(pou.name.upper())
         if pou.kind == "FUNCTION_BLOCK":

@@ -551,6 +551,17 @@ class Program:
                 return t
         raise KeyError(name)
 
+    def add(self, item) -> bool:
+        """File a top-level item (POU, TYPE declaration, interface, configuration, global
+        variable list) in its list; False for anything else."""
+        for cls, items in ((Pou, self.pous), (TypeDecl, self.types),
+                           (Interface, self.interfaces), (Configuration, self.configurations),
+                           (GlobalVars, self.globals)):
+            if isinstance(item, cls):
+                items.append(item)
+                return True
+        return False
+
     def merge(self, other: "Program") -> "Program":
         """Both programs' contents in one (positions keep naming their files); the
         source is this one's."""

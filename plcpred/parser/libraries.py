@@ -66,6 +66,22 @@ def user_libraries(paths) -> list[Library]:
             for p in paths]
 
 
+# ------------------------------------------------------------------------- references
+
+_REFERENCE = "{library-reference "
+
+
+def reference_pragma(namespace: str) -> str:
+    """How a project records a library it references (kept in Program.pragmas)."""
+    return f"{_REFERENCE}{namespace}}}"
+
+
+def referenced_libraries(programs) -> list[str]:
+    """The libraries the projects among ``programs`` reference."""
+    return [p[len(_REFERENCE):-1] for prog in programs for p, _ in prog.pragmas
+            if p.startswith(_REFERENCE)]
+
+
 # ------------------------------------------------------------------------- namespaces
 
 def strip_namespaces(program: ir.Program, namespaces: set[str]) -> None:
@@ -183,14 +199,7 @@ def library_program(programs: list[ir.Program], paths=()) -> ir.Program:
             if found is None and gvl is None:
                 continue
             item = found or gvl
-            if isinstance(item, ir.Pou):
-                out.pous.append(item)
-            elif isinstance(item, ir.TypeDecl):
-                out.types.append(item)
-            elif isinstance(item, ir.Interface):
-                out.interfaces.append(item)
-            else:
-                out.globals.append(item)
+            out.add(item)
             new = _defined([out]) | have
             wanted |= _referenced(item) - new
             have = new

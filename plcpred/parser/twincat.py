@@ -110,13 +110,13 @@ class _Importer:
                 # a body that ends in a comment or a label still needs its statements closed
                 out.keyword(";")
                 return
-            if lang.tag:
-                # a marker parsed as an inline-code statement, swapped for the Opaque after
-                marker = f"{{{{#{len(self.opaque)}}}}}"
-                self.opaque.append(ir.Opaque(f"the {lang.tag} body of {what}",
-                                             pos=ir.Pos(self.file, lang.line, lang.col)))
-                out.place(marker, lang.line, lang.col)
-                return
+            # any other language: a marker parsed as an inline-code statement, swapped
+            # for the Opaque after
+            marker = f"{{{{#{len(self.opaque)}}}}}"
+            self.opaque.append(ir.Opaque(f"the {lang.tag} body of {what}",
+                                         pos=ir.Pos(self.file, lang.line, lang.col)))
+            out.place(marker, lang.line, lang.col)
+            return
 
     # ------------------------------------------------------------------ objects
     def pou(self, out: _Stitch, el: _El) -> None:
