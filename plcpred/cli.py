@@ -135,6 +135,31 @@ def _horizon_and_out(args):
     return horizon_s, dt_s, check_out_dir(args.out)
 
 
+def _shown_consumers(text: str) -> int | None:
+    """``--consumers``: a number of consumers, or ``all``."""
+    if text.strip().lower() == "all":
+        return None
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"expected a whole number >= 1 or 'all', not {text!r}")
+    return n
+
+
+def _consumers_arg(p) -> None:
+    from .output import SHOWN_CONSUMERS
+
+    p.add_argument("--consumers", type=_shown_consumers, default=SHOWN_CONSUMERS,
+                   metavar="N|all",
+                   help="consumers shown one by one in demand.csv and demand.png: the N "
+                        "largest users and 'other' for the rest when the machine has more "
+                        f"than N+1 (default {SHOWN_CONSUMERS}); 'all' for every one (the "
+                        "default grid then coarsens to keep demand.csv to a few million "
+                        "values)")
+
+
 def _command_line(args) -> str:
     """What the manifest records as the command that wrote a directory."""
     return " ".join(["plcpred"] + [str(a) for a in getattr(args, "argv", [])])
@@ -185,7 +210,7 @@ def cmd_predict(args) -> int:
     try:
         machine = load_machine(args.machine)
         result = predict(machine, horizon_s, dt=dt_s, program=args.program,
-                         max_events=args.max_events)
+                         max_events=args.max_events, shown=args.consumers)
     except PlcpredError as e:
         print(e, file=sys.stderr)
         return 1
@@ -199,7 +224,7 @@ def cmd_predict(args) -> int:
     print(f"{machine.name}: {prof.horizon_s:g} s at {machine.supply_bar_g:g} bar(g), "
           f"grid {prof.dt_s:g} s")
     print()
-    print(consumer_table(prof))
+    print(consumer_table(prof, args.consumers))
     print()
     print(f"active {split['active']:.2f} NL ({100 * split['active'] / total:.1f} %), "
           f"passive {split['passive']:.2f} NL ({100 * split['passive'] / total:.1f} %), "
@@ -241,7 +266,7 @@ def cmd_size(args) -> int:
         return _fail(f"{e}")
     try:
         result = predict(args.machine, horizon_s, dt=dt_s, program=args.program,
-                         max_events=args.max_events)
+                         max_events=args.max_events, shown=args.consumers)
         s = size(result.profile, allowance=allowance, band_bar=band, hours_per_year=args.hours,
                  sec_kwh_per_nm3=args.sec, price_per_kwh=args.price, idle_after_s=idle_after,
                  cycles=cycles_of(result.machine, result.timeline, result.profile),
@@ -456,6 +481,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "on a time grid), summary.json and demand.png, and prints "
                                    "a table of per-consumer totals.")
     _machine_args(p)
+    _consumers_arg(p)
     p.add_argument("--no-plot", action="store_true", help="skip demand.png")
     p.set_defaults(func=cmd_predict)
 
@@ -468,6 +494,7 @@ def build_parser() -> argparse.ArgumentParser:
                                    "idle. Writes DIR/sizing.json, sizing.md and sizing.html "
                                    "(self-contained, plots embedded).")
     _machine_args(p)
+    _consumers_arg(p)
     p.add_argument("--allowance", default="10%",
                    help="design flow above the mean (default 10%%)")
     p.add_argument("--band", default="1bar",

@@ -42,6 +42,12 @@ class OutputError(PlcpredError):
     """An output path that cannot be written."""
 
 
+# consumers that demand.csv, demand.png and the printed table show one by one before
+# grouping the rest as "other" (a wide machine would otherwise give a column and a plot
+# layer per drive)
+SHOWN_CONSUMERS = 12
+
+
 def _umask() -> int:
     """The process umask (reading it means setting it; it is put back at once)."""
     umask = os.umask(0)

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .output import SHOWN_CONSUMERS
+
 MAX_POINTS = 3000
 
 
@@ -52,24 +54,38 @@ def _cell(text: str) -> str:
     return str(text).replace("|", r"\|").replace("\n", " ")
 
 
-def plot_demand(profile, path, title="Air demand") -> None:
-    """Stacked flow per consumer against time with the cumulative normal litres on a
-    second axis; written through a temporary file."""
+def plot_demand(profile, path, title="Air demand", shown: int | None = SHOWN_CONSUMERS
+                ) -> None:
+    """Stacked flow per consumer (the ``shown`` largest and "other" on a wide machine,
+    see :meth:`DemandProfile.groups`) against time with the cumulative normal litres on
+    a second axis; written through a temporary file."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     k = _bin_width(profile.n_cells)
-    flows = _bins(profile.flow_l_min, k)
-    t = np.arange(flows.shape[1]) * profile.dt_s * k
+    # each layer's air integrated straight onto the plot's bins (exact, as the grid is)
+    bin_edges = profile.edges_s[::k]
+    if bin_edges[-1] < profile.edges_s[-1]:
+        bin_edges = np.append(bin_edges, profile.edges_s[-1])
+    widths = np.diff(bin_edges)
+    t = bin_edges[:-1]
     scale, unit = _time_axis(profile.horizon_s)
     fig, ax = plt.subplots(figsize=(11, 5.5), dpi=110)
+    groups = profile.groups(shown)
+    group_nl = [float(profile.consumer_nl[idx].sum()) for _, idx in groups]
     # leaks first, as the base layer they are (always on), then the largest users
-    order = sorted(range(len(profile.names)),
-                   key=lambda i: (profile.roles[i] != "leak", -profile.consumer_nl[i]))
-    labels = [f"{_plain(profile.names[i])} ({profile.consumer_nl[i]:.1f} NL)" for i in order]
+    order = sorted(range(len(groups)), key=lambda g: (
+        not all(profile.roles[i] == "leak" for i in groups[g][1]), -group_nl[g]))
+    labels = [f"{_plain(groups[g][0])} ({group_nl[g]:.1f} NL)" for g in order]
     if len(order):
-        ax.stackplot(t * scale, flows[order], labels=labels, step="post", alpha=0.85)
+        flows = np.array([profile.cells_nl(groups[g][1], bin_edges) / widths * 60.0
+                          for g in order])
+        cycle = [c["color"] for c in plt.rcParams["axes.prop_cycle"]]
+        # the rest of a wide machine in grey, so it does not pass for one consumer
+        colors = [("#a0a0a0" if len(groups[g][1]) > 1 else cycle[n % len(cycle)])
+                  for n, g in enumerate(order)]
+        ax.stackplot(t * scale, flows, labels=labels, colors=colors, step="post", alpha=0.85)
     else:
         ax.text(0.5, 0.5, "the machine file has no consumers", transform=ax.transAxes,
                 ha="center")
@@ -83,10 +99,8 @@ def plot_demand(profile, path, title="Air demand") -> None:
                  f"{profile.peak_l_min():.1f} NL/min (instantaneous; grid "
                  f"{profile.dt_s:g} s{avg}), total {profile.total_nl:.1f} NL", fontsize=10)
     ax2 = ax.twinx()
-    cum = np.concatenate([[0.0], profile.cumulative_nl()])
-    tc = np.arange(len(cum)) * profile.dt_s
-    step = max(1, len(cum) // MAX_POINTS)
-    ax2.plot(tc[::step] * scale, cum[::step], color="black", lw=1.4, label="cumulative NL")
+    ax2.plot(bin_edges * scale, profile.steps.cumulative_nl(bin_edges), color="black", lw=1.4,
+             label="cumulative NL")
     ax2.set_ylabel("cumulative (NL)")
     ax2.set_ylim(bottom=0)
     h1, l1 = ax.get_legend_handles_labels()
@@ -96,16 +110,19 @@ def plot_demand(profile, path, title="Air demand") -> None:
     _save_fig(fig, path)
 
 
-def consumer_table(profile) -> str:
-    """The per-consumer table ``plcpred predict`` prints."""
+def consumer_table(profile, shown: int | None = SHOWN_CONSUMERS) -> str:
+    """The per-consumer table ``plcpred predict`` prints (on a wide machine the ``shown``
+    largest users and a row for the rest, :meth:`DemandProfile.groups`)."""
     rows = [("consumer", "kind", "strokes", "active NL", "passive NL", "total NL", "share")]
     total = profile.total_nl or 1.0
-    for i, name in enumerate(profile.names):
-        st = profile.strokes.get(name)
-        rows.append((name, profile.roles[i], f"{st[0]}+{st[1]}" if st else "",
-                     f"{profile.active_nl[i]:.2f}", f"{profile.passive_nl[i]:.2f}",
-                     f"{profile.consumer_nl[i]:.2f}",
-                     f"{100 * profile.consumer_nl[i] / total:.1f} %"))
+    active, passive = profile.active_nl, profile.passive_nl
+    for label, idx in profile.groups(shown):
+        i = idx[0]
+        st = profile.strokes.get(label) if len(idx) == 1 else None
+        part = float(profile.consumer_nl[idx].sum())
+        rows.append((label, profile.roles[i] if len(idx) == 1 else "", f"{st[0]}+{st[1]}" if st else "",
+                     f"{active[idx].sum():.2f}", f"{passive[idx].sum():.2f}", f"{part:.2f}",
+                     f"{100 * part / total:.1f} %"))
     split = profile.by_role_nl()
     rows.append(("total", "", "", f"{split['active']:.2f}",
                  f"{split['passive'] + split['leak']:.2f}", f"{profile.total_nl:.2f}",
@@ -310,7 +327,8 @@ def write_sizing_report(result, sizing, out_dir) -> list[Path]:
     write_json(out / "sizing.json", data)
     plot_sizing(result.profile, sizing, out / "sizing.png",
                 title=f"{name}: demand and compressor design flow")
-    plot_demand(result.profile, out / "demand.png", title=f"{name}: air demand")
+    plot_demand(result.profile, out / "demand.png", title=f"{name}: air demand",
+                shown=result.shown)
     md = sizing_markdown(name, sizing, result.profile)
     atomic_write_text(out / "sizing.md", md)
     images = {p: (out / p).read_bytes() for p in ("sizing.png", "demand.png")}

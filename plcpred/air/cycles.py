@@ -51,17 +51,10 @@ def _boundaries(t_ns: np.ndarray, v: np.ndarray, before: float) -> np.ndarray:
 
 def cycles_of(machine, timeline, profile) -> Cycles | None:
     """The cycles of a predicted run (None: no cycle signal and no repeating state)."""
-    if profile.steps is not None:
-        def nl_between(a_s: float, b_s: float) -> float:
-            """Air between two times, exact (the demand before the grid)."""
-            a, b = profile.steps.cumulative_nl([a_s, b_s])
-            return float(b - a)
-    else:
-        cum = np.concatenate([[0.0], np.cumsum(profile.cell_nl.sum(axis=0))])
-        edges_s = np.arange(len(cum)) * profile.dt_s
-
-        def nl_between(a_s: float, b_s: float) -> float:
-            return float(np.interp(b_s, edges_s, cum) - np.interp(a_s, edges_s, cum))
+    def nl_between(a_s: float, b_s: float) -> float:
+        """Air between two times, exact (the demand before the grid)."""
+        a, b = profile.steps.cumulative_nl([a_s, b_s])
+        return float(b - a)
 
     horizon_ns = timeline.horizon_ns
     signal = machine.cycle_signal

@@ -33,7 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..machine import CYLINDER_KINDS
-from ..output import atomic_write_text, write_json
+from ..output import SHOWN_CONSUMERS, atomic_writer, write_json
 from ..sequencer.timeline import NS
 from .flow import bar_g_to_pa, celsius_to_k, flow_nl_min, orifice_conductance
 from .volumes import consumer_stroke_volumes_nl, dead_fill_volumes_nl
@@ -270,7 +270,9 @@ def _cell_volumes(edges_s, start_s, duration_s, amount) -> np.ndarray:
         k = np.searchsorted(edges_s, bp, side="right") - 1
         inside = (k >= 0) & (k < n)
         before = k < 0                      # in force from the first cell on
-        full = np.bincount(k[inside] + 1, weights=change[inside], minlength=n + 1)
+        # (astype: bincount of nothing is an integer array, which would drop the rate)
+        full = np.bincount(k[inside] + 1, weights=change[inside],
+                           minlength=n + 1).astype(float)
         full[0] += change[before].sum()
         rate_full = np.cumsum(full)[:n]
         part = np.bincount(k[inside], weights=change[inside] * (
@@ -347,47 +349,121 @@ class DemandSteps:
 
 # ---------------------------------------------------------------------- the profile
 
+
+class _Series:
+    """The rectangles of one or more consumers merged and sorted by start, so that the
+    volumes of any stretch of the grid need only the rectangles that reach into it."""
+
+    def __init__(self, rects):
+        start = np.concatenate([r[0] for r in rects]) if rects else np.zeros(0)
+        dur = np.concatenate([r[1] for r in rects]) if rects else np.zeros(0)
+        vol = np.concatenate([r[2] for r in rects]) if rects else np.zeros(0)
+        order = np.argsort(start, kind="stable")
+        self.start_s = np.asarray(start, dtype=float)[order]
+        self.duration_s = np.asarray(dur, dtype=float)[order]
+        self.nl = np.asarray(vol, dtype=float)[order]
+        # the latest end so far: every item before the first with reach >= t ends before t
+        self.reach_s = np.maximum.accumulate(self.start_s + np.clip(self.duration_s, 0, None)) \
+            if len(order) else self.start_s
+
+    def cells_nl(self, edges_s) -> np.ndarray:
+        """Normal litres in each cell of ``edges_s`` (any stretch of any grid)."""
+        edges_s = np.asarray(edges_s, dtype=float)
+        lo = int(np.searchsorted(self.reach_s, edges_s[0], side="left"))
+        hi = int(np.searchsorted(self.start_s, edges_s[-1], side="right"))
+        return _cell_volumes(edges_s, self.start_s[lo:hi], self.duration_s[lo:hi],
+                             self.nl[lo:hi])
+
+    def total_nl(self, until_s: float) -> float:
+        """Normal litres before ``until_s`` (air that would flow later is not counted)."""
+        return float(_cumulative([until_s], self.start_s, self.duration_s, self.nl)[0])
+
+
 @dataclass
 class DemandProfile:
-    """Air demand on a regular grid: per-consumer normal litres per cell, flows in NL/min."""
+    """Air demand of each consumer, kept as the model has it (per consumer, each stroke's
+    or on-period's rectangle: start, duration, NL) and read on a regular grid of ``dt_s``
+    only where asked: per-consumer totals are exact sums of the rectangles, the total
+    flow is one pass over all of them, and per-consumer cells are worked out stretch by
+    stretch (``demand.csv``) or on a coarser grid (the plot), so memory grows with the
+    number of strokes and cells, not with consumers x cells."""
     names: list[str]
     roles: list[str]
-    cell_nl: np.ndarray                 # consumers x cells
+    rects: list                         # per consumer: (start_s, duration_s, nl) arrays
     dt_s: float
     horizon_s: float
-    active_nl: np.ndarray               # per consumer
-    passive_nl: np.ndarray
     strokes: dict = field(default_factory=dict)   # name -> (extend, retract) counts
     models: list = field(default_factory=list)
-    steps: DemandSteps | None = None    # the exact demand, for peaks off the grid
+    steps: DemandSteps | None = None    # the exact total demand, for peaks off the grid
+
+    def __post_init__(self):
+        if self.steps is None:
+            self.steps = DemandSteps.of(self.rects, self.horizon_s)
+
+    @functools.cached_property
+    def edges_s(self) -> np.ndarray:
+        return grid_edges_s(self.horizon_s, self.dt_s)
 
     @property
     def n_cells(self) -> int:
-        return self.cell_nl.shape[1]
+        return len(self.edges_s) - 1
 
     @property
     def time_s(self) -> np.ndarray:
         """Start of each cell."""
-        return np.arange(self.n_cells) * self.dt_s
+        return self.edges_s[:-1]
+
+    def series(self, which) -> _Series:
+        """The merged rectangles of the consumers at indices ``which``."""
+        return _Series([self.rects[i] for i in which])
+
+    def cells_nl(self, which=None, edges_s=None) -> np.ndarray:
+        """Normal litres per cell of the consumers at indices ``which`` together (default
+        all) on ``edges_s`` (default the profile's grid)."""
+        which = range(len(self.names)) if which is None else which
+        return self.series(which).cells_nl(self.edges_s if edges_s is None else edges_s)
+
+    @functools.cached_property
+    def total_cell_nl(self) -> np.ndarray:
+        """Normal litres per cell, all consumers."""
+        return self.cells_nl()
+
+    @functools.cached_property
+    def cell_nl(self) -> np.ndarray:
+        """Per-consumer normal litres per cell (consumers x cells): dense, for studies of a
+        few consumers; the outputs never build it."""
+        out = np.zeros((len(self.names), self.n_cells))
+        for i in range(len(self.names)):
+            out[i] = self.cells_nl([i])
+        return out
 
     @property
     def flow_l_min(self) -> np.ndarray:
-        """Per-consumer mean flow in each cell, NL/min (consumers x cells)."""
+        """Per-consumer mean flow in each cell, NL/min (consumers x cells, dense)."""
         return self.cell_nl / self.dt_s * 60.0
 
     @property
     def total_flow_l_min(self) -> np.ndarray:
-        return self.cell_nl.sum(axis=0) / self.dt_s * 60.0
-
-    @property
-    def total_nl(self) -> float:
-        return float(self.cell_nl.sum())
+        return self.total_cell_nl / self.dt_s * 60.0
 
     @functools.cached_property
     def consumer_nl(self) -> np.ndarray:
-        """Per-consumer totals, summed once (reports ask per consumer, per row, per
-        legend label: re-summing consumers x cells each time grows as N^2)."""
-        return self.cell_nl.sum(axis=1)
+        """Per-consumer totals over the horizon, from the rectangles (the same at every
+        ``dt``)."""
+        return np.array([self.series([i]).total_nl(self.horizon_s)
+                         for i in range(len(self.names))], dtype=float)
+
+    @property
+    def active_nl(self) -> np.ndarray:
+        return np.where(np.array(self.roles) == "active", self.consumer_nl, 0.0)
+
+    @property
+    def passive_nl(self) -> np.ndarray:
+        return np.where(np.array(self.roles) == "active", 0.0, self.consumer_nl)
+
+    @property
+    def total_nl(self) -> float:
+        return float(self.consumer_nl.sum())
 
     @property
     def mean_l_min(self) -> float:
@@ -395,11 +471,8 @@ class DemandProfile:
 
     def peak_l_min(self, window_s: float | None = None) -> float:
         """The highest instantaneous demand, or the highest mean over any window of
-        ``window_s``: exact (:class:`DemandSteps`, the same at every ``dt``) when the
-        profile has its steps, else on the grid (cells, windows in whole cells)."""
-        if self.steps is not None:
-            return self.steps.peak_l_min(window_s)
-        return self.grid_peak_l_min(window_s)
+        ``window_s``: exact (:class:`DemandSteps`, the same at every ``dt``)."""
+        return self.steps.peak_l_min(window_s)
 
     def grid_peak_l_min(self, window_s: float | None = None) -> float:
         """The highest total flow of a grid cell, or mean over ``window_s`` in whole
@@ -411,7 +484,7 @@ class DemandProfile:
         """Total flow averaged over the trailing ``window_s`` (whole cells; windows that
         would start before 0 are left out)."""
         k = max(1, int(round(window_s / self.dt_s)))
-        total = self.cell_nl.sum(axis=0)
+        total = self.total_cell_nl
         if k >= len(total):
             return np.array([total.sum() / (len(total) * self.dt_s) * 60.0])
         c = np.concatenate([[0.0], np.cumsum(total)])
@@ -419,7 +492,20 @@ class DemandProfile:
 
     def cumulative_nl(self) -> np.ndarray:
         """Normal litres used by the end of each cell."""
-        return np.cumsum(self.cell_nl.sum(axis=0))
+        return np.cumsum(self.total_cell_nl)
+
+    def consumer_nl_within(self, cell_mask) -> np.ndarray:
+        """Per-consumer normal litres in the cells where ``cell_mask`` is true."""
+        mask = np.asarray(cell_mask, dtype=bool)
+        d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+        starts = self.edges_s[np.flatnonzero(d == 1)]
+        stops = self.edges_s[np.flatnonzero(d == -1)]
+        out = np.zeros(len(self.names))
+        if not len(starts):
+            return out
+        for i, r in enumerate(self.rects):
+            out[i] = float(np.sum(_cumulative(stops, *r) - _cumulative(starts, *r)))
+        return out
 
     def by_role_nl(self) -> dict:
         out = {"active": 0.0, "passive": 0.0, "leak": 0.0}
@@ -427,26 +513,48 @@ class DemandProfile:
             out[role] += float(v)
         return out
 
+    def groups(self, shown: int | None = SHOWN_CONSUMERS) -> list[tuple[str, list[int]]]:
+        """(label, consumer indices) of what the outputs show one by one: every consumer
+        in machine-file order when there are at most ``shown + 1`` (or ``shown`` is None),
+        else the ``shown`` largest users in machine-file order and "other" for the rest
+        (the only group of more than one)."""
+        n = len(self.names)
+        if shown is None or n <= shown + 1:
+            return [(name, [i]) for i, name in enumerate(self.names)]
+        top = sorted(np.argsort(-self.consumer_nl, kind="stable")[:shown].tolist())
+        rest = sorted(set(range(n)) - set(top))
+        return [(self.names[i], [i]) for i in top] + [(f"other ({len(rest)})", rest)]
+
     # ------------------------------------------------------------------ files
-    def to_csv(self, path) -> None:
-        """``demand.csv``: ``time_s,total_l_min,<consumer>_l_min...``; each row is the mean
-        flow over the cell starting at ``time_s``."""
-        cols = [self.time_s, self.total_flow_l_min] + list(self.flow_l_min)
+    def to_csv(self, path, shown: int | None = SHOWN_CONSUMERS,
+               values_per_write: int = 2_000_000) -> None:
+        """``demand.csv``: ``time_s,total_l_min,<consumer>_l_min...`` (with more than
+        ``shown + 1`` consumers, the ``shown`` largest and ``other_l_min``); each row is
+        the mean flow over the cell starting at ``time_s``. Written in stretches of the
+        grid, so memory does not grow with the horizon."""
+        groups = self.groups(shown)
+        series = [self.series(idx) for _, idx in groups]
+        total = _Series(self.rects)
         header = "time_s,total_l_min," + ",".join(
-            _csv_name(n) + "_l_min" for n in self.names)
-        data = np.column_stack(cols)
-        fmt = ["%.6g"] + ["%.6f"] * (len(cols) - 1)
-        import io
-        buf = io.StringIO()
-        np.savetxt(buf, data, delimiter=",", fmt=fmt, header=header, comments="")
-        atomic_write_text(path, buf.getvalue())
+            ("other" if len(idx) > 1 else _csv_name(label)) + "_l_min" for label, idx in groups)
+        fmt = ["%.6g"] + ["%.6f"] * (len(groups) + 1)
+        rows = max(1000, values_per_write // (len(groups) + 2))
+        per_min = 60.0 / self.dt_s
+        with atomic_writer(path) as f:
+            f.write(header + "\n")
+            for a in range(0, self.n_cells, rows):
+                e = self.edges_s[a:min(self.n_cells, a + rows) + 1]
+                cols = [e[:-1], total.cells_nl(e) * per_min] + [
+                    s.cells_nl(e) * per_min for s in series]
+                np.savetxt(f, np.column_stack(cols), delimiter=",", fmt=fmt)
 
     def summary(self) -> dict:
         consumers = {}
+        active, passive = self.active_nl, self.passive_nl
         for i, (name, role) in enumerate(zip(self.names, self.roles)):
             entry = {"total_nl": float(self.consumer_nl[i]),
-                     "active_nl": float(self.active_nl[i]),
-                     "passive_nl": float(self.passive_nl[i]), "role": role}
+                     "active_nl": float(active[i]),
+                     "passive_nl": float(passive[i]), "role": role}
             m = self.models[i] if i < len(self.models) else None
             if m is not None:
                 entry["kind"] = m.kind
@@ -479,26 +587,20 @@ def _csv_name(name: str) -> str:
 
 def demand_profile(timeline, models: list[ConsumerModel], dt_s: float = 0.01,
                    signal_map=None) -> DemandProfile:
-    """Integrate every consumer's air over the grid (see the module docstring)."""
+    """Every consumer's air as rectangles (see the module docstring), read on a grid of
+    ``dt_s``."""
     if dt_s <= 0:
         raise ValueError("dt must be positive")
     horizon_s = timeline.horizon_ns / NS
-    edges = grid_edges_s(horizon_s, dt_s)
-    n = len(models)
-    cells = np.zeros((n, len(edges) - 1))
-    active = np.zeros(n)
-    passive = np.zeros(n)
     strokes = {}
     rects = []
-    for i, m in enumerate(models):
+    for m in models:
         if m.role == "active":
             t_ns, ext = valve_transitions(timeline, m, signal_map)
             strokes[m.name] = (int(ext.sum()), int((~ext).sum()))
             rects.append(stroke_rectangles(t_ns / NS, ext, m.extend_nl, m.retract_nl,
                                            m.delay_s, m.stroke_time_s, m.exhaust_tau_s,
                                            m.dead_fill_nl))
-            cells[i] = _cell_volumes(edges, *rects[-1])
-            active[i] = cells[i].sum()
         else:
             if m.role == "leak":
                 starts, ends = np.array([0.0]), np.array([horizon_s])
@@ -506,11 +608,8 @@ def demand_profile(timeline, models: list[ConsumerModel], dt_s: float = 0.01,
                 s_ns, e_ns = passive_intervals(timeline, m, signal_map)
                 starts, ends = s_ns / NS, e_ns / NS
             rects.append(interval_rectangles(starts, ends, m.flow_l_min))
-            cells[i] = _cell_volumes(edges, *rects[-1])
-            passive[i] = cells[i].sum()
-    return DemandProfile([m.name for m in models], [m.role for m in models], cells, dt_s,
-                         horizon_s, active, passive, strokes, list(models),
-                         DemandSteps.of(rects, horizon_s))
+    return DemandProfile([m.name for m in models], [m.role for m in models], rects, dt_s,
+                         horizon_s, strokes, list(models))
 
 
 def activation_matrix(timeline, models: list[ConsumerModel], dt_s: float, signal_map=None):

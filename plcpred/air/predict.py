@@ -9,16 +9,29 @@ from pathlib import Path
 
 from ..errors import PlcpredError
 from ..sequencer.timeline import NS, Timeline
-from .demand import ConsumerModel, DemandProfile, consumer_models, demand_profile
+from .demand import (SHOWN_CONSUMERS, ConsumerModel, DemandProfile, consumer_models,
+                     demand_profile)
 
 DEFAULT_DT_S = 0.01
-MAX_CELLS = 400_000          # keeps demand.csv to a few tens of MB
+MAX_CELLS = 400_000          # rows of demand.csv
+MAX_CSV_VALUES = 6_000_000   # rows x columns: keeps demand.csv to a few tens of MB
 _NICE = (1, 2, 5)
 
 
-def default_dt(horizon_s: float, max_cells: int = MAX_CELLS) -> float:
+def csv_columns(n_consumers: int, shown: int | None = SHOWN_CONSUMERS) -> int:
+    """Columns of ``demand.csv`` for a machine of ``n_consumers``: time, total, and each
+    consumer, or the ``shown`` largest and "other" (:meth:`DemandProfile.groups`)."""
+    if shown is None or n_consumers <= shown + 1:
+        return 2 + n_consumers
+    return 3 + shown
+
+
+def default_dt(horizon_s: float, max_cells: int = MAX_CELLS, columns: int = 0) -> float:
     """10 ms, or the smallest of 20/50/100/200/500 ms, 1/2/5/10 s ... that keeps the grid
-    under ``max_cells`` cells."""
+    under ``max_cells`` cells and, with ``columns``, ``demand.csv`` under MAX_CSV_VALUES
+    values (a wide machine written in full gets a coarser grid)."""
+    if columns:
+        max_cells = max(1, min(max_cells, MAX_CSV_VALUES // columns))
     dt = DEFAULT_DT_S
     if horizon_s / dt <= max_cells:
         return dt
@@ -39,6 +52,7 @@ class Prediction:
     models: list[ConsumerModel]
     stage_s: dict = field(default_factory=dict)
     write_files: list = field(default_factory=list)
+    shown: int | None = SHOWN_CONSUMERS       # consumers shown one by one in the outputs
 
     def summary(self) -> dict:
         data = self.profile.summary()
@@ -53,7 +67,7 @@ class Prediction:
         out.mkdir(parents=True, exist_ok=True)
         t0 = time.perf_counter()
         self.timeline.to_csv(out / "timeline.csv")
-        self.profile.to_csv(out / "demand.csv")
+        self.profile.to_csv(out / "demand.csv", shown=self.shown)
         self.profile.write_summary(out / "summary.json", {
             "machine": self.machine.name, "supply_bar_g": self.machine.supply_bar_g})
         self.stage_s["write_csv"] = time.perf_counter() - t0
@@ -63,7 +77,7 @@ class Prediction:
             t0 = time.perf_counter()
             plot_demand(self.profile, out / "demand.png",
                         title=f"{self.machine.name}: air demand over "
-                              f"{_span(self.profile.horizon_s)}")
+                              f"{_span(self.profile.horizon_s)}", shown=self.shown)
             self.stage_s["plot"] = time.perf_counter() - t0
             files.append(out / "demand.png")
         self.write_files = files
@@ -78,8 +92,8 @@ def _span(seconds: float) -> str:
     return f"{seconds:g} s"
 
 
-# demand grid cells x (consumers + 1) held at once: about 320 MB of float64
-MAX_GRID_VALUES = 40_000_000
+# grid cells held at once (the total, its cumulative sum, a few copies): 160 MB each
+MAX_GRID_CELLS = 20_000_000
 
 
 class GridError(PlcpredError, ValueError):
@@ -87,11 +101,13 @@ class GridError(PlcpredError, ValueError):
 
 
 def predict(machine, horizon="60s", dt=None, program=None, timeline=None,
-            max_events: int | None = None) -> Prediction:
+            max_events: int | None = None, shown: int | None = SHOWN_CONSUMERS
+            ) -> Prediction:
     """Run ``machine`` (a path or a loaded machine) over ``horizon`` and turn its timeline
     into a demand profile on a ``dt`` grid (seconds, or a duration such as ``"1s"``;
-    default :func:`default_dt`). ``max_events`` caps the signal changes held in memory
-    (default: the sequencer's)."""
+    default :func:`default_dt` for the columns ``demand.csv`` will have). ``max_events``
+    caps the signal changes held in memory (default: the sequencer's); ``shown`` is how
+    many consumers the files show one by one before "other" (None: all)."""
     from ..machine import Machine, load_machine
     from ..sequencer import parse_horizon, unfold
 
@@ -104,23 +120,21 @@ def predict(machine, horizon="60s", dt=None, program=None, timeline=None,
         timeline = unfold(machine, horizon, program=program, **extra)
     stages["sequence"] = time.perf_counter() - t0
     horizon_s = timeline.horizon_ns / NS
+    models = consumer_models(machine)
     if dt is None:
-        dt_s = default_dt(horizon_s)
+        dt_s = default_dt(horizon_s, columns=csv_columns(len(models), shown))
     elif isinstance(dt, str):
         dt_s = parse_horizon(dt) / NS
     else:
         dt_s = float(dt)
     if not dt_s > 0:
         raise GridError("--dt must be positive")
-    models = consumer_models(machine)
-    values = (horizon_s / dt_s + 1) * (len(models) + 1)
-    if values > MAX_GRID_VALUES:
+    if horizon_s / dt_s > MAX_GRID_CELLS:
         raise GridError(f"--dt {dt_s:g} s over {horizon_s:g} s gives {horizon_s / dt_s:,.0f} "
-                        f"grid cells for {len(models)} consumers, more than the "
-                        f"{MAX_GRID_VALUES:,} values plcpred holds; use a coarser --dt "
-                        f"(at least {horizon_s * (len(models) + 1) / MAX_GRID_VALUES:.3g} s) "
-                        "or leave it out for the default")
+                        f"grid cells, more than the {MAX_GRID_CELLS:,} plcpred holds; use a "
+                        f"coarser --dt (at least {horizon_s / MAX_GRID_CELLS:.3g} s) or leave "
+                        "it out for the default")
     t0 = time.perf_counter()
     profile = demand_profile(timeline, models, dt_s)
     stages["air_model"] = time.perf_counter() - t0
-    return Prediction(machine, timeline, profile, models, stages)
+    return Prediction(machine, timeline, profile, models, stages, shown=shown)

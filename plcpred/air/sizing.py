@@ -110,9 +110,13 @@ def receiver_deficit(flow_l_min, dt_s: float, design_flow_l_min: float):
 def idle_mask(profile, idle_after_s: float = 0.0) -> np.ndarray:
     """Cells in which no cylinder moves (and, with ``idle_after_s``, none has moved for
     that long before)."""
-    active = np.array([r == "active" for r in profile.roles])
-    moving = (profile.cell_nl[active].sum(axis=0) > 0) if active.any() else np.zeros(
-        profile.n_cells, dtype=bool)
+    active = [i for i, r in enumerate(profile.roles) if r == "active"]
+    if active:
+        vol = profile.cells_nl(active)
+        # the merged rates cancel to rounding noise, not to zero, where strokes end
+        moving = vol > 1e-9 * max(float(vol.max()), 1e-300)
+    else:
+        moving = np.zeros(profile.n_cells, dtype=bool)
     if idle_after_s > 0 and moving.any():
         # idle once k whole cells have passed since the last one with movement
         k = max(1, int(round(idle_after_s / profile.dt_s)))
@@ -147,7 +151,7 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
     energy = mean * 60.0 / 1000.0 * sec_kwh_per_nm3 * hours_per_year / efficiency
     split = profile.by_role_nl()
     idle = idle_mask(profile, idle_after_s)
-    idle_by_consumer = profile.cell_nl[:, idle].sum(axis=1)
+    idle_by_consumer = profile.consumer_nl_within(idle)
     idle_nl = float(idle_by_consumer.sum())
     roles = np.array(profile.roles)
     warnings = []

@@ -1,0 +1,242 @@
+"""Plant-wide scale: a generated N-cylinder line, time per stage and peak memory.
+
+The line is written here from a plain description of such a machine, not from plcpred's
+code: stations of five double-acting cylinders, each station extending its cylinders one
+after the other (each waits for its own end switch), blowing the part off with a nozzle
+while the last one is out, then retracting them in reverse order. Three layouts:
+
+* ``parallel``: every station starts on the part sensor (a part every 4 s);
+* ``sequential``: station k starts when station k-1 has finished (a wave down the line);
+* ``jittered``: parallel, with the part arrivals jittered by 0.2 s (nothing repeats, so
+  the run cannot tile and every scan is executed).
+
+Each case runs ``predict`` and writes its files in a child process (peak memory is the
+child's own) and prints the time per stage, the peak resident memory, and a hand check
+of the cylinders' air: strokes counted on the timeline times the D1 volume worked out
+here from bore, rod, stroke and tube (air after the horizon is cut, so the model may
+be a stroke's air below). Then the ratios of N = 200 to N = 10 and the issue's targets
+against samples/pick_place.toml run in the same invocation.
+
+    python bench/scale.py [--sizes 10,50,200] [--horizons 1h,24h] [--layouts parallel,sequential,jittered]
+    python bench/scale.py --quick        # N = 10, 50 over 1 h only
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import re
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+PER_STATION = 5
+P_ATM_KPA = 101.325
+P0_KPA = 100.0          # the normal reference (ISO 8778: 100 kPa, 20 degC)
+SUPPLY_BAR_G = 6.0
+# bore, rod, stroke (mm), stroke time extend/retract (s): a spread of sizes, as on a line
+SIZES = [(16, 6, 50, 0.15, 0.12), (20, 8, 80, 0.20, 0.18), (32, 12, 100, 0.25, 0.22),
+         (25, 10, 125, 0.30, 0.25), (40, 16, 160, 0.35, 0.30)]
+TUBE_ID_MM, TUBE_M = 4.0, 1.0
+
+
+def line_program(n: int, layout: str) -> str:
+    """IEC 61131-3 ST of the line."""
+    stations = math.ceil(n / PER_STATION)
+    g = ["VAR_GLOBAL", "    xPart : BOOL;"]
+    body = []
+    for s in range(stations):
+        cyl = range(min(PER_STATION, n - s * PER_STATION))
+        for c in cyl:
+            g += [f"    q_{s}_{c} : BOOL;", f"    xOut_{s}_{c} : BOOL;", f"    xIn_{s}_{c} : BOOL;"]
+        g.append(f"    qBlow_{s} : BOOL;")
+    g.append("END_VAR")
+    decl = ["PROGRAM Line", "VAR"]
+    for s in range(stations):
+        k = len(range(min(PER_STATION, n - s * PER_STATION)))
+        decl += [f"    nStep_{s} : INT := 0;", f"    xReq_{s} : BOOL;",
+                 f"    xDone_{s} : BOOL;", f"    trig_{s} : R_TRIG;"]
+        start = "xPart" if layout != "sequential" or s == 0 else f"xDone_{s - 1}"
+        body += [f"trig_{s}(CLK := {start});",
+                 f"IF trig_{s}.Q THEN xReq_{s} := TRUE; END_IF",
+                 f"xDone_{s} := FALSE;",
+                 f"CASE nStep_{s} OF",
+                 f"    0: IF xReq_{s} THEN xReq_{s} := FALSE; nStep_{s} := 1; END_IF"]
+        # steps 1..k extend cylinder step-1; k+1..2k retract in reverse order
+        for c in range(k):
+            body.append(f"    {c + 1}: q_{s}_{c} := TRUE; "
+                        f"IF xOut_{s}_{c} THEN nStep_{s} := {c + 2}; END_IF")
+        for j, c in enumerate(reversed(range(k))):
+            body.append(f"    {k + 1 + j}: q_{s}_{c} := FALSE; "
+                        f"IF xIn_{s}_{c} THEN nStep_{s} := {k + 2 + j}; END_IF")
+        body += [f"    {2 * k + 1}: xDone_{s} := TRUE; nStep_{s} := 0;", "END_CASE",
+                 f"qBlow_{s} := nStep_{s} = {k + 1};"]
+    decl.append("END_VAR")
+    return "\n".join(g + [""] + decl + body + ["END_PROGRAM", ""])
+
+
+def line_machine(n: int, layout: str, program: str) -> str:
+    stations = math.ceil(n / PER_STATION)
+    out = ["[machine]", f'name = "line-{n}-{layout}"', f'program = "{program}"',
+           "scan_ms = 4", f"supply_bar_g = {SUPPLY_BAR_G}", "",
+           "[[input]]", 'signal = "xPart"', "period_s = 4.0", "offset_s = 0.5",
+           "pulse_ms = 500"]
+    if layout == "jittered":
+        out += ["jitter_s = 0.2", "seed = 7"]
+    for s in range(stations):
+        for c in range(min(PER_STATION, n - s * PER_STATION)):
+            bore, rod, stroke, te, tr = SIZES[c]
+            out += ["", "[[consumer]]", f'name = "S{s}C{c}"', 'kind = "double_acting"',
+                    f"bore_mm = {bore}", f"rod_mm = {rod}", f"stroke_mm = {stroke}",
+                    f"tube_id_mm = {TUBE_ID_MM}", f"tube_length_m = [{TUBE_M}, {TUBE_M}]",
+                    f'valve = "q_{s}_{c}"', f"stroke_time_s = [{te}, {tr}]",
+                    "switch_delay_s = 0.012",
+                    f'switches = {{ retracted = "xIn_{s}_{c}", extended = "xOut_{s}_{c}" }}']
+        out += ["", "[[consumer]]", f'name = "blow S{s}"', 'kind = "nozzle"',
+                f'valve = "qBlow_{s}"', "orifice_mm = 1.0", "Cd = 0.8"]
+    out += ["", "[[consumer]]", 'name = "line leaks"', 'kind = "leak"', "orifice_mm = 1.0",
+            "Cd = 0.6", ""]
+    return "\n".join(out)
+
+
+def d1_volumes_nl(c: int) -> tuple[float, float]:
+    """(extend, retract) normal litres of cylinder size ``c``: geometric volume filled to
+    the absolute supply pressure, stated at 100 kPa and 20 degC (supply at 20 degC)."""
+    bore, rod, stroke, _, _ = SIZES[c]
+    tube_l = TUBE_M * 1000 * math.pi * TUBE_ID_MM ** 2 / 4 * 1e-6
+    cap_l = math.pi * bore ** 2 / 4 * stroke * 1e-6 + tube_l
+    rod_l = math.pi * (bore ** 2 - rod ** 2) / 4 * stroke * 1e-6 + tube_l
+    ratio = (SUPPLY_BAR_G * 100 + P_ATM_KPA) / P0_KPA
+    return cap_l * ratio, rod_l * ratio
+
+
+CHILD = r"""
+import json, resource, sys, time
+from plcpred import load_machine
+from plcpred.air import predict
+machine, horizon, dt, out = sys.argv[1:5]
+t0 = time.perf_counter()
+m = load_machine(machine)
+r = predict(m, horizon, dt=None if dt == "-" else dt)
+r.write(out)
+wall = time.perf_counter() - t0
+tl, prof = r.timeline, r.profile
+strokes = {}
+for c in m.consumers:
+    if c.kind == "double_acting":
+        _, v = tl.edge_times_ns(c.valve[0])
+        on = v != 0
+        strokes[c.name] = [int((on[1:] & ~on[:-1]).sum()), int((~on[1:] & on[:-1]).sum())]
+print(json.dumps({"wall_s": wall, "stages": r.stage_s, "cells": prof.n_cells,
+                  "dt_s": prof.dt_s, "changes": int(len(tl.time_ns)),
+                  "active_nl": prof.by_role_nl()["active"], "strokes": strokes,
+                  "peak_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+"""
+
+
+def run_child(machine: Path, horizon: str, dt: str | None) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        r = subprocess.run([sys.executable, "-c", CHILD, str(machine), horizon, dt or "-",
+                            str(Path(tmp) / "out")], capture_output=True, text=True)
+    if r.returncode:
+        raise SystemExit(f"predict of {machine.name} over {horizon} failed:\n{r.stderr[-3000:]}")
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def hand_active_nl(result: dict) -> float:
+    total = 0.0
+    for name, (ext, ret) in result["strokes"].items():
+        if not re.fullmatch(r"S\d+C\d+", name):
+            continue            # not a generated line
+        v_ext, v_ret = d1_volumes_nl(int(name.split("C")[-1]))
+        total += ext * v_ext + ret * v_ret
+    return total
+
+
+def show(label: str, r: dict) -> None:
+    st = ", ".join(f"{k} {v:.2f}" for k, v in r["stages"].items())
+    hand = hand_active_nl(r)
+    check = ""
+    if hand:
+        check = f"; cylinders {r['active_nl']:.0f} NL vs hand {hand:.0f} NL " \
+                f"({100 * (r['active_nl'] / hand - 1):+.3f} %)"
+    print(f"{label:32s} {r['wall_s']:7.2f} s  {r['peak_mb']:6.0f} MB  [{st}]  "
+          f"{r['cells']} cells of {r['dt_s']:g} s, {r['changes']} changes{check}", flush=True)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--sizes", default="10,50,200")
+    ap.add_argument("--horizons", default="1h,24h")
+    ap.add_argument("--layouts", default="parallel,sequential,jittered")
+    ap.add_argument("--quick", action="store_true", help="N = 10, 50 over 1 h")
+    args = ap.parse_args(argv)
+    if args.quick:
+        args.sizes, args.horizons = "10,50", "1h"
+    sizes = [int(x) for x in args.sizes.split(",")]
+    horizons = args.horizons.split(",")
+    layouts = args.layouts.split(",")
+    ok = True
+    with tempfile.TemporaryDirectory() as tmp:
+        d = Path(tmp)
+        pick = ROOT / "samples" / "pick_place.toml"
+        base = run_child(pick, "1h", None)
+        show("pick_place 1h (baseline)", base)
+        results = {}
+        for layout in layouts:
+            for n in sizes:
+                (d / f"line{n}{layout}.st").write_text(line_program(n, layout))
+                machine = d / f"line{n}{layout}.toml"
+                machine.write_text(line_machine(n, layout, f"line{n}{layout}.st"))
+                for h in horizons:
+                    r = results[layout, n, h] = run_child(machine, h, None)
+                    show(f"{layout} N={n} {h}", r)
+        print()
+        for layout in layouts:
+            for h in horizons:
+                lo, hi = results.get((layout, min(sizes), h)), results.get((layout, max(sizes), h))
+                if lo and hi and lo is not hi:
+                    print(f"{layout} {h}: N={max(sizes)} / N={min(sizes)}: time "
+                          f"{hi['wall_s'] / lo['wall_s']:.1f}x, memory "
+                          f"{hi['peak_mb'] / lo['peak_mb']:.1f}x")
+        print()
+        big = results.get(("parallel", 200, "1h"))
+        if big:
+            ratio = big["wall_s"] / base["wall_s"]
+            good = ratio <= 4 and big["peak_mb"] < 600
+            ok &= good
+            print(f"target: 200-cylinder line 1h within 4x pick_place 1h and < 600 MB: "
+                  f"{ratio:.1f}x, {big['peak_mb']:.0f} MB -> {'ok' if good else 'MISSED'}")
+        if "24h" in horizons and not args.quick:
+            fine = run_child(pick, "24h", "10ms")
+            show("pick_place 24h at 10 ms", fine)
+            good = fine["peak_mb"] < 500
+            ok &= good
+            print(f"target: 24 h of pick_place at 10 ms < 500 MB: {fine['peak_mb']:.0f} MB "
+                  f"-> {'ok' if good else 'MISSED'}")
+            tiled = run_child(pick, "24h", None)
+            jit = d / "pick_jitter.toml"
+            jit.write_text(pick.read_text().replace("pulse_ms = 1500", "pulse_ms = 1500\n"
+                                                    "jitter_s = 0.2\nseed = 3").replace(
+                '"codesys_pick_place.st"', f'"{ROOT / "samples" / "codesys_pick_place.st"}"'))
+            jr = run_child(jit, "24h", None)
+            show("pick_place 24h tiled", tiled)
+            show("pick_place 24h jittered", jr)
+            ratio = jr["wall_s"] / tiled["wall_s"]
+            good = ratio <= 2
+            ok &= good
+            print(f"target: 24 h jittered within 2x tiled: {ratio:.1f}x "
+                  f"({86400 / jr['wall_s']:,.0f}x real time) -> {'ok' if good else 'MISSED'}")
+            week = run_child(pick, "7d", None)
+            show("pick_place 7d", week)
+            good = week["peak_mb"] < 500
+            ok &= good
+            print(f"target: 7 days under 500 MB: {week['peak_mb']:.0f} MB -> "
+                  f"{'ok' if good else 'MISSED'}")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

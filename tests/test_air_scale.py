@@ -1,0 +1,124 @@
+"""Demand of wide machines: the profile kept per stroke, read on any grid and in
+stretches, and the outputs that group consumers beyond the largest few."""
+import csv
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from plcpred.air import default_dt, predict
+from plcpred.air.demand import _cumulative
+from plcpred.air.predict import csv_columns
+
+N_VALVES = 17
+
+
+def wide_machine(tmp_path, n=N_VALVES, period_ms=700):
+    """``n`` cylinders of different bores, each toggled by its own timer (cylinder k every
+    ``period_ms + 37 k`` ms), a nozzle on while cylinder 0 is out, and a leak."""
+    decl = ["PROGRAM Wide", "VAR"] + [f"  q{k} : BOOL; t{k} : TON;" for k in range(n)] + [
+        "  qBlow : BOOL;", "END_VAR"]
+    body = []
+    for k in range(n):
+        body += [f"t{k}(IN := NOT t{k}.Q, PT := T#{period_ms + 37 * k}MS);",
+                 f"IF t{k}.Q THEN q{k} := NOT q{k}; END_IF"]
+    body.append("qBlow := q0;")
+    (tmp_path / "wide.st").write_text("\n".join(decl + body + ["END_PROGRAM", ""]))
+    toml = ['[machine]', 'name = "wide"', 'program = "wide.st"', "scan_ms = 5",
+            "supply_bar_g = 6.0"]
+    for k in range(n):
+        toml += ["", "[[consumer]]", f'name = "cyl {k}"', 'kind = "double_acting"',
+                 f"bore_mm = {12 + 4 * k}", f"rod_mm = {4 + k}", "stroke_mm = 100",
+                 f'valve = "q{k}"', "stroke_time_s = [0.21, 0.17]", "switch_delay_s = 0.01"]
+    toml += ["", "[[consumer]]", 'name = "blow"', 'kind = "nozzle"', 'valve = "qBlow"',
+             "orifice_mm = 1.2", "Cd = 0.8",
+             "", "[[consumer]]", 'name = "leak"', 'kind = "leak"', "orifice_mm = 0.5", "Cd = 0.6"]
+    path = tmp_path / "wide.toml"
+    path.write_text("\n".join(toml) + "\n")
+    return path
+
+
+def read_csv(path):
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    return rows[0], np.array(rows[1:], dtype=float)
+
+
+def test_totals_are_the_same_at_every_grid_and_equal_the_grid_sums(tmp_path):
+    m = wide_machine(tmp_path)
+    r = predict(m, "20s", dt=0.01)
+    base = r.profile.consumer_nl.copy()
+    for dt in (0.003, 0.05, 0.7, 3.0):
+        other = predict(m, "20s", dt=dt).profile
+        assert np.array_equal(other.consumer_nl, base)          # from the strokes, not cells
+        assert other.cell_nl.sum(axis=1) == pytest.approx(base, rel=1e-9, abs=1e-12)
+        assert other.total_cell_nl.sum() == pytest.approx(base.sum(), rel=1e-12)
+
+
+def test_csv_written_in_stretches_equals_the_exact_cumulative_on_the_whole_grid(tmp_path):
+    m = wide_machine(tmp_path)
+    prof = predict(m, "25s", dt=0.01).profile            # 2,500 cells
+    prof.to_csv(tmp_path / "all.csv", shown=None, values_per_write=1)   # 1,000-row stretches
+    header, body = read_csv(tmp_path / "all.csv")
+    assert header[2:] == [f"cyl_{k}_l_min" for k in range(N_VALVES)] + ["blow_l_min", "leak_l_min"]
+    assert len(body) == 2500 and body[:, 0] == pytest.approx(np.arange(2500) * 0.01)
+    edges = prof.edges_s
+    for i, rect in enumerate(prof.rects):
+        # each column against the differences of the exact cumulative volume, written
+        # independently of the stretch-by-stretch placement
+        expected = np.diff(_cumulative(edges, *rect)) / 0.01 * 60
+        assert body[:, 2 + i] == pytest.approx(expected, abs=2e-6), prof.names[i]
+    assert body[:, 1] == pytest.approx(body[:, 2:].sum(axis=1), abs=1e-4)
+
+
+def test_a_wide_machine_shows_its_largest_users_and_other(tmp_path):
+    m = wide_machine(tmp_path)
+    prof = predict(m, "20s", dt=0.01).profile
+    prof.to_csv(tmp_path / "d.csv", shown=5)
+    header, body = read_csv(tmp_path / "d.csv")
+    top = sorted(np.argsort(-prof.consumer_nl)[:5].tolist())
+    assert header == ["time_s", "total_l_min"] + [
+        prof.names[i].replace(" ", "_") + "_l_min" for i in top] + ["other_l_min"]
+    assert body[:, 1] == pytest.approx(body[:, 2:].sum(axis=1), abs=1e-4)
+    rest = [i for i in range(len(prof.names)) if i not in top]
+    assert (body[:, -1] * 0.01 / 60).sum() == pytest.approx(prof.consumer_nl[rest].sum(),
+                                                            rel=1e-6)
+    # the largest bores use the most air: the shown ones are the last cylinders
+    assert set(top) >= {N_VALVES - 1, N_VALVES - 2}
+    # one more consumer than shown is shown rather than called "other"
+    assert [g[0] for g in prof.groups(len(prof.names) - 1)] == prof.names
+
+
+def test_idle_air_within_cells_equals_the_dense_sum(tmp_path):
+    prof = predict(wide_machine(tmp_path), "15s", dt=0.02).profile
+    rng = np.random.default_rng(4)
+    mask = rng.random(prof.n_cells) < 0.3
+    assert prof.consumer_nl_within(mask) == pytest.approx(prof.cell_nl[:, mask].sum(axis=1),
+                                                          rel=1e-9, abs=1e-12)
+    assert prof.consumer_nl_within(np.zeros(prof.n_cells, bool)).sum() == 0.0
+
+
+def test_the_default_grid_counts_the_columns_written():
+    assert csv_columns(5) == 7 and csv_columns(13) == 15 and csv_columns(200) == 15
+    assert csv_columns(200, None) == 202
+    assert default_dt(3600, columns=csv_columns(200)) == 0.01
+    dt = default_dt(3600, columns=csv_columns(200, None))
+    assert 3600 / dt * 202 <= 6_000_000 and dt > 0.1
+
+
+def test_cli_consumers_option(tmp_path):
+    m = wide_machine(tmp_path)
+    out = tmp_path / "o"
+    r = subprocess.run([sys.executable, "-m", "plcpred", "predict", str(m), "--horizon", "10s",
+                        "--out", str(out), "--consumers", "3"], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    header, body = read_csv(out / "demand.csv")
+    assert len(header) == 2 + 3 + 1 and header[-1] == "other_l_min"
+    summary = json.loads((out / "summary.json").read_text())
+    assert len(summary["consumers"]) == N_VALVES + 2          # the summary keeps every one
+    assert (body[:, 1] * 0.01 / 60).sum() == pytest.approx(summary["total_nl"], rel=1e-6)
+    r = subprocess.run([sys.executable, "-m", "plcpred", "predict", str(m), "--horizon", "10s",
+                        "--out", str(out), "--consumers", "none"], capture_output=True, text=True)
+    assert r.returncode == 2 and "--consumers" in r.stderr and "Traceback" not in r.stderr
