@@ -122,3 +122,26 @@ def test_cli_consumers_option(tmp_path):
     r = subprocess.run([sys.executable, "-m", "plcpred", "predict", str(m), "--horizon", "10s",
                         "--out", str(out), "--consumers", "none"], capture_output=True, text=True)
     assert r.returncode == 2 and "--consumers" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_a_tiled_timeline_gives_each_signal_its_edges_without_building_the_whole():
+    from pathlib import Path
+
+    from plcpred import load_machine, unfold
+    pick = Path(__file__).resolve().parent.parent / "samples" / "pick_place.toml"
+    lazy = unfold(load_machine(pick), "2h")
+    built = unfold(load_machine(pick), "2h")
+    assert lazy.tiled is not None
+    for name in lazy.names:
+        t, v = lazy.edge_times_ns(name)
+        m = built.signal_idx == built.names.index(name)
+        assert np.array_equal(t, built.time_ns[m]) and np.array_equal(v, built.values[m]), name
+    assert lazy._full is None                      # nothing was built for the lazy one
+
+
+def test_demand_csv_times_are_exact_decimals_at_any_horizon():
+    from plcpred.air.demand import _csv_rows
+    text = _csv_rows(8_639_998, 10_000_000, np.array([[1.0, 2.5], [1.0, 2.5]]))
+    assert text == "86399.98,1.000000,2.500000\n86399.99,1.000000,2.500000\n"
+    text = _csv_rows(0, 250_000_000, np.array([[-1e-12], [1 / 3], [0.0], [1 / 3]]))
+    assert text == "0,0.000000\n0.25,0.333333\n0.5,0.000000\n0.75,0.333333\n"

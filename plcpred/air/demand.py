@@ -34,7 +34,7 @@ import numpy as np
 
 from ..machine import CYLINDER_KINDS
 from ..output import SHOWN_CONSUMERS, atomic_writer, write_json
-from ..sequencer.timeline import NS
+from ..sequencer.timeline import NS, format_seconds
 from .flow import bar_g_to_pa, celsius_to_k, flow_nl_min, orifice_conductance
 from .volumes import consumer_stroke_volumes_nl, dead_fill_volumes_nl
 
@@ -303,22 +303,35 @@ class DemandSteps:
 
     @classmethod
     def of(cls, rects, horizon_s: float) -> "DemandSteps":
+        # written to hold few arrays of all breakpoints at once: a week of a fast machine
+        # has millions of them
         start = np.concatenate([r[0] for r in rects]) if rects else np.zeros(0)
         dur = np.concatenate([r[1] for r in rects]) if rects else np.zeros(0)
         vol = np.concatenate([r[2] for r in rects]) if rects else np.zeros(0)
         ramp = dur > 0
+        n_ramp, n_step = int(ramp.sum()), int((~ramp).sum())
         rate = vol[ramp] / dur[ramp]
         t = np.concatenate([start[ramp], start[ramp] + dur[ramp], start[~ramp]])
-        d_rate = np.concatenate([rate, -rate, np.zeros(int((~ramp).sum()))])
-        jump = np.concatenate([np.zeros(2 * int(ramp.sum())), vol[~ramp]])
+        d_rate = np.concatenate([rate, -rate, np.zeros(n_step)])
+        jump = np.concatenate([np.zeros(2 * n_ramp), vol[~ramp]]) if n_step else None
+        del start, dur, vol, rate, ramp
         order = np.argsort(t, kind="stable")
-        t, d_rate, jump = t[order], d_rate[order], jump[order]
-        # one breakpoint per distinct time
-        times, first = np.unique(t, return_index=True)
-        rate_after = np.cumsum(d_rate)[np.r_[first[1:], len(t)] - 1] if len(t) else t
-        jumps = np.add.reduceat(jump, first) if len(t) else t
-        gaps = np.diff(times, prepend=times[:1]) if len(t) else t
-        rate_before = np.concatenate([[0.0], rate_after[:-1]]) if len(t) else t
+        t = t[order]
+        d_rate = d_rate[order]
+        if jump is not None:
+            jump = jump[order]
+        del order
+        if not len(t):
+            return cls(t, t, t, float(horizon_s))
+        # one breakpoint per distinct time (t is sorted)
+        first = np.flatnonzero(np.concatenate([[True], t[1:] != t[:-1]]))
+        times = t[first]
+        del t
+        rate_after = np.cumsum(d_rate)[np.r_[first[1:], len(d_rate)] - 1]
+        del d_rate
+        jumps = np.add.reduceat(jump, first) if jump is not None else 0.0
+        gaps = np.diff(times, prepend=times[:1])
+        rate_before = np.concatenate([[0.0], rate_after[:-1]])
         cum = np.cumsum(rate_before * gaps + jumps)
         return cls(times, np.clip(rate_after, 0.0, None), cum, float(horizon_s))
 
@@ -341,10 +354,14 @@ class DemandSteps:
             return float(self.rate_nl_s[inside].max(initial=0.0)) * 60.0
         w = min(float(window_s), self.horizon_s)
         b = self.times_s[inside]
-        ends = np.concatenate([b, b + w, [w, self.horizon_s]])
-        ends = ends[(ends >= w - 1e-12) & (ends <= self.horizon_s + 1e-12)]
-        gain = self.cumulative_nl(ends) - self.cumulative_nl(ends - w)
-        return float(gain.max(initial=0.0)) / w * 60.0
+        best = 0.0
+        for a in range(0, len(b) + 1, 250_000):         # in blocks: bounded memory
+            part = b[a:a + 250_000]
+            ends = np.concatenate([part, part + w] + ([[w, self.horizon_s]] if not a else []))
+            ends = ends[(ends >= w - 1e-12) & (ends <= self.horizon_s + 1e-12)]
+            gain = self.cumulative_nl(ends) - self.cumulative_nl(ends - w)
+            best = max(best, float(gain.max(initial=0.0)))
+        return best / w * 60.0
 
 
 # ---------------------------------------------------------------------- the profile
@@ -355,16 +372,19 @@ class _Series:
     volumes of any stretch of the grid need only the rectangles that reach into it."""
 
     def __init__(self, rects):
-        start = np.concatenate([r[0] for r in rects]) if rects else np.zeros(0)
-        dur = np.concatenate([r[1] for r in rects]) if rects else np.zeros(0)
-        vol = np.concatenate([r[2] for r in rects]) if rects else np.zeros(0)
-        order = np.argsort(start, kind="stable")
-        self.start_s = np.asarray(start, dtype=float)[order]
-        self.duration_s = np.asarray(dur, dtype=float)[order]
-        self.nl = np.asarray(vol, dtype=float)[order]
+        if len(rects) == 1:
+            start, dur, vol = (np.asarray(x, dtype=float) for x in rects[0])
+        else:
+            start, dur, vol = (np.concatenate([np.asarray(r[k], dtype=float) for r in rects])
+                               if rects else np.zeros(0) for k in range(3))
+        if len(start) > 1 and not np.all(start[1:] >= start[:-1]):
+            order = np.argsort(start, kind="stable")
+            start, dur, vol = start[order], dur[order], vol[order]
+        # one consumer's rectangles come sorted and are used as they are (no copy)
+        self.start_s, self.duration_s, self.nl = start, dur, vol
         # the latest end so far: every item before the first with reach >= t ends before t
-        self.reach_s = np.maximum.accumulate(self.start_s + np.clip(self.duration_s, 0, None)) \
-            if len(order) else self.start_s
+        self.reach_s = np.maximum.accumulate(start + np.clip(dur, 0, None)) \
+            if len(start) else start
 
     def cells_nl(self, edges_s) -> np.ndarray:
         """Normal litres in each cell of ``edges_s`` (any stretch of any grid)."""
@@ -527,26 +547,26 @@ class DemandProfile:
 
     # ------------------------------------------------------------------ files
     def to_csv(self, path, shown: int | None = SHOWN_CONSUMERS,
-               values_per_write: int = 2_000_000) -> None:
+               values_per_write: int = 1_000_000) -> None:
         """``demand.csv``: ``time_s,total_l_min,<consumer>_l_min...`` (with more than
         ``shown + 1`` consumers, the ``shown`` largest and ``other_l_min``); each row is
         the mean flow over the cell starting at ``time_s``. Written in stretches of the
         grid, so memory does not grow with the horizon."""
         groups = self.groups(shown)
-        series = [self.series(idx) for _, idx in groups]
-        total = _Series(self.rects)
+        series = [self.series(idx) for _, idx in groups]   # every consumer is in one
         header = "time_s,total_l_min," + ",".join(
             ("other" if len(idx) > 1 else _csv_name(label)) + "_l_min" for label, idx in groups)
-        fmt = ["%.6g"] + ["%.6f"] * (len(groups) + 1)
         rows = max(1000, values_per_write // (len(groups) + 2))
         per_min = 60.0 / self.dt_s
+        dt_ns = round(self.dt_s * NS)
         with atomic_writer(path) as f:
             f.write(header + "\n")
             for a in range(0, self.n_cells, rows):
                 e = self.edges_s[a:min(self.n_cells, a + rows) + 1]
-                cols = [e[:-1], total.cells_nl(e) * per_min] + [
-                    s.cells_nl(e) * per_min for s in series]
-                np.savetxt(f, np.column_stack(cols), delimiter=",", fmt=fmt)
+                cols = [s.cells_nl(e) * per_min for s in series]
+                flows = np.column_stack([np.sum(cols, axis=0) if cols else
+                                         np.zeros(len(e) - 1)] + cols)
+                f.write(_csv_rows(a, dt_ns, flows))
 
     def summary(self) -> dict:
         consumers = {}
@@ -579,6 +599,29 @@ class DemandProfile:
         if extra:
             data.update(extra)
         write_json(path, data)
+
+
+def _csv_rows(first_cell: int, dt_ns: int, flows: np.ndarray) -> str:
+    """``time,flow,flow...`` lines of cells ``first_cell, first_cell + 1, ...`` of
+    ``dt_ns``, flows to 6 decimals. A machine's demand takes few distinct rows (a cycle's
+    worth, the idle row), so each distinct row is formatted once and the lines are put
+    together from it and the time (exact decimal seconds, from integer nanoseconds)."""
+    micro = np.rint(flows * 1e6).astype(np.int64)       # what %.6f prints, as integers
+    # distinct rows through a hash of each row (checked: a collision falls back to sorting
+    # the rows themselves)
+    weights = np.random.default_rng(0).integers(1, 2**62, micro.shape[1]) | 1
+    key = micro @ weights
+    _, first, which = np.unique(key, return_index=True, return_inverse=True)
+    distinct = micro[first]
+    if not np.array_equal(distinct[which.ravel()], micro):
+        distinct, which = np.unique(micro, axis=0, return_inverse=True)
+    texts = [",".join([f"{x / 1e6:.6f}" for x in row]) for row in distinct.tolist()]
+    t_ns = (first_cell + np.arange(len(micro), dtype=np.int64)) * dt_ns
+    whole, frac = np.divmod(t_ns, NS)
+    fracs, frac_which = np.unique(frac, return_inverse=True)
+    frac_texts = [format_seconds(int(x))[1:] for x in fracs.tolist()]  # "" or ".25"
+    return "".join([f"{w}{frac_texts[f]},{texts[k]}\n" for w, f, k in zip(
+        whole.tolist(), frac_which.ravel().tolist(), which.ravel().tolist())])
 
 
 def _csv_name(name: str) -> str:

@@ -58,17 +58,20 @@ class Timeline:
         self.tiled = tiled
         self.max_changes = int(max_changes)
         self._full = None if tiled is not None else self._base
+        self._period = None
         self._index = {s.name.upper(): i for i, s in enumerate(self.signals)}
 
     # ------------------------------------------------------------------ edges
     def _period_edges(self):
         """(edge times, signals, values) of one period (t1, t2], and the number of
         repetitions after t2 that start within the horizon."""
-        t1, t2 = self.tiled
-        t, s, v = self._base
-        m = (t > t1) & (t <= t2)
-        reps = max(0, int((self.horizon_ns - t2) // (t2 - t1)) + 1) if m.any() else 0
-        return t[m], s[m], v[m], reps
+        if self._period is None:
+            t1, t2 = self.tiled
+            t, s, v = self._base
+            m = (t > t1) & (t <= t2)
+            reps = max(0, int((self.horizon_ns - t2) // (t2 - t1)) + 1) if m.any() else 0
+            self._period = (t[m], s[m], v[m], reps)
+        return self._period
 
     @property
     def n_changes(self) -> int:
@@ -169,8 +172,8 @@ class Timeline:
         value at 0)."""
         import pandas as pd
 
-        m = self.signal_idx == self._idx(name)
-        return pd.DataFrame({"time_s": self.time_ns[m] / NS, "value": self.values[m]})
+        t, v = self.edge_times_ns(name)
+        return pd.DataFrame({"time_s": t / NS, "value": v})
 
     def executed_edge_times_ns(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """``edge_times_ns`` over the part the executor ran (for a tiled run: up to the
@@ -180,8 +183,31 @@ class Timeline:
         return t[m], v[m]
 
     def edge_times_ns(self, name: str) -> tuple[np.ndarray, np.ndarray]:
-        m = self.signal_idx == self._idx(name)
-        return self.time_ns[m], self.values[m]
+        """(times, values) of one signal's changes, the first its initial value at 0. A
+        tiled timeline repeats just this signal's edges of the period (the whole
+        timeline is not built)."""
+        i = self._idx(name)
+        if self._full is not None:
+            t, s, v = self._full
+            m = s == i
+            return t[m], v[m]
+        t, s, v = self._base
+        m = s == i
+        pt, ps, pv, reps = self._period_edges()
+        mine = ps == i
+        pt, pv = pt[mine], pv[mine]
+        if not reps or not len(pt):
+            return t[m], v[m]
+        if reps * len(pt) > self.max_changes:
+            raise TimelineTooLarge(
+                f"{reps * len(pt):,} changes of {self.names[i]} over {self.horizon_s:g} s "
+                f"exceed the limit of {self.max_changes:,} held in memory (--max-events); "
+                "the air model needs a shorter --horizon")
+        k = np.arange(1, reps + 1, dtype=np.int64)
+        tt = (pt[None, :] + k[:, None] * (self.tiled[1] - self.tiled[0])).ravel()
+        keep = tt <= self.horizon_ns
+        return (np.concatenate([t[m], tt[keep]]),
+                np.concatenate([v[m], np.tile(pv, reps)[keep]]))
 
     def intervals(self, name: str) -> "pd.DataFrame":
         """Periods in which the signal is non-zero (TRUE): ``start_s, end_s, duration_s``;
