@@ -99,7 +99,7 @@ def plot_demand(profile, path, title="Air demand", shown: int | None = SHOWN_CON
                  f"{profile.peak_l_min():.1f} NL/min (instantaneous; grid "
                  f"{profile.dt_s:g} s{avg}), total {profile.total_nl:.1f} NL", fontsize=10)
     ax2 = ax.twinx()
-    ax2.plot(bin_edges * scale, profile.steps.cumulative_nl(bin_edges), color="black", lw=1.4,
+    ax2.plot(bin_edges * scale, profile.cumulative_nl_at(bin_edges), color="black", lw=1.4,
              label="cumulative NL")
     ax2.set_ylabel("cumulative (NL)")
     ax2.set_ylim(bottom=0)

@@ -145,3 +145,45 @@ def test_demand_csv_times_are_exact_decimals_at_any_horizon():
     assert text == "86399.98,1.000000,2.500000\n86399.99,1.000000,2.500000\n"
     text = _csv_rows(0, 250_000_000, np.array([[-1e-12], [1 / 3], [0.0], [1 / 3]]))
     assert text == "0,0.000000\n0.25,0.333333\n0.5,0.000000\n0.75,0.333333\n"
+
+
+SAMPLES = __import__("pathlib").Path(__file__).resolve().parent.parent / "samples"
+
+
+@pytest.mark.parametrize("name", ["pick_place", "sorter", "press"])
+def test_a_repeating_machine_read_as_one_period_equals_the_full_run(name):
+    from plcpred import load_machine, unfold
+    from plcpred.air import consumer_models, demand_profile
+    m = load_machine(SAMPLES / f"{name}.toml")
+    tiled, full = unfold(m, "7min"), unfold(m, "7min", tiling=False)
+    models = consumer_models(m)
+    for dt in (0.01, 0.37):
+        a, b = demand_profile(tiled, models, dt), demand_profile(full, models, dt)
+        assert a.templates is not None and b.templates is None
+        assert a.strokes == b.strokes
+        assert a.consumer_nl == pytest.approx(b.consumer_nl, rel=1e-10)
+        assert a.total_cell_nl == pytest.approx(b.total_cell_nl, abs=1e-9)
+        for w in (None, 1.0, 60.0):
+            assert a.peak_l_min(w) == pytest.approx(b.peak_l_min(w), rel=1e-10)
+        at = np.random.default_rng(2).uniform(0, 420, 50)
+        assert a.cumulative_nl_at(at) == pytest.approx(b.cumulative_nl_at(at), rel=1e-10)
+        busy = b.total_cell_nl > 0.5 * b.total_cell_nl.mean()
+        assert a.consumer_nl_within(busy) == pytest.approx(b.consumer_nl_within(busy), rel=1e-9)
+
+
+def test_ten_years_of_a_cycling_machine_cost_what_two_periods_do():
+    from plcpred import load_machine, unfold
+    from plcpred.air import consumer_models, demand_profile
+    m = load_machine(SAMPLES / "pick_place.toml")
+    day, years = unfold(m, "1d"), unfold(m, "3650d")
+    models = consumer_models(m)
+    a = demand_profile(day, models, 1.0)
+    b = demand_profile(years, models, default_dt(3650 * 86400))
+    assert years._full is None                    # the timeline was never built
+    # the machine repeats every period: strokes and air grow with the horizon, and the
+    # mean flow is the day's (a stroke or two cut by the horizon differ)
+    for name, (ext, ret) in a.strokes.items():
+        assert b.strokes[name][0] == pytest.approx(ext * 3650, abs=3650)
+    assert b.mean_l_min == pytest.approx(a.mean_l_min, rel=1e-4)
+    assert b.peak_l_min() == pytest.approx(a.peak_l_min(), rel=1e-12)
+    assert b.total_cell_nl.sum() == pytest.approx(b.total_nl, rel=1e-9)

@@ -53,7 +53,7 @@ def cycles_of(machine, timeline, profile) -> Cycles | None:
     """The cycles of a predicted run (None: no cycle signal and no repeating state)."""
     def nl_between(a_s: float, b_s: float) -> float:
         """Air between two times, exact (the demand before the grid)."""
-        a, b = profile.steps.cumulative_nl([a_s, b_s])
+        a, b = profile.cumulative_nl_at([a_s, b_s])
         return float(b - a)
 
     horizon_ns = timeline.horizon_ns

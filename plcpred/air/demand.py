@@ -96,25 +96,26 @@ def sonic_conductance(consumer) -> float:
 
 # ---------------------------------------------------------------------- edges
 
-def _signal(timeline, name: str, signal_map: dict | None):
-    """Edges of a machine file's signal: the timeline may know it by another name (an
-    address resolved to its variable), recorded in ``timeline.info``."""
+def _signal(timeline, name: str, signal_map: dict | None, until_ns=None):
+    """Edges of a machine file's signal (up to ``until_ns``): the timeline may know it by
+    another name (an address resolved to its variable), recorded in ``timeline.info``."""
     if signal_map is None:
         signal_map = timeline.info.get("machine_signals", {})
-    return timeline.edge_times_ns(signal_map.get(name, name))
+    return timeline.edge_times_ns(signal_map.get(name, name), until_ns)
 
 
-def valve_transitions(timeline, model: ConsumerModel, signal_map=None):
-    """(times_ns, extend) of the changes of a valve's effective command: ``extend`` is
-    True for a change to extend. Starts from the cylinder's initial position."""
+def valve_transitions(timeline, model: ConsumerModel, signal_map=None, until_ns=None):
+    """(times_ns, extend) of the changes of a valve's effective command (up to
+    ``until_ns``): ``extend`` is True for a change to extend. Starts from the cylinder's
+    initial position."""
     init = model.initial_extended
     if len(model.valve) == 1:
-        t, v = _signal(timeline, model.valve[0], signal_map)
+        t, v = _signal(timeline, model.valve[0], signal_map, until_ns)
         state = v != 0
     else:
         codes_t, codes = [], []
         for sig, code in ((model.valve[0], 1), (model.valve[1], -1)):
-            t, v = _signal(timeline, sig, signal_map)
+            t, v = _signal(timeline, sig, signal_map, until_ns)
             on = v != 0
             rising = on & ~np.concatenate([[False], on[:-1]])
             codes_t.append(t[rising])
@@ -131,10 +132,10 @@ def valve_transitions(timeline, model: ConsumerModel, signal_map=None):
     return t[change], state[change]
 
 
-def passive_intervals(timeline, model: ConsumerModel, signal_map=None):
+def passive_intervals(timeline, model: ConsumerModel, signal_map=None, until_ns=None):
     """(start_ns, end_ns) arrays of the periods a passive consumer's output is on (the
-    last may end at the horizon)."""
-    t, v = _signal(timeline, model.valve[0], signal_map)
+    last may end at the horizon; with ``until_ns``, the edges up to then)."""
+    t, v = _signal(timeline, model.valve[0], signal_map, until_ns)
     on = v != 0
     prev = np.concatenate([[False], on[:-1]])
     starts = t[on & ~prev]
@@ -174,6 +175,30 @@ def _cumulative(points_s, start_s, duration_s, amount):
         inside = k >= 0
         kk = np.clip(k, 0, None)
         out += np.where(inside, cum_at_bp[kk] + slope[kk] * (points_s - bp[kk]), 0.0)
+    return out
+
+
+def _periodic_cumulative(points_s, template, period_s: float) -> np.ndarray:
+    """The cumulative volume at ``points_s`` of ``template`` (rectangles of one period)
+    repeated every ``period_s`` without end: whole repetitions counted at once, only the
+    few still filling at a point evaluated (a year of 4 s cycles costs no more than one)."""
+    start, dur, vol = (np.asarray(x, dtype=float) for x in template)
+    points_s = np.asarray(points_s, dtype=float)
+    out = np.zeros(len(points_s))
+    if not len(start):
+        return out
+    lo = float(start.min())
+    hi = float((start + np.clip(dur, 0.0, None)).max())
+    # repetitions j = 0, 1, ...: those with point - j p >= hi are complete
+    n_full = np.clip(np.floor((points_s - hi) / period_s) + 1, 0, None)
+    j_last = np.floor((points_s - lo) / period_s)
+    out += n_full * float(vol.sum())
+    for d in range(int(math.ceil((hi - lo) / period_s)) + 2):
+        j = n_full + d
+        ok = j <= j_last
+        if not ok.any():
+            break
+        out[ok] += _cumulative(points_s[ok] - j[ok] * period_s, start, dur, vol)
     return out
 
 
@@ -394,9 +419,6 @@ class _Series:
         return _cell_volumes(edges_s, self.start_s[lo:hi], self.duration_s[lo:hi],
                              self.nl[lo:hi])
 
-    def total_nl(self, until_s: float) -> float:
-        """Normal litres before ``until_s`` (air that would flow later is not counted)."""
-        return float(_cumulative([until_s], self.start_s, self.duration_s, self.nl)[0])
 
 
 @dataclass
@@ -414,11 +436,57 @@ class DemandProfile:
     horizon_s: float
     strokes: dict = field(default_factory=dict)   # name -> (extend, retract) counts
     models: list = field(default_factory=list)
-    steps: DemandSteps | None = None    # the exact total demand, for peaks off the grid
+    # a machine that repeats: per consumer the rectangles of one period (those whose
+    # edge lies in (t2, t2 + period]), repeated every period_s up to the horizon on top
+    # of ``rects`` (the edges up to t2); the profile then costs one period at any horizon
+    templates: list | None = None
+    period_s: float | None = None
 
-    def __post_init__(self):
-        if self.steps is None:
-            self.steps = DemandSteps.of(self.rects, self.horizon_s)
+    @functools.cached_property
+    def steps(self) -> DemandSteps:
+        """The exact total demand over the whole horizon (breakpoints, rates,
+        cumulative). For a repeating machine this holds every repetition: the profile's
+        own peaks use :meth:`_steps_for`, which needs a few."""
+        if self.templates is None:
+            return self._steps_for(0.0)
+        return self._steps_over(self.horizon_s)
+
+    def _steps_for(self, window_s: float) -> DemandSteps:
+        """The exact demand over a stretch that holds every distinct window of
+        ``window_s`` (the whole horizon unless the machine repeats)."""
+        if self.templates is None:
+            if "_all_steps" not in self.__dict__:
+                self.__dict__["_all_steps"] = DemandSteps.of(self.rects, self.horizon_s)
+            return self.__dict__["_all_steps"]
+        # the demand repeats from t1 = (the last base stroke's end, the template's end
+        # less a period) on, so every window of window_s has an equal one that starts
+        # within [t1, t1 + period)
+        p = self.period_s
+        # a base rectangle that lasts to the horizon (a leak, an output left on) is a
+        # constant rate from its start on
+        ends = []
+        for r in self.rects:
+            if len(r[0]):
+                end = r[0] + np.clip(r[1], 0, None)
+                ends.append(float(np.max(np.where(end >= self.horizon_s, r[0], end))))
+        hi = max([float((tm[0] + np.clip(tm[1], 0, None)).max())
+                  for tm in self.templates if tm is not None and len(tm[0])] + [0.0])
+        t1 = max(ends + [hi - p, 0.0])
+        return self._steps_over(min(self.horizon_s, t1 + p + float(window_s or 0.0)))
+
+    def _steps_over(self, cover_s: float) -> DemandSteps:
+        """A repeating machine's exact demand over ``[0, cover_s]``."""
+        cache = self.__dict__.setdefault("_steps_cache", {})
+        if cover_s not in cache:
+            rects = list(self.rects)
+            p = self.period_s
+            for tm in self.templates:
+                if tm is not None and len(tm[0]):
+                    k = np.arange(int(max(0.0, (cover_s - tm[0].min()) // p)) + 1) * p
+                    rects.append(((tm[0][None, :] + k[:, None]).ravel(),
+                                  np.tile(tm[1], len(k)), np.tile(tm[2], len(k))))
+            cache[cover_s] = DemandSteps.of(rects, cover_s)
+        return cache[cover_s]
 
     @functools.cached_property
     def edges_s(self) -> np.ndarray:
@@ -437,11 +505,31 @@ class DemandProfile:
         """The merged rectangles of the consumers at indices ``which``."""
         return _Series([self.rects[i] for i in which])
 
+    def cumulative_nl_at(self, at_s, which=None) -> np.ndarray:
+        """Normal litres the consumers at indices ``which`` (default all) have used by
+        each time, exact (air that would flow after the horizon is not counted)."""
+        which = range(len(self.names)) if which is None else which
+        at_s = np.minimum(np.asarray(at_s, dtype=float), self.horizon_s)
+        out = np.zeros(at_s.shape)
+        for i in which:
+            out += _cumulative(at_s.ravel(), *self.rects[i]).reshape(at_s.shape)
+            if self.templates is not None and self.templates[i] is not None:
+                out += _periodic_cumulative(at_s.ravel(), self.templates[i],
+                                            self.period_s).reshape(at_s.shape)
+        return out
+
+    def _cells_of(self, which):
+        """A function of grid edges giving the normal litres per cell of the consumers at
+        indices ``which`` (their rectangles merged once)."""
+        if self.templates is None:
+            return self.series(which).cells_nl
+        return lambda edges_s: np.diff(self.cumulative_nl_at(edges_s, which))
+
     def cells_nl(self, which=None, edges_s=None) -> np.ndarray:
         """Normal litres per cell of the consumers at indices ``which`` together (default
         all) on ``edges_s`` (default the profile's grid)."""
         which = range(len(self.names)) if which is None else which
-        return self.series(which).cells_nl(self.edges_s if edges_s is None else edges_s)
+        return self._cells_of(which)(self.edges_s if edges_s is None else edges_s)
 
     @functools.cached_property
     def total_cell_nl(self) -> np.ndarray:
@@ -470,7 +558,7 @@ class DemandProfile:
     def consumer_nl(self) -> np.ndarray:
         """Per-consumer totals over the horizon, from the rectangles (the same at every
         ``dt``)."""
-        return np.array([self.series([i]).total_nl(self.horizon_s)
+        return np.array([float(self.cumulative_nl_at([self.horizon_s], [i])[0])
                          for i in range(len(self.names))], dtype=float)
 
     @property
@@ -492,7 +580,7 @@ class DemandProfile:
     def peak_l_min(self, window_s: float | None = None) -> float:
         """The highest instantaneous demand, or the highest mean over any window of
         ``window_s``: exact (:class:`DemandSteps`, the same at every ``dt``)."""
-        return self.steps.peak_l_min(window_s)
+        return self._steps_for(window_s or 0.0).peak_l_min(window_s)
 
     def grid_peak_l_min(self, window_s: float | None = None) -> float:
         """The highest total flow of a grid cell, or mean over ``window_s`` in whole
@@ -523,8 +611,9 @@ class DemandProfile:
         out = np.zeros(len(self.names))
         if not len(starts):
             return out
-        for i, r in enumerate(self.rects):
-            out[i] = float(np.sum(_cumulative(stops, *r) - _cumulative(starts, *r)))
+        for i in range(len(self.names)):
+            out[i] = float(np.sum(self.cumulative_nl_at(stops, [i])
+                                  - self.cumulative_nl_at(starts, [i])))
         return out
 
     def by_role_nl(self) -> dict:
@@ -553,7 +642,7 @@ class DemandProfile:
         the mean flow over the cell starting at ``time_s``. Written in stretches of the
         grid, so memory does not grow with the horizon."""
         groups = self.groups(shown)
-        series = [self.series(idx) for _, idx in groups]   # every consumer is in one
+        cells_of = [self._cells_of(idx) for _, idx in groups]   # every consumer is in one
         header = "time_s,total_l_min," + ",".join(
             ("other" if len(idx) > 1 else _csv_name(label)) + "_l_min" for label, idx in groups)
         rows = max(1000, values_per_write // (len(groups) + 2))
@@ -563,7 +652,7 @@ class DemandProfile:
             f.write(header + "\n")
             for a in range(0, self.n_cells, rows):
                 e = self.edges_s[a:min(self.n_cells, a + rows) + 1]
-                cols = [s.cells_nl(e) * per_min for s in series]
+                cols = [cells(e) * per_min for cells in cells_of]
                 flows = np.column_stack([np.sum(cols, axis=0) if cols else
                                          np.zeros(len(e) - 1)] + cols)
                 f.write(_csv_rows(a, dt_ns, flows))
@@ -631,28 +720,56 @@ def _csv_name(name: str) -> str:
 def demand_profile(timeline, models: list[ConsumerModel], dt_s: float = 0.01,
                    signal_map=None) -> DemandProfile:
     """Every consumer's air as rectangles (see the module docstring), read on a grid of
-    ``dt_s``."""
+    ``dt_s``. A timeline that repeats (tiled) is read up to two periods past its first
+    repetition: the rectangles of the edges up to t2 and one period's template, which
+    the profile repeats to the horizon (so ten years cost what two periods do)."""
     if dt_s <= 0:
         raise ValueError("dt must be positive")
-    horizon_s = timeline.horizon_ns / NS
-    strokes = {}
-    rects = []
+    horizon_ns = timeline.horizon_ns
+    horizon_s = horizon_ns / NS
+    until_ns = t2 = p = None
+    if timeline.tiled is not None:
+        t1, t2 = timeline.tiled
+        p = t2 - t1
+        if horizon_ns > t2 + 2 * p:
+            until_ns = t2 + 2 * p
+    strokes, rects, templates = {}, [], []
+
+    def split(origin_ns, rect):
+        """(base, template, repetitions of each template item within the horizon)."""
+        base = origin_ns <= t2
+        tmpl = (origin_ns > t2) & (origin_ns <= t2 + p)
+        reps = (horizon_ns - origin_ns[tmpl]) // p + 1
+        return (tuple(np.asarray(x)[base] for x in rect),
+                tuple(np.asarray(x)[tmpl] for x in rect), base, tmpl, reps)
+
     for m in models:
+        template = None
         if m.role == "active":
-            t_ns, ext = valve_transitions(timeline, m, signal_map)
-            strokes[m.name] = (int(ext.sum()), int((~ext).sum()))
-            rects.append(stroke_rectangles(t_ns / NS, ext, m.extend_nl, m.retract_nl,
-                                           m.delay_s, m.stroke_time_s, m.exhaust_tau_s,
-                                           m.dead_fill_nl))
-        else:
-            if m.role == "leak":
-                starts, ends = np.array([0.0]), np.array([horizon_s])
+            t_ns, ext = valve_transitions(timeline, m, signal_map, until_ns)
+            rect = stroke_rectangles(t_ns / NS, ext, m.extend_nl, m.retract_nl, m.delay_s,
+                                     m.stroke_time_s, m.exhaust_tau_s, m.dead_fill_nl)
+            if until_ns is None:
+                strokes[m.name] = (int(ext.sum()), int((~ext).sum()))
             else:
-                s_ns, e_ns = passive_intervals(timeline, m, signal_map)
-                starts, ends = s_ns / NS, e_ns / NS
-            rects.append(interval_rectangles(starts, ends, m.flow_l_min))
+                rect, template, base, tmpl, reps = split(t_ns, rect)
+                e = ext[tmpl]
+                strokes[m.name] = (int(ext[base].sum() + reps[e].sum()),
+                                   int((~ext[base]).sum() + reps[~e].sum()))
+        elif m.role == "leak":
+            rect = interval_rectangles(np.array([0.0]), np.array([horizon_s]), m.flow_l_min)
+        else:
+            # an output still on at the end of the edges read is on to the horizon
+            s_ns, e_ns = passive_intervals(timeline, m, signal_map, until_ns)
+            rect = interval_rectangles(s_ns / NS, e_ns / NS, m.flow_l_min)
+            if until_ns is not None:
+                rect, template, *_ = split(s_ns, rect)
+        rects.append(rect)
+        templates.append(template)
+    periodic = until_ns is not None
     return DemandProfile([m.name for m in models], [m.role for m in models], rects, dt_s,
-                         horizon_s, strokes, list(models))
+                         horizon_s, strokes, list(models),
+                         templates if periodic else None, p / NS if periodic else None)
 
 
 def activation_matrix(timeline, models: list[ConsumerModel], dt_s: float, signal_map=None):

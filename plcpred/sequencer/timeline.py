@@ -182,20 +182,24 @@ class Timeline:
         m = s == self._idx(name)
         return t[m], v[m]
 
-    def edge_times_ns(self, name: str) -> tuple[np.ndarray, np.ndarray]:
-        """(times, values) of one signal's changes, the first its initial value at 0. A
-        tiled timeline repeats just this signal's edges of the period (the whole
-        timeline is not built)."""
+    def edge_times_ns(self, name: str, until_ns: int | None = None
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        """(times, values) of one signal's changes, the first its initial value at 0
+        (with ``until_ns``, only those up to then). A tiled timeline repeats just this
+        signal's edges of the period (the whole timeline is not built)."""
         i = self._idx(name)
+        end = self.horizon_ns if until_ns is None else min(int(until_ns), self.horizon_ns)
         if self._full is not None:
             t, s, v = self._full
-            m = s == i
+            m = (s == i) & (t <= end)
             return t[m], v[m]
         t, s, v = self._base
-        m = s == i
+        m = (s == i) & (t <= end)
         pt, ps, pv, reps = self._period_edges()
         mine = ps == i
         pt, pv = pt[mine], pv[mine]
+        if reps:
+            reps = min(reps, max(0, int((end - self.tiled[1]) // (self.tiled[1] - self.tiled[0])) + 1))
         if not reps or not len(pt):
             return t[m], v[m]
         if reps * len(pt) > self.max_changes:
@@ -205,7 +209,7 @@ class Timeline:
                 "the air model needs a shorter --horizon")
         k = np.arange(1, reps + 1, dtype=np.int64)
         tt = (pt[None, :] + k[:, None] * (self.tiled[1] - self.tiled[0])).ravel()
-        keep = tt <= self.horizon_ns
+        keep = tt <= end
         return (np.concatenate([t[m], tt[keep]]),
                 np.concatenate([v[m], np.tile(pv, reps)[keep]]))
 
