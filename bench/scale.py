@@ -116,6 +116,9 @@ CHILD = r"""
 import json, resource, sys, time
 from plcpred import load_machine
 from plcpred.air import predict
+from plcpred.memory import use_large_malloc_thresholds
+if sys.argv[5] == "tuned":
+    use_large_malloc_thresholds()     # as the plcpred command does
 machine, horizon, dt, out = sys.argv[1:5]
 t0 = time.perf_counter()
 m = load_machine(machine)
@@ -136,10 +139,12 @@ print(json.dumps({"wall_s": wall, "stages": r.stage_s, "cells": prof.n_cells,
 """
 
 
-def run_child(machine: Path, horizon: str, dt: str | None) -> dict:
+def run_child(machine: Path, horizon: str, dt: str | None, malloc: str = "tuned") -> dict:
+    """predict and write in a child process; ``malloc="default"`` leaves glibc's
+    allocator as it is (the command line sets plcpred.memory's thresholds)."""
     with tempfile.TemporaryDirectory() as tmp:
         r = subprocess.run([sys.executable, "-c", CHILD, str(machine), horizon, dt or "-",
-                            str(Path(tmp) / "out")], capture_output=True, text=True)
+                            str(Path(tmp) / "out"), malloc], capture_output=True, text=True)
     if r.returncode:
         raise SystemExit(f"predict of {machine.name} over {horizon} failed:\n{r.stderr[-3000:]}")
     return json.loads(r.stdout.strip().splitlines()[-1])

@@ -856,6 +856,8 @@ def main(argv=None) -> int:
     argv = [a for a in argv if a != "--debug"]
     args = build_parser().parse_args(argv)
     args.argv = argv
+    from .memory import use_large_malloc_thresholds
+    use_large_malloc_thresholds()      # a third of a prediction's time otherwise (memory.py)
     try:
         previous = signal.signal(signal.SIGTERM, _on_sigterm)
     except ValueError:  # not the main thread (a library caller): leave signals alone

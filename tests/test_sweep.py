@@ -98,3 +98,23 @@ def test_errors_survive_the_trip_from_a_worker_process():
 def test_swept_values_go_through_the_loaders_checks(setting, message):
     with pytest.raises(SweepError, match=message):
         sweep(RIG, [parse_setting(setting)], 1.0, workers=1)
+
+
+def test_a_batch_gives_the_rows_of_its_scenarios_in_order():
+    from plcpred.sweep import parse_setting, run_batch, run_scenario, scenarios
+    combos = scenarios([parse_setting("supply_bar_g=3,5,6")])
+    args = [(str(RIG), sc, 5.0, 0.05, None) for sc in combos]
+    rows = run_batch(args)
+    assert [r["supply_bar_g"] for r in rows] == ["3", "5", "6"]
+    assert rows == [run_scenario(*a) for a in args]
+    assert rows[0]["total_nl"] < rows[2]["total_nl"]     # more pressure, more air
+
+
+def test_the_allocator_setting_applies_once_on_glibc():
+    import platform
+
+    from plcpred.memory import use_large_malloc_thresholds
+    if platform.system() != "Linux" or platform.libc_ver()[0] != "glibc":
+        pytest.skip("glibc only")
+    assert use_large_malloc_thresholds() is True
+    assert use_large_malloc_thresholds() is True          # once; then a no-op
