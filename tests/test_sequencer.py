@@ -366,7 +366,7 @@ y := go;
 END_PROGRAM""", "p.st")
     m = Machine("m", Path("m.toml"), Path("p.st"), scan_ms=10)
     m.inputs = [InputSchedule("go", period_s=5.0, offset_s=1.0, pulse_ms=3000)]
-    fast = Sequencer(prog, m).run(parse_horizon("20s"), tiling=False)
+    fast = Sequencer(prog, m).run(parse_horizon("20s"), tiling=False, replay=False)
     assert fast == Sequencer(prog, m).run(parse_horizon("20s"), scan_stepping=True)
     assert (fast.info["scans"] > 500) == steps
 

@@ -508,22 +508,35 @@ class DemandProfile:
     def cumulative_nl_at(self, at_s, which=None) -> np.ndarray:
         """Normal litres the consumers at indices ``which`` (default all) have used by
         each time, exact (air that would flow after the horizon is not counted)."""
-        which = range(len(self.names)) if which is None else which
-        at_s = np.minimum(np.asarray(at_s, dtype=float), self.horizon_s)
-        out = np.zeros(at_s.shape)
-        for i in which:
-            out += _cumulative(at_s.ravel(), *self.rects[i]).reshape(at_s.shape)
-            if self.templates is not None and self.templates[i] is not None:
-                out += _periodic_cumulative(at_s.ravel(), self.templates[i],
-                                            self.period_s).reshape(at_s.shape)
-        return out
+        return self._cumulative_of(range(len(self.names)) if which is None else which)(at_s)
+
+    def _cumulative_of(self, which):
+        """A function of times giving the cumulative normal litres of the consumers at
+        indices ``which``, their rectangles (and templates) merged once."""
+        base = [self.rects[i] for i in which]
+        merged = tuple(np.concatenate([r[k] for r in base]) if base else np.zeros(0)
+                       for k in range(3))
+        tmpl = [self.templates[i] for i in which if self.templates is not None
+                and self.templates[i] is not None]
+        template = tuple(np.concatenate([r[k] for r in tmpl]) for k in range(3)) \
+            if tmpl else None
+
+        def cumulative(at_s):
+            at_s = np.minimum(np.asarray(at_s, dtype=float), self.horizon_s)
+            flat = at_s.ravel()
+            out = _cumulative(flat, *merged)
+            if template is not None:
+                out += _periodic_cumulative(flat, template, self.period_s)
+            return out.reshape(at_s.shape)
+        return cumulative
 
     def _cells_of(self, which):
         """A function of grid edges giving the normal litres per cell of the consumers at
         indices ``which`` (their rectangles merged once)."""
         if self.templates is None:
             return self.series(which).cells_nl
-        return lambda edges_s: np.diff(self.cumulative_nl_at(edges_s, which))
+        cumulative = self._cumulative_of(which)
+        return lambda edges_s: np.diff(cumulative(edges_s))
 
     def cells_nl(self, which=None, edges_s=None) -> np.ndarray:
         """Normal litres per cell of the consumers at indices ``which`` together (default

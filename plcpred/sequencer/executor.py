@@ -39,6 +39,9 @@ from .timeline import DEFAULT_MAX_CHANGES, NS, Signal, Timeline
 _TIMERS = (TON, TOF, TP, TONR)
 NEVER = 1 << 62      # "no event" in integer nanoseconds
 MAX_KEYS = 20_000   # fixed points remembered when looking for a repeating state
+MAX_PART_VARIANTS = 16      # recorded responses kept per rest state (part replay)
+MAX_PART_CHANGES = 200_000  # a response longer than this is not recorded
+MAX_OPEN_PARTS = 8          # parts recorded at once (from different rest states)
 
 
 class SequencerError(PlcpredError):
@@ -405,6 +408,7 @@ class Schedule:
             self._count = len(self._pulses)
         self.times: list = []
         self.values: list = []
+        self.log: list | None = None    # the edges consumed, while a part is recorded
         self.k = 0
         self.first_ns = None
         self._fill()
@@ -444,6 +448,8 @@ class Schedule:
             times, k = self.times, self.k
             while k < len(times) and times[k] <= t_ns:
                 self.value = self.values[k]
+                if self.log is not None:
+                    self.log.append((times[k], self.values[k]))
                 k += 1
             self.k = k
             if k < len(times) or not self._fill():
@@ -453,6 +459,18 @@ class Schedule:
         if self.k >= len(self.times) and not self._fill():
             return None
         return self.times[self.k]
+
+    def upcoming(self, until_ns: int):
+        """The edges not yet consumed up to ``until_ns`` as (time, value), or None when
+        they run past the block generated so far (the caller then does not look ahead)."""
+        times, k = self.times, self.k
+        out = []
+        while k < len(times) and times[k] <= until_ns:
+            out.append((times[k], self.values[k]))
+            k += 1
+        if k >= len(times) and self._next < self._count:
+            return None
+        return out
 
     def key(self, t_ns: int):
         """Phase of a periodic schedule; None when the future is not periodic."""
@@ -641,10 +659,17 @@ class Sequencer:
 
     # ------------------------------------------------------------------ run
     def run(self, horizon_ns: int, scan_stepping: bool = False,
-            tiling: bool = True, max_events: int = DEFAULT_MAX_CHANGES) -> Timeline:
+            tiling: bool = True, max_events: int = DEFAULT_MAX_CHANGES,
+            replay: bool = True) -> Timeline:
         """Unfold the program over ``[0, horizon_ns]`` and return the timeline. A run
         whose program keeps changing signals (more than ``max_events`` changes held in
-        memory) stops with an error naming the signal that changes most."""
+        memory) stops with an error naming the signal that changes most.
+
+        A run that cannot tile (jittered inputs) replays parts: when the machine is at
+        rest (nothing but a scheduled input can change anything) in a state it rested in
+        before, and the scheduled edges ahead fall on the same scans relative to the
+        first as they did then, the recorded response up to the return to that state is
+        copied instead of executed (``replay=False``: always execute)."""
         wall0 = _time.perf_counter()
         inst = ProgramInstance(self.program, self.compiled)
         ins, outs = self._signals(inst)
@@ -732,6 +757,8 @@ class Sequencer:
             and self.plant_model is None \
             and not any(s.random for s, _, _ in schedules)
         seen: dict = {}
+        parts: dict = {}      # rest key -> [(edges ahead, duration, changes)]
+        opened: dict = {}     # rest key -> (first scan, first change, log positions)
         prev_snap = None
         prev_values = None
         t = 0
@@ -739,6 +766,11 @@ class Sequencer:
         tiled_from = None
         next_input = 0
         inst.set_scan(scan)
+        can_replay = replay and not can_tile and not always_step \
+            and self.plant_model is None and inst.every is None and bool(schedules)
+        if can_replay:
+            for sch, _, _ in schedules:
+                sch.log = []          # the edges consumed while a part is recorded
         k_change = 0
         scan_fn = inst.scan
         try:
@@ -801,6 +833,41 @@ class Sequencer:
                         nxt = e
                 if reads_et and running:
                     nxt = t + scan
+                if can_replay and nxt is not None and nxt == next_input and not running \
+                        and not any(c._until < NEVER for c in cylinders) \
+                        and not any(sfc.next_event_ns(t) is not None for sfc in sfcs):
+                    # at rest: only a scheduled input can change anything
+                    t_next = max(t + scan, -(-nxt // scan) * scan)
+                    key = self._rest_key(inst, t, cylinders)
+                    if key is not None:
+                        start = opened.pop(key, None)
+                        if start is not None:         # back in a state a part began in
+                            t_s, i0, at = start
+                            parts.setdefault(key, []).append((
+                                self._edges_seen([sch.log[k:] for (sch, _, _), k in
+                                                  zip(schedules, at)], t_s, scan),
+                                t - t_s, np.frombuffer(tt, dtype=np.int64)[i0:] - t_s,
+                                np.frombuffer(ss, dtype=np.int32)[i0:].copy(),
+                                np.frombuffer(vv, dtype=np.float64)[i0:].copy()))
+                        done = self._replay(parts.get(key, ()), schedules, t_next, scan,
+                                            horizon_ns, tt, ss, vv)
+                        if done is not None:
+                            if len(tt) > max_events:
+                                raise SequencerError(_too_many_changes(
+                                    signals, ss, done, scan, max_events))
+                            t = done          # back at rest in the same state
+                            next_input = 0
+                            continue
+                        if len(parts.get(key, ())) < MAX_PART_VARIANTS \
+                                and len(parts) < MAX_KEYS and len(opened) < MAX_OPEN_PARTS:
+                            opened[key] = (t_next, len(tt), [len(sch.log) for sch, _, _ in
+                                                              schedules])
+                    for k in [k for k, v in opened.items()
+                              if len(tt) - v[1] > MAX_PART_CHANGES]:
+                        del opened[k]         # not a part that ends: stop recording it
+                    if not opened:
+                        for sch, _, _ in schedules:
+                            sch.log.clear()
                 if can_tile and len(seen) < MAX_KEYS:
                     key = self._state_key(inst, t, schedules, cylinders)
                     if key is not None:
@@ -826,6 +893,42 @@ class Sequencer:
                 "machine_signals": dict(self.signal_names)}
         return Timeline(signals, time_ns, sig, val, horizon_ns, info, tiled=tiled_from,
                         max_changes=max_events)
+
+    @staticmethod
+    def _rest_key(inst, t, cylinders):
+        """The state at rest, or None when it holds a time (a finished timer's age, an
+        SFC step's): replaying a part would leave that time behind."""
+        key = (inst.snap(t), tuple((cyl.plant.key(t), tuple(cyl.prev)) for cyl in cylinders))
+        later = t + 1_000_003
+        if key != (inst.snap(later), tuple((cyl.plant.key(later), tuple(cyl.prev))
+                                           for cyl in cylinders)):
+            return None
+        return key
+
+    @staticmethod
+    def _edges_seen(logs, t_s: int, scan: int) -> tuple:
+        """Scheduled edges as (schedule, scan that sees it relative to ``t_s``, value)."""
+        return tuple(sorted((j, -(-e // scan) * scan - t_s, v)
+                            for j, log in enumerate(logs) for e, v in log))
+
+    def _replay(self, variants, schedules, t_s: int, scan: int, horizon_ns: int,
+                tt, ss, vv):
+        """Copy a recorded part starting at scan ``t_s`` if the scheduled edges ahead
+        match one; the time it ends (at rest again), or None."""
+        for edges, dur, ct, cs, cv in variants:
+            end = t_s + dur
+            if end > horizon_ns:
+                continue
+            ahead = [sch.upcoming(end) for sch, _, _ in schedules]
+            if any(a is None for a in ahead) or self._edges_seen(ahead, t_s, scan) != edges:
+                continue
+            tt.extend((ct + t_s).tolist())
+            ss.extend(cs.tolist())
+            vv.extend(cv.tolist())
+            for sch, _, _ in schedules:
+                sch.advance(end)
+            return end
+        return None
 
     @staticmethod
     def _state_key(inst, t, schedules, cylinders):
