@@ -953,10 +953,14 @@ def _too_many_changes(signals, sig_idx, t_ns, scan_ns, limit) -> str:
     worst = int(counts.argmax())
     n = int(np.count_nonzero(idx == worst))
     scans = max(1, t_ns // scan_ns)
-    rate = "every scan" if n >= 0.9 * scans else f"{n / max(t_ns / NS, 1e-9):,.0f} times/s"
-    return (f"more than {limit:,} signal changes by {t_ns / NS:g} s (--max-events): "
-            f"'{signals[worst].name}' changes {n:,} times ({rate}); a program that "
-            "toggles an output on every scan cannot be predicted over a long horizon")
+    if n >= 0.9 * scans:
+        return (f"more than {limit:,} signal changes by {t_ns / NS:g} s (--max-events): "
+                f"'{signals[worst].name}' changes {n:,} times (every scan); a program that "
+                "toggles an output on every scan cannot be predicted over a long horizon")
+    return (f"more than {limit:,} signal changes by {t_ns / NS:g} s (--max-events): the "
+            f"machine does not repeat, so every change is held in memory (about 20 bytes "
+            f"each; '{signals[worst].name}' changes {n / max(t_ns / NS, 1e-9):,.2g} times/s); "
+            "shorten --horizon or raise --max-events")
 
 
 def _value_getter(slots):
