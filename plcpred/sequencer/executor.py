@@ -759,6 +759,7 @@ class Sequencer:
         seen: dict = {}
         parts: dict = {}      # rest key -> [(edges ahead, duration, changes)]
         opened: dict = {}     # rest key -> (first scan, first change, log positions)
+        timeless: set = set()  # rest keys that hold no time
         prev_snap = None
         prev_values = None
         t = 0
@@ -838,7 +839,7 @@ class Sequencer:
                         and not any(sfc.next_event_ns(t) is not None for sfc in sfcs):
                     # at rest: only a scheduled input can change anything
                     t_next = max(t + scan, -(-nxt // scan) * scan)
-                    key = self._rest_key(inst, t, cylinders)
+                    key = self._rest_key(inst, t, cylinders, timeless)
                     if key is not None:
                         start = opened.pop(key, None)
                         if start is not None:         # back in a state a part began in
@@ -895,14 +896,19 @@ class Sequencer:
                         max_changes=max_events)
 
     @staticmethod
-    def _rest_key(inst, t, cylinders):
+    def _rest_key(inst, t, cylinders, timeless: set):
         """The state at rest, or None when it holds a time (a finished timer's age, an
-        SFC step's): replaying a part would leave that time behind."""
+        SFC step's): replaying a part would leave that time behind. ``timeless`` holds
+        the keys already found free of times (a key with a time in it differs later)."""
         key = (inst.snap(t), tuple((cyl.plant.key(t), tuple(cyl.prev)) for cyl in cylinders))
+        if key in timeless:
+            return key
         later = t + 1_000_003
         if key != (inst.snap(later), tuple((cyl.plant.key(later), tuple(cyl.prev))
                                            for cyl in cylinders)):
             return None
+        if len(timeless) < MAX_KEYS:
+            timeless.add(key)
         return key
 
     @staticmethod
