@@ -304,18 +304,29 @@ class Timeline:
             f.write(self._rows(*self._repetitions(reps, reps)))
 
     def _rows(self, t, sig, val) -> str:
-        """CSV rows for edges (general path: any times)."""
+        """CSV rows for edges (general path: any times). Each distinct fraction of a
+        second and each distinct (signal, value) is formatted once: a run has few of
+        either (times fall on scans, a BOOL has two values)."""
+        t = np.asarray(t, dtype=np.int64)
+        if not len(t):
+            return ""
         names = self.names
         real = [s.dtype == "real" for s in self.signals]
-        times = {}
-        out = []
-        append = out.append
-        for ti, i, v in zip(t.tolist(), sig.tolist(), val.tolist()):
-            ts = times.get(ti)
-            if ts is None:
-                ts = times[ti] = format_seconds(ti)
-            append(f"{ts},{names[i]},{v!r}\n" if real[i] else f"{ts},{names[i]},{int(v)}\n")
-        return "".join(out)
+        whole, frac = np.divmod(t, NS)
+        fracs, frac_k = np.unique(frac, return_inverse=True)
+        frac_text = [_frac_text(x) for x in fracs.tolist()]
+        # (signal, value) pairs as one integer code: sorting codes is fast, rows are not
+        vals, val_k = np.unique(np.asarray(val, dtype=np.float64), return_inverse=True)
+        codes, pair_k = np.unique(np.asarray(sig, dtype=np.int64) * len(vals) + val_k.ravel(),
+                                  return_inverse=True)
+        vals = vals.tolist()
+        pair_text = [f"{names[i]},{vals[k]!r}" if real[i] else f"{names[i]},{int(vals[k])}"
+                     for i, k in (divmod(c, len(vals)) for c in codes.tolist())]
+        if (whole < 0).any():                    # not from the sequencer; the slow way
+            return "".join(f"{format_seconds(x)},{pair_text[p]}\n"
+                           for x, p in zip(t.tolist(), pair_k.ravel().tolist()))
+        return "".join([f"{w}{frac_text[f]},{pair_text[p]}\n" for w, f, p in zip(
+            whole.tolist(), frac_k.ravel().tolist(), pair_k.ravel().tolist())])
 
 
 def _frac_text(frac_ns: int) -> str:
