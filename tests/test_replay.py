@@ -62,3 +62,17 @@ def test_replay_executes_a_part_once_per_distinct_response(tmp_path):
     assert replayed == executed
     # 450 parts: executed, each costs about 50 scans; replayed, about one
     assert executed.info["scans"] > 10 * replayed.info["scans"]
+
+
+def test_timeline_rows_are_exact_for_every_kind_of_value():
+    from plcpred.sequencer.timeline import Signal, Timeline, format_seconds
+    tl = Timeline([Signal("a", "output", "real"), Signal("b", "output", "int"),
+                   Signal("c", "input", "bool")],
+                  [0, 0, 5, 10**9 + 1, 2 * 10**9, 2 * 10**9 + 250_000_000],
+                  [0, 2, 1, 0, 1, 2], [0.1, 1.0, -3, float("nan"), 7, 0.0], 3 * 10**9)
+    expected = "".join(
+        f"{format_seconds(t)},{tl.names[s]},{v!r}\n" if s == 0 else
+        f"{format_seconds(t)},{tl.names[s]},{int(v)}\n"
+        for t, s, v in zip(tl.time_ns.tolist(), tl.signal_idx.tolist(), tl.values.tolist()))
+    assert tl._rows(tl.time_ns, tl.signal_idx, tl.values) == expected
+    assert expected.splitlines()[2] == "0.000000005,b,-3"
