@@ -1,5 +1,6 @@
 """From a timeline to an air-demand profile: the activation/transition model (docs/physics.md
-section 2) evaluated on a regular time grid.
+section 2), kept as one rectangle of air per stroke or on-period and read onto a regular
+time grid where asked (a repeating machine: one period's rectangles, repeated).
 
 * **Active consumers** (cylinders, semi-rotary drives, grippers) take their D1 volume on
   each change of their valve's effective command: rising (extend, cap end) or falling
@@ -17,7 +18,8 @@ instant. Volumes are placed on the grid by integrating exactly, so each edge's t
 the same whatever the grid (air that would flow after the horizon is not counted).
 
 Grid: cells ``[k dt, (k+1) dt)``; a cell's flow is its volume divided by ``dt`` (also for a
-last, partial cell), so summing ``flow * dt`` gives the total exactly.
+last, partial cell), so summing ``flow * dt`` gives the total exactly. Totals and peaks
+come from the rectangles themselves, so they are the same at every ``dt``.
 
 Matrix form (the thesis' formulation, :func:`activation_matrix`): ``A[i, j]`` the effective
 state of device i at the end of cell j, ``Z = |A[:, j] - A[:, j-1]|`` split into rising and
