@@ -179,6 +179,7 @@ def cmd_timeline(args) -> int:
     try:
         machine = load_machine(args.machine)
         tl = unfold(machine, horizon_s, scan_stepping=args.scan_stepping,
+                    replay=not args.no_replay,
                     program=args.program, max_events=args.max_events)
     except PlcpredError as e:
         print(e, file=sys.stderr)
@@ -471,6 +472,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scan-stepping", action="store_true",
                    help="execute every scan instead of jumping between events (the slow "
                         "reference the event-driven mode must equal)")
+    p.add_argument("--no-replay", action="store_true",
+                   help="execute every part of a run that cannot tile instead of copying "
+                        "the recorded response of a part that starts from a state the "
+                        "machine rested in before (the result is the same, only slower)")
     p.set_defaults(func=cmd_timeline)
 
     p = sub.add_parser("predict", help="forecast a machine's compressed-air demand",

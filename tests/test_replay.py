@@ -76,3 +76,20 @@ def test_timeline_rows_are_exact_for_every_kind_of_value():
         for t, s, v in zip(tl.time_ns.tolist(), tl.signal_idx.tolist(), tl.values.tolist()))
     assert tl._rows(tl.time_ns, tl.signal_idx, tl.values) == expected
     assert expected.splitlines()[2] == "0.000000005,b,-3"
+
+
+def test_timeline_no_replay_writes_the_same_file_executing_every_part(tmp_path):
+    import subprocess
+    import sys
+    m = jittered(tmp_path, "pick_place")
+    runs = {}
+    for flag in ([], ["--no-replay"]):
+        out = tmp_path / ("b" if flag else "a")
+        r = subprocess.run([sys.executable, "-m", "plcpred", "timeline", str(m.path),
+                            "--horizon", "10min", "--out", str(out)] + flag,
+                           capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+        scans = int(re.search(r"(\d+) scans executed", r.stdout).group(1))
+        runs[bool(flag)] = ((out / "timeline.csv").read_bytes(), scans)
+    assert runs[False][0] == runs[True][0]
+    assert runs[True][1] > 5 * runs[False][1]

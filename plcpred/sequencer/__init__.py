@@ -19,9 +19,12 @@ __all__ = ["CompileError", "ExecutionError", "Sequencer", "SequencerError", "Sig
 
 
 def unfold(machine, horizon="60s", scan_stepping: bool = False, tiling: bool = True,
-           program=None, max_events: int = DEFAULT_MAX_CHANGES) -> Timeline:
+           program=None, max_events: int = DEFAULT_MAX_CHANGES,
+           replay: bool = True) -> Timeline:
     """Run ``machine``'s program (or ``program``, an IR or a path, instead) over
     ``horizon`` (``"90s"``, ``"T#1m30s"``, ``"8h"`` or seconds) and return its timeline.
+    ``tiling`` and ``replay`` (repeating states and parts copied instead of executed,
+    :meth:`Sequencer.run`) can be turned off to check them against full execution.
 
     Raises :class:`~plcpred.parser.ProgramError` (program text), :class:`CompileError`
     (constructs the executor cannot run), :class:`ExecutionError` (run-time faults such as
@@ -35,7 +38,8 @@ def unfold(machine, horizon="60s", scan_stepping: bool = False, tiling: bool = T
         program = machine.read_program(program)
     check_against_program(machine, program)
     timeline = Sequencer(program, machine).run(horizon_ns, scan_stepping=scan_stepping,
-                                               tiling=tiling, max_events=max_events)
+                                               tiling=tiling, max_events=max_events,
+                                               replay=replay)
     machine.warnings.extend(lint_timeline(machine, timeline))
     return timeline
 
