@@ -120,9 +120,9 @@ def consumer_table(profile, shown: int | None = SHOWN_CONSUMERS) -> str:
         i = idx[0]
         st = profile.strokes.get(label) if len(idx) == 1 else None
         part = float(profile.consumer_nl[idx].sum())
-        rows.append((label, profile.roles[i] if len(idx) == 1 else "", f"{st[0]}+{st[1]}" if st else "",
-                     f"{active[idx].sum():.2f}", f"{passive[idx].sum():.2f}", f"{part:.2f}",
-                     f"{100 * part / total:.1f} %"))
+        rows.append((label, profile.roles[i] if len(idx) == 1 else "",
+                     f"{st[0]}+{st[1]}" if st else "", f"{active[idx].sum():.2f}",
+                     f"{passive[idx].sum():.2f}", f"{part:.2f}", f"{100 * part / total:.1f} %"))
     split = profile.by_role_nl()
     rows.append(("total", "", "", f"{split['active']:.2f}",
                  f"{split['passive'] + split['leak']:.2f}", f"{profile.total_nl:.2f}",

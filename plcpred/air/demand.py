@@ -36,7 +36,7 @@ import numpy as np
 
 from ..machine import CYLINDER_KINDS
 from ..output import SHOWN_CONSUMERS, atomic_writer, write_json
-from ..sequencer.timeline import NS, format_seconds
+from ..sequencer.timeline import NS, seconds_texts
 from .flow import bar_g_to_pa, celsius_to_k, flow_nl_min, orifice_conductance
 from .volumes import consumer_stroke_volumes_nl, dead_fill_volumes_nl
 
@@ -394,6 +394,12 @@ class DemandSteps:
 # ---------------------------------------------------------------------- the profile
 
 
+def shows_every_consumer(n_consumers: int, shown: int | None) -> bool:
+    """Whether the outputs show each of ``n_consumers`` one by one: ``shown`` is None
+    (all), or there are at most ``shown + 1`` (an "other" of one would hide a name)."""
+    return shown is None or n_consumers <= shown + 1
+
+
 class _Series:
     """The rectangles of one or more consumers merged and sorted by start, so that the
     volumes of any stretch of the grid need only the rectangles that reach into it."""
@@ -413,6 +419,11 @@ class _Series:
         self.reach_s = np.maximum.accumulate(start + np.clip(dur, 0, None)) \
             if len(start) else start
 
+    @property
+    def rects(self) -> tuple:
+        """(start_s, duration_s, nl) of all the rectangles."""
+        return self.start_s, self.duration_s, self.nl
+
     def cells_nl(self, edges_s) -> np.ndarray:
         """Normal litres in each cell of ``edges_s`` (any stretch of any grid)."""
         edges_s = np.asarray(edges_s, dtype=float)
@@ -420,7 +431,6 @@ class _Series:
         hi = int(np.searchsorted(self.start_s, edges_s[-1], side="right"))
         return _cell_volumes(edges_s, self.start_s[lo:hi], self.duration_s[lo:hi],
                              self.nl[lo:hi])
-
 
 
 @dataclass
@@ -444,22 +454,18 @@ class DemandProfile:
     templates: list | None = None
     period_s: float | None = None
 
-    @functools.cached_property
+    @property
     def steps(self) -> DemandSteps:
         """The exact total demand over the whole horizon (breakpoints, rates,
         cumulative). For a repeating machine this holds every repetition: the profile's
         own peaks use :meth:`_steps_for`, which needs a few."""
-        if self.templates is None:
-            return self._steps_for(0.0)
         return self._steps_over(self.horizon_s)
 
     def _steps_for(self, window_s: float) -> DemandSteps:
         """The exact demand over a stretch that holds every distinct window of
         ``window_s`` (the whole horizon unless the machine repeats)."""
         if self.templates is None:
-            if "_all_steps" not in self.__dict__:
-                self.__dict__["_all_steps"] = DemandSteps.of(self.rects, self.horizon_s)
-            return self.__dict__["_all_steps"]
+            return self._steps_over(self.horizon_s)
         # the demand repeats from t1 = (the last base stroke's end, the template's end
         # less a period) on, so every window of window_s has an equal one that starts
         # within [t1, t1 + period)
@@ -477,12 +483,13 @@ class DemandProfile:
         return self._steps_over(min(self.horizon_s, t1 + p + float(window_s or 0.0)))
 
     def _steps_over(self, cover_s: float) -> DemandSteps:
-        """A repeating machine's exact demand over ``[0, cover_s]``."""
+        """The exact demand over ``[0, cover_s]`` (a repeating machine's repetitions
+        up to then)."""
         cache = self.__dict__.setdefault("_steps_cache", {})
         if cover_s not in cache:
             rects = list(self.rects)
             p = self.period_s
-            for tm in self.templates:
+            for tm in self.templates or ():
                 if tm is not None and len(tm[0]):
                     k = np.arange(int(max(0.0, (cover_s - tm[0].min()) // p)) + 1) * p
                     rects.append(((tm[0][None, :] + k[:, None]).ravel(),
@@ -515,20 +522,17 @@ class DemandProfile:
     def _cumulative_of(self, which):
         """A function of times giving the cumulative normal litres of the consumers at
         indices ``which``, their rectangles (and templates) merged once."""
-        base = [self.rects[i] for i in which]
-        merged = tuple(np.concatenate([r[k] for r in base]) if base else np.zeros(0)
-                       for k in range(3))
+        base = self.series(which)
         tmpl = [self.templates[i] for i in which if self.templates is not None
                 and self.templates[i] is not None]
-        template = tuple(np.concatenate([r[k] for r in tmpl]) for k in range(3)) \
-            if tmpl else None
+        template = _Series(tmpl) if tmpl else None
 
         def cumulative(at_s):
             at_s = np.minimum(np.asarray(at_s, dtype=float), self.horizon_s)
             flat = at_s.ravel()
-            out = _cumulative(flat, *merged)
+            out = _cumulative(flat, *base.rects)
             if template is not None:
-                out += _periodic_cumulative(flat, template, self.period_s)
+                out += _periodic_cumulative(flat, template.rects, self.period_s)
             return out.reshape(at_s.shape)
         return cumulative
 
@@ -627,8 +631,8 @@ class DemandProfile:
         if not len(starts):
             return out
         for i in range(len(self.names)):
-            out[i] = float(np.sum(self.cumulative_nl_at(stops, [i])
-                                  - self.cumulative_nl_at(starts, [i])))
+            cum = self.cumulative_nl_at(np.concatenate([starts, stops]), [i])
+            out[i] = float(np.sum(cum[len(starts):] - cum[:len(starts)]))
         return out
 
     def by_role_nl(self) -> dict:
@@ -643,7 +647,7 @@ class DemandProfile:
         else the ``shown`` largest users in machine-file order and "other" for the rest
         (the only group of more than one)."""
         n = len(self.names)
-        if shown is None or n <= shown + 1:
+        if shows_every_consumer(n, shown):
             return [(name, [i]) for i, name in enumerate(self.names)]
         top = sorted(np.argsort(-self.consumer_nl, kind="stable")[:shown].tolist())
         rest = sorted(set(range(n)) - set(top))
@@ -720,12 +724,10 @@ def _csv_rows(first_cell: int, dt_ns: int, flows: np.ndarray) -> str:
     if not np.array_equal(distinct[which.ravel()], micro):
         distinct, which = np.unique(micro, axis=0, return_inverse=True)
     texts = [",".join([f"{x / 1e6:.6f}" for x in row]) for row in distinct.tolist()]
-    t_ns = (first_cell + np.arange(len(micro), dtype=np.int64)) * dt_ns
-    whole, frac = np.divmod(t_ns, NS)
-    fracs, frac_which = np.unique(frac, return_inverse=True)
-    frac_texts = [format_seconds(int(x))[1:] for x in fracs.tolist()]  # "" or ".25"
+    whole, frac_k, frac_texts = seconds_texts(
+        (first_cell + np.arange(len(micro), dtype=np.int64)) * dt_ns)
     return "".join([f"{w}{frac_texts[f]},{texts[k]}\n" for w, f, k in zip(
-        whole.tolist(), frac_which.ravel().tolist(), which.ravel().tolist())])
+        whole, frac_k, which.ravel().tolist())])
 
 
 def _csv_name(name: str) -> str:

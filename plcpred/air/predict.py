@@ -10,7 +10,7 @@ from pathlib import Path
 from ..errors import PlcpredError
 from ..sequencer.timeline import NS, Timeline
 from .demand import (SHOWN_CONSUMERS, ConsumerModel, DemandProfile, consumer_models,
-                     demand_profile)
+                     demand_profile, shows_every_consumer)
 
 DEFAULT_DT_S = 0.01
 MAX_CELLS = 400_000          # rows of demand.csv
@@ -21,7 +21,7 @@ _NICE = (1, 2, 5)
 def csv_columns(n_consumers: int, shown: int | None = SHOWN_CONSUMERS) -> int:
     """Columns of ``demand.csv`` for a machine of ``n_consumers``: time, total, and each
     consumer, or the ``shown`` largest and "other" (:meth:`DemandProfile.groups`)."""
-    if shown is None or n_consumers <= shown + 1:
+    if shows_every_consumer(n_consumers, shown):
         return 2 + n_consumers
     return 3 + shown
 

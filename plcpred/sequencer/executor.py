@@ -900,12 +900,12 @@ class Sequencer:
         """The state at rest, or None when it holds a time (a finished timer's age, an
         SFC step's): replaying a part would leave that time behind. ``timeless`` holds
         the keys already found free of times (a key with a time in it differs later)."""
-        key = (inst.snap(t), tuple((cyl.plant.key(t), tuple(cyl.prev)) for cyl in cylinders))
+        def at(x):
+            return inst.snap(x), tuple((cyl.plant.key(x), tuple(cyl.prev)) for cyl in cylinders)
+        key = at(t)
         if key in timeless:
             return key
-        later = t + 1_000_003
-        if key != (inst.snap(later), tuple((cyl.plant.key(later), tuple(cyl.prev))
-                                           for cyl in cylinders)):
+        if key != at(t + 1_000_003):
             return None
         if len(timeless) < MAX_KEYS:
             timeless.add(key)

@@ -103,13 +103,17 @@ class Timeline:
             self._full = (t, s, v)
         return self._full
 
-    def _repetitions(self, first: int, last: int):
-        """(times, signals, values) of repetitions ``first..last`` of the period, cut at
-        the horizon."""
+    def _repetitions(self, first: int, last: int, only: int | None = None,
+                     until_ns: int | None = None):
+        """(times, signals, values) of repetitions ``first..last`` of the period (of
+        signal ``only``), cut at the horizon (or ``until_ns``)."""
         pt, ps, pv, _ = self._period_edges()
+        if only is not None:
+            mine = ps == only
+            pt, ps, pv = pt[mine], ps[mine], pv[mine]
         k = np.arange(first, last + 1, dtype=np.int64)
         tt = (pt[None, :] + k[:, None] * (self.tiled[1] - self.tiled[0])).ravel()
-        keep = tt <= self.horizon_ns
+        keep = tt <= (self.horizon_ns if until_ns is None else until_ns)
         return tt[keep], np.tile(ps, len(k))[keep], np.tile(pv, len(k))[keep]
 
     @property
@@ -195,23 +199,20 @@ class Timeline:
             return t[m], v[m]
         t, s, v = self._base
         m = (s == i) & (t <= end)
-        pt, ps, pv, reps = self._period_edges()
-        mine = ps == i
-        pt, pv = pt[mine], pv[mine]
+        _, ps, _, reps = self._period_edges()
+        per_period = int(np.count_nonzero(ps == i))
         if reps:
-            reps = min(reps, max(0, int((end - self.tiled[1]) // (self.tiled[1] - self.tiled[0])) + 1))
-        if not reps or not len(pt):
+            t1, t2 = self.tiled
+            reps = min(reps, max(0, int((end - t2) // (t2 - t1)) + 1))
+        if not reps or not per_period:
             return t[m], v[m]
-        if reps * len(pt) > self.max_changes:
+        if reps * per_period > self.max_changes:
             raise TimelineTooLarge(
-                f"{reps * len(pt):,} changes of {self.names[i]} over {self.horizon_s:g} s "
+                f"{reps * per_period:,} changes of {self.names[i]} over {self.horizon_s:g} s "
                 f"exceed the limit of {self.max_changes:,} held in memory (--max-events); "
                 "the air model needs a shorter --horizon")
-        k = np.arange(1, reps + 1, dtype=np.int64)
-        tt = (pt[None, :] + k[:, None] * (self.tiled[1] - self.tiled[0])).ravel()
-        keep = tt <= end
-        return (np.concatenate([t[m], tt[keep]]),
-                np.concatenate([v[m], np.tile(pv, reps)[keep]]))
+        tt, _, vv = self._repetitions(1, reps, only=i, until_ns=end)
+        return np.concatenate([t[m], tt]), np.concatenate([v[m], vv])
 
     def intervals(self, name: str) -> "pd.DataFrame":
         """Periods in which the signal is non-zero (TRUE): ``start_s, end_s, duration_s``;
@@ -312,9 +313,6 @@ class Timeline:
             return ""
         names = self.names
         real = [s.dtype == "real" for s in self.signals]
-        whole, frac = np.divmod(t, NS)
-        fracs, frac_k = np.unique(frac, return_inverse=True)
-        frac_text = [_frac_text(x) for x in fracs.tolist()]
         # (signal, value) pairs as one integer code: sorting codes is fast, rows are not
         vals, val_k = np.unique(np.asarray(val, dtype=np.float64), return_inverse=True)
         codes, pair_k = np.unique(np.asarray(sig, dtype=np.int64) * len(vals) + val_k.ravel(),
@@ -322,11 +320,21 @@ class Timeline:
         vals = vals.tolist()
         pair_text = [f"{names[i]},{vals[k]!r}" if real[i] else f"{names[i]},{int(vals[k])}"
                      for i, k in (divmod(c, len(vals)) for c in codes.tolist())]
-        if (whole < 0).any():                    # not from the sequencer; the slow way
+        if (t < 0).any():                        # not from the sequencer; the slow way
             return "".join(f"{format_seconds(x)},{pair_text[p]}\n"
                            for x, p in zip(t.tolist(), pair_k.ravel().tolist()))
+        whole, frac_k, frac_text = seconds_texts(t)
         return "".join([f"{w}{frac_text[f]},{pair_text[p]}\n" for w, f, p in zip(
-            whole.tolist(), frac_k.ravel().tolist(), pair_k.ravel().tolist())])
+            whole, frac_k, pair_k.ravel().tolist())])
+
+
+def seconds_texts(t_ns) -> tuple[list, list, list]:
+    """Times (integer nanoseconds, not negative) for CSV rows: (whole seconds, index of
+    each time's fraction, the fractions' texts such as "" and ".25"). Each distinct
+    fraction is formatted once: a run's times fall on a few phases of the scan."""
+    whole, frac = np.divmod(np.asarray(t_ns, dtype=np.int64), NS)
+    fracs, which = np.unique(frac, return_inverse=True)
+    return whole.tolist(), which.ravel().tolist(), [_frac_text(x) for x in fracs.tolist()]
 
 
 def _frac_text(frac_ns: int) -> str:
