@@ -216,6 +216,8 @@ def make_case(case_id, rng, effects):
               and not (e in ("dead_volume", "incomplete_exhaust", "valve_delay",
                              "stroke_time") and not drives)
               and not (e == "shared_supply" and len(drives) < 2)]
+    if not usable:          # this machine cannot carry any of the effects asked for
+        return None
     effect = usable[rng.integers(len(usable))]
     n_runs = int(rng.integers(1, 4))
     tau = rng.uniform(0.1, 0.6)
@@ -238,7 +240,7 @@ def make_case(case_id, rng, effects):
         _, q1 = meter(flow, tau, rate, 0.0, offset, horizon, np.random.default_rng(0))
         sizes.append(float(np.sqrt(np.mean((q1 - q0) ** 2))))
         runs.append(MeasuredRun(f"case{case_id}_run{r}.csv", t, q))
-    return {"id": case_id, "machine": path.name, "effect": effect, "desc": desc,
+    return {"id": case_id, "path": str(path), "machine": path.name, "effect": effect, "desc": desc,
             "runs": runs, "noise": noise, "size": float(np.mean(sizes)),
             "meter": {"tau_s": tau, "rate_hz": rate}}
 
@@ -301,9 +303,8 @@ class Verdicts:
 def diagnose_case(case) -> dict:
     """What the summary needs of one case's diagnosis (run in a worker process)."""
     t0 = time.process_time()
-    path = ROOT / MACHINES[case["id"] % len(MACHINES)]
     try:
-        d = diagnose(plcpred.load_machine(path), case["runs"])
+        d = diagnose(plcpred.load_machine(case["path"]), case["runs"])
     except DiagnosisError as e:
         return {"error": str(e), "cpu_s": time.process_time() - t0}
     base = d.baseline_heldout
@@ -336,7 +337,14 @@ def main(argv=None) -> int:
     shrinks, volume_shrinks = [], []
     errors = []
     t0 = time.perf_counter()
-    cases = [make_case(i, rng, effects) for i in range(args.cases)]
+    cases, k = [], 0
+    while len(cases) < args.cases:
+        case = make_case(k, rng, effects)
+        k += 1
+        if case is not None:
+            cases.append(case)
+        elif k > 10 * args.cases + len(MACHINES):
+            ap.error(f"no sample machine can carry {args.effects}")
     # cases are independent: diagnosed in parallel processes, in order
     with ProcessPoolExecutor(max_workers=args.jobs) as pool:
         outcomes = list(pool.map(diagnose_case, cases))

@@ -580,3 +580,88 @@ def test_interval_means_on_a_uniform_grid_match_the_searched_ones():
     end = start + rng.uniform(0.01, 2.0, len(start))
     np.testing.assert_allclose(interval_means_l_min(cum, edges, start, end, 0.02),
                                interval_means_l_min(cum, edges, start, end), rtol=1e-12)
+
+
+# ---------------------------------------------------------------------- incomplete exhaust
+
+def _held_by_hand_nl(tube_m, tube_id_mm, inner_cm3, supply_bar_g, ambient_c=20.0,
+                     atmosphere_pa=101325.0):
+    """Air a dead volume keeps above atmosphere at supply (docs/physics.md section 7):
+    V (P_s - P_atm) / P0 * T0 / T_s, in normal litres."""
+    v_cm3 = tube_m * 1000.0 * math.pi * tube_id_mm ** 2 / 4.0 / 1000.0 + inner_cm3
+    p_s = supply_bar_g * 1e5 + atmosphere_pa
+    return v_cm3 / 1000.0 * (p_s - atmosphere_pa) / 1e5 * 293.15 / (273.15 + ambient_c)
+
+
+def test_held_air_counts_the_cylinders_own_dead_volume():
+    from plcpred.air.volumes import dead_fill_volumes_nl, inner_dead_volumes_cm3
+
+    sorter = plcpred.load_machine(ROOT / "samples" / "sorter.toml")
+    pusher = sorter.consumer("pusher")          # 32/12 mm, 1.2 m of 4 mm tube each side
+    cap_mm2, rod_mm2 = math.pi * 32 ** 2 / 4, math.pi * (32 ** 2 - 12 ** 2) / 4
+    # not given: 1 mm of stroke of each chamber's area (the plant's rule)
+    assert inner_dead_volumes_cm3(pusher) == pytest.approx((cap_mm2 / 1000, rod_mm2 / 1000))
+    p_s = sorter.supply_bar_g * 1e5 + 101325.0
+    held = dead_fill_volumes_nl(pusher, p_s, 101325.0, 273.15 + sorter.ambient_c)
+    assert held == pytest.approx((
+        _held_by_hand_nl(1.2, 4, cap_mm2 / 1000, sorter.supply_bar_g, sorter.ambient_c),
+        _held_by_hand_nl(1.2, 4, rod_mm2 / 1000, sorter.supply_bar_g, sorter.ambient_c)),
+        rel=1e-12)
+    pusher.plant["dead_volume_cm3"] = (3.0, 4.0)
+    assert inner_dead_volumes_cm3(pusher) == (3.0, 4.0)
+
+
+def test_incomplete_exhaust_effect_sets_time_constant_and_held_air(rig_model):
+    m, mm, rm = rig_model
+    effect = EFFECTS["incomplete_exhaust"]
+    names = [p.name for p in effect.params(mm, {})]
+    assert names[:2] == ["A.dead_volume_cm3", "A.exhaust_tau_s"]
+    theta = [5.0, 0.2, 0.0, 0.002, 0.0, 0.002]       # drive A: 5 cm3 inside, tau 0.2 s
+    p = _apply("incomplete_exhaust", mm, theta)
+    a = m.consumer("A")
+    assert p.exhaust_tau_s[0] == 0.2
+    assert p.held_nl[0] == pytest.approx(
+        [_held_by_hand_nl(length, a.tube_id_mm, 5.0, m.supply_bar_g, m.ambient_c)
+         for length in a.tube_length_m], rel=1e-12)
+    # the rig's drives stroke once each way, seconds apart: nothing is saved
+    assert rm.total_cells(p).sum() == pytest.approx(rm.total_cells(mm.nominal()).sum())
+
+
+def test_a_dead_volume_that_takes_away_most_of_the_tube_is_implausible(rig_model):
+    m, mm, _ = rig_model
+    a = m.consumer("A")
+    tube_cm3 = min(a.tube_length_m) * math.pi * a.tube_id_mm ** 2 / 4
+    dead = EFFECTS["dead_volume"]
+    assert dead.implausible(mm, [-0.4 * tube_cm3, 0.0, 0.0]) is None
+    assert dead.implausible(mm, [5.0, 0.0, 0.0]) is None
+    assert "A:" in dead.implausible(mm, [-0.6 * tube_cm3, 0.0, 0.0])
+
+
+def test_the_verdict_prefers_a_plausible_effect_the_data_cannot_tell_apart(rig_model):
+    from plcpred.diagnose.core import EffectResult, _tie_break
+    from plcpred.diagnose.fit import FitResult, Score
+
+    m, mm, _ = rig_model
+    a = m.consumer("A")
+    tube_cm3 = min(a.tube_length_m) * math.pi * a.tube_id_mm ** 2 / 4
+
+    def result(name, theta, rmse):
+        e = EFFECTS[name]
+        fit = FitResult([e], np.asarray(theta, float), np.zeros(len(theta)), [], [], [],
+                        cost=100.0, n_samples=400, success=True, message="",
+                        counts=[len(theta)])
+        return EffectResult(name, e.title, fit, None, Score(100.0, 100.0, rmse, 400), {},
+                            {})
+
+    shorter_tube = result("dead_volume", [-0.9 * tube_cm3, 0.0, 0.0], 1.00)
+    exhaust = result("incomplete_exhaust", [8.0, 0.3] + [0.0, 0.002] * 2, 1.005)
+    leak = result("leak", [1.0], 3.0)
+    # as good on held-out samples: the plausible one first
+    assert [r.name for r in _tie_break([shorter_tube, exhaust, leak], 0.5, mm)] == [
+        "incomplete_exhaust", "dead_volume", "leak"]
+    # clearly worse on held-out samples: the data decide, not plausibility
+    worse = result("incomplete_exhaust", [8.0, 0.3] + [0.0, 0.002] * 2, 2.0)
+    assert _tie_break([shorter_tube, worse, leak], 0.5, mm)[0].name == "dead_volume"
+    # a plausible dead volume stays first
+    longer_tube = result("dead_volume", [5.0, 0.0, 0.0], 1.00)
+    assert _tie_break([longer_tube, exhaust], 0.5, mm)[0].name == "dead_volume"

@@ -60,13 +60,30 @@ def consumer_stroke_volumes_nl(consumer, supply_pa: float, supply_temp_k: float 
     return v_ext, v_ret
 
 
+INNER_DEAD_STROKE_MM = 1.0   # a cylinder's own dead volume when not given: 1 mm of stroke
+
+
+def inner_dead_volumes_cm3(consumer) -> tuple[float, float]:
+    """(cap, rod) cm^3 of dead volume inside the cylinder, beyond its tube (end caps,
+    ports, cushions): the machine file's ``dead_volume_cm3``, else each chamber's swept
+    area times INNER_DEAD_STROKE_MM (the plant's rule too). D1 leaves it out."""
+    given = (getattr(consumer, "plant", None) or {}).get("dead_volume_cm3")
+    if given is not None:
+        return tuple(given) if isinstance(given, (tuple, list)) else (given, given)
+    a_ext, a_ret = swept_areas_mm2(consumer.kind, consumer.bore_mm, consumer.rod_mm or 0.0)
+    return (a_ext * INNER_DEAD_STROKE_MM / 1000.0, a_ret * INNER_DEAD_STROKE_MM / 1000.0)
+
+
 def dead_fill_volumes_nl(consumer, supply_pa: float, atmosphere_pa: float,
                          supply_temp_k: float = T0_K) -> tuple[float, float]:
-    """(cap, rod) normal litres that a chamber's dead volume (its tube from the valve)
-    holds above atmospheric pressure when it is at supply pressure: what an exhaust cut
-    short leaves for the next fill (docs/physics.md: what D4 adds; the ``exhaust_tau_s`` option of
-    the air model). ``V_t * (P_s - P_atm) / P0 * T0 / T_s``."""
+    """(cap, rod) normal litres that a chamber's dead volume (its tube from the valve and
+    the cylinder's own dead volume, :func:`inner_dead_volumes_cm3`) holds above
+    atmospheric pressure when it is at supply pressure: what an exhaust cut short leaves
+    for the next fill (docs/physics.md: what D4 adds; the ``exhaust_tau_s`` option of the
+    air model). ``V_dead * (P_s - P_atm) / P0 * T0 / T_s``."""
     tube_id = consumer.tube_id_mm or 0.0
     area_mm2 = math.pi * tube_id ** 2 / 4.0
-    return tuple(length_m * 1000.0 * area_mm2 * 1e-6 * (supply_pa - atmosphere_pa) / P0_PA
-                 * (T0_K / supply_temp_k) for length_m in consumer.tube_length_m)
+    inner_cm3 = inner_dead_volumes_cm3(consumer)
+    return tuple((length_m * area_mm2 + inner) * 1e-3 * (supply_pa - atmosphere_pa) / P0_PA
+                 * (T0_K / supply_temp_k)
+                 for length_m, inner in zip(consumer.tube_length_m, inner_cm3))

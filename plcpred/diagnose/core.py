@@ -294,7 +294,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     # leaves
     if results:
         noise = min(noise, min(e.fit_score.rmse_l_min for e in results))
-    results = _tie_break(results, noise)
+    results = _tie_break(results, noise, mm)
 
     # where
     labels = [sample_contexts(rd, p) for rd, p in zip(rds, bases)]
@@ -361,16 +361,35 @@ def _evaluate(effects: list[Effect], mm, rds, bases, ctx, fold_masks) -> EffectR
                         dict(zip(fit.names, map(float, fit.theta))), physical)
 
 
-def _tie_break(results: list[EffectResult], noise: float) -> list[EffectResult]:
+def _tie_break(results: list[EffectResult], noise: float, mm) -> list[EffectResult]:
     """Among effects whose held-out RMSE is within 1 % of the best, the lowest BIC
-    (fewest parameters for the same fit) goes first."""
+    (fewest parameters for the same fit) goes first. Then, when the first's fitted values
+    are implausible as a plant's truth (:meth:`Effect.implausible`), the best plausible
+    effect that the held-out samples cannot tell from it goes first."""
     if len(results) < 2:
         return results
     best = results[0].heldout_score.rmse_l_min
     near = [e for e in results if e.heldout_score.rmse_l_min <= best * 1.01 + 1e-12]
     rest = [e for e in results if e not in near]
     near.sort(key=lambda e: e.fit.bic)
-    return near + rest
+    results = near + rest
+    first = results[0]
+    if _implausible(first, mm) is None:
+        return results
+    for e in results[1:]:
+        if significant(e.heldout_score, first.heldout_score, noise):
+            break           # sorted by held-out RMSE: the rest are worse still
+        if _implausible(e, mm) is None:
+            return [e] + [x for x in results if x is not e]
+    return results
+
+
+def _implausible(result: EffectResult, mm) -> str | None:
+    for e, theta in result.fit.by_effect():
+        why = e.implausible(mm, theta)
+        if why:
+            return why
+    return None
 
 
 def _meter_corrected(run: MeasuredRun, meter, warnings: list[str]) -> MeasuredRun:

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..air.demand import sonic_conductance
+from ..air.volumes import inner_dead_volumes_cm3
 from ..air.flow import P0_PA, T0_K, bar_g_to_pa, celsius_to_k, flow_nl_min
 from .model import MachineModel, ModelParams
 
@@ -27,6 +28,14 @@ LEAK_B = 0.528
 LEAK_M = 0.5
 DEFAULT_TUBE_ID_MM = 4.0     # a diagnosed dead volume on a drive without tube data
 MAX_METER_TAU_S = 10.0
+# a cylinder's own dead volume (end caps, ports, cushions) up to this share of its swept
+# volume, for an incomplete exhaust
+MAX_INNER_DEAD_SHARE = 0.2
+# a dead volume fit that takes away more than this share of a drive's stated tube
+MAX_TUBE_OVERSTATEMENT = 0.5
+# an exhaust this fast is complete before any fill: the neutral value, where a fit of
+# samples that say nothing about a drive leaves it
+MIN_EXHAUST_TAU_S = 0.002
 NUISANCE_METER_TAU_S = 0.6   # thermal-mass meters respond in 0.1-0.6 s (docs/physics.md: figures)
 
 
@@ -71,6 +80,11 @@ class Effect:
 
     def physical(self, mm: MachineModel, theta) -> dict:
         return {}
+
+    def implausible(self, mm: MachineModel, theta) -> str | None:
+        """Why fitted values ``theta`` are unlikely as a plant's truth, if they are (a
+        verdict prefers an as-good effect whose values are not)."""
+        return None
 
     def to_machine(self, mm: MachineModel, data: dict, theta) -> list[str]:
         """Change the machine file's TOML data in place; return what was changed."""
@@ -241,6 +255,18 @@ class DeadVolume(Effect):
                              max(20.0, 2.0 * swept_cm3), 0.0))
         return out
 
+    def implausible(self, mm, theta):
+        # tube lengths are measured with a tape: a file that overstates a drive's tube
+        # by more than half is less likely than air its fills do not take (an exhaust
+        # cut short, a lower supply), which reduce a fill just the same
+        for row, v in zip(mm.drives, theta):
+            c = mm.machine.consumers[row]
+            tube_cm3 = min(c.tube_length_m) * _tube_area_mm2(c) if c.tube_id_mm else 0.0
+            if tube_cm3 > 0 and v < -MAX_TUBE_OVERSTATEMENT * tube_cm3:
+                return (f'{c.name}: {-v:.3g} cm^3 less than its {tube_cm3:.3g} cm^3 of '
+                        "tube")
+        return None
+
     def _nl_per_cm3(self, mm) -> float:
         m = mm.machine                                  # D1: V * P_s/P0 * T0/T_s
         return 1e-3 * _supply_pa(m) / P0_PA * T0_K / celsius_to_k(m.ambient_c)
@@ -282,36 +308,72 @@ class DeadVolume(Effect):
 
 class IncompleteExhaust(Effect):
     """Chambers refilled before they have exhausted (high cycle rates, a throttled
-    exhaust): each fill takes less by what the dead volume still holds, decaying with
-    the exhaust time constant (the air model's ``exhaust_tau_s`` option)."""
+    exhaust): each fill takes less by what the chamber's dead volume (its tube and the
+    cylinder's own end volume) still holds, decaying with the exhaust time constant (the
+    air model's ``exhaust_tau_s`` option). Per drive the time constant and the
+    cylinder's own dead volume (``dead_volume_cm3``: a machine file rarely knows it, and
+    it sets how much an exhaust cut short can keep)."""
     name, title = "incomplete_exhaust", "chambers not fully exhausted"
 
-    def _drives(self, mm):
-        return [k for k, row in enumerate(mm.drives) if max(mm.models[row].dead_fill_nl) > 0]
-
     def applies(self, mm):
-        return bool(self._drives(mm))
+        return bool(mm.drives)
+
+    def _inner(self, mm, k) -> tuple[float, float]:
+        return inner_dead_volumes_cm3(mm.machine.consumers[mm.drives[k]])
+
+    def _tube_cm3(self, mm, k) -> list[float]:
+        c = mm.machine.consumers[mm.drives[k]]
+        return [length * _tube_area_mm2(c) if c.tube_id_mm else 0.0
+                for length in c.tube_length_m]
 
     def params(self, mm, ctx):
-        return [Param(f"{mm.models[mm.drives[k]].name}.exhaust_tau_s", "s", 0.002, 5.0,
-                      0.3, TAU_GRID_S) for k in self._drives(mm)]
+        out = []
+        for k, row in enumerate(mm.drives):
+            c = mm.machine.consumers[row]
+            name = mm.models[row].name
+            inner = self._inner(mm, k)
+            swept_cm3 = math.pi * c.bore_mm ** 2 / 4.0 * (c.stroke_mm or 0.0) / 1000.0
+            top_cm3 = max(5.0, MAX_INNER_DEAD_SHARE * swept_cm3, *inner)
+            # the volume is swept first: with the file's small one, the time constant
+            # would run to its bound to keep enough air, and least squares stays there
+            out += [Param(f"{name}.dead_volume_cm3", "cm^3", 0.0, top_cm3,
+                          float(np.mean(inner)),
+                          tuple(top_cm3 * f for f in (0.0, 0.1, 0.25, 0.5, 1.0))),
+                    Param(f"{name}.exhaust_tau_s", "s", MIN_EXHAUST_TAU_S, 5.0,
+                          MIN_EXHAUST_TAU_S, TAU_GRID_S)]
+        return out
+
+    def _held_nl_per_cm3(self, mm) -> float:
+        m = mm.machine       # the air a dead volume keeps above atmosphere (section 7)
+        p_atm = m.atmosphere_kpa * 1000.0
+        return 1e-3 * (_supply_pa(m) - p_atm) / P0_PA * T0_K / celsius_to_k(m.ambient_c)
 
     def apply(self, mm, p, theta):
         q = p.copy()
-        for k, tau in zip(self._drives(mm), theta):
+        per_cm3 = self._held_nl_per_cm3(mm)
+        for k in range(len(mm.drives)):
+            inner, tau = theta[2 * k], theta[2 * k + 1]
             q.exhaust_tau_s[k] = float(tau)
+            q.held_nl[k] = [(t + float(inner)) * per_cm3 for t in self._tube_cm3(mm, k)]
         return q
 
     def physical(self, mm, theta):
-        return {mm.models[mm.drives[k]].name: {"exhaust_tau_s": float(t)}
-                for k, t in zip(self._drives(mm), theta)}
+        return {mm.models[r].name: {"exhaust_tau_s": float(theta[2 * k + 1]),
+                                    "dead_volume_cm3": float(theta[2 * k])}
+                for k, r in enumerate(mm.drives)}
 
     def to_machine(self, mm, data, theta):
         changes = []
-        for k, tau in zip(self._drives(mm), theta):
-            name = mm.models[mm.drives[k]].name
-            _consumer_table(data, name)["exhaust_tau_s"] = float(f"{tau:.6g}")
-            changes.append(f'consumer "{name}": exhaust_tau_s = {tau:.3g}')
+        for k, r in enumerate(mm.drives):
+            inner, tau = float(theta[2 * k]), float(theta[2 * k + 1])
+            name = mm.models[r].name
+            t = _consumer_table(data, name)
+            t["exhaust_tau_s"] = float(f"{tau:.6g}")
+            change = f'consumer "{name}": exhaust_tau_s = {tau:.3g}'
+            if max(abs(inner - v) for v in self._inner(mm, k)) > 0.05:
+                t["dead_volume_cm3"] = round(inner, 3)
+                change += f", dead_volume_cm3 = {inner:.3g}"
+            changes.append(change)
         return changes
 
 

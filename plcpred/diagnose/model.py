@@ -30,6 +30,8 @@ class ModelParams:
     stroke_ext_s: np.ndarray          # NaN: no stroke time (the volume lands in the delay)
     stroke_ret_s: np.ndarray
     exhaust_tau_s: np.ndarray         # 0: chambers fully exhausted (D1)
+    held_nl: np.ndarray               # (drives, 2): cap and rod dead volumes' air above
+                                      # atmosphere at supply (what an exhaust cut short keeps)
     passive_l_min: np.ndarray         # D2 flow while on (nozzles) or always (leaks)
     extra_leak_l_min: float = 0.0     # an always-on flow the machine file does not have
     refill_fraction: float = 0.0      # shared supply: share of each stroke refilled later
@@ -47,7 +49,7 @@ class ModelParams:
 
 
 _ARRAYS = ("extend_nl", "retract_nl", "delay_s", "stroke_ext_s", "stroke_ret_s",
-           "exhaust_tau_s", "passive_l_min")
+           "exhaust_tau_s", "held_nl", "passive_l_min")
 
 
 @dataclass
@@ -86,6 +88,7 @@ class MachineModel:
             stroke_ext_s=np.array([s[0] for s in st], dtype=float),
             stroke_ret_s=np.array([s[1] for s in st], dtype=float),
             exhaust_tau_s=np.array([m.exhaust_tau_s or 0.0 for m in d], dtype=float),
+            held_nl=np.array([m.dead_fill_nl for m in d], dtype=float).reshape(-1, 2),
             passive_l_min=np.array([m.flow_l_min for m in p], dtype=float),
             meter_tau_s=meter_tau_s)
 
@@ -130,19 +133,19 @@ class RunModel:
         one drive at most)."""
         st = (params.stroke_ext_s[k], params.stroke_ret_s[k])
         key = (k, params.extend_nl[k], params.retract_nl[k], params.delay_s[k], st,
-               params.exhaust_tau_s[k], params.refill_fraction, params.refill_tau_s)
+               params.exhaust_tau_s[k], tuple(params.held_nl[k]), params.refill_fraction,
+               params.refill_tau_s)
         cells = self._drive_cache.get(key)
         if cells is None:
             if len(self._drive_cache) > 256:
                 self._drive_cache.clear()
             t_s, ext = self.transitions[k]
-            m = self.mm.models[self.mm.drives[k]]
             stroke = None if np.isnan(st[0]) else (float(st[0]), float(st[1]))
             share = 1.0 - params.refill_fraction
             cells = stroke_cells(self.edges_s, t_s, ext, share * params.extend_nl[k],
                                  share * params.retract_nl[k], float(params.delay_s[k]),
                                  stroke, float(params.exhaust_tau_s[k]) or None,
-                                 m.dead_fill_nl)
+                                 tuple(params.held_nl[k]))
             if params.refill_fraction > 0:
                 cells = cells + self._refill_cells(params, k, stroke)
             self._drive_cache[key] = cells

@@ -34,7 +34,7 @@ import math
 from dataclasses import dataclass
 
 from ..air.flow import orifice_conductance
-from ..air.volumes import swept_areas_mm2
+from ..air.volumes import inner_dead_volumes_cm3, swept_areas_mm2
 from .physics import G_M_S2, tube_transit_s
 
 SLOT_PRESSURE_PA = 6e5          # the "6 bar" friction is stated at
@@ -109,9 +109,7 @@ def drive_params(consumer, line_check_valves: bool = False) -> DriveParams:
     stroke_m = consumer.stroke_mm / 1000.0
     tube_area = math.pi * ((consumer.tube_id_mm or 0.0) / 1000.0) ** 2 / 4.0
     l1, l2 = consumer.tube_length_m
-    inner = _pair(p.get("dead_volume_cm3"), None)
-    inner1 = inner[0] * 1e-6 if inner[0] is not None else area1 * 1e-3
-    inner2 = inner[1] * 1e-6 if inner[1] is not None else area2 * 1e-3
+    inner1, inner2 = (v * 1e-6 for v in inner_dead_volumes_cm3(consumer))
     c_default = default_path_conductance(consumer)
     mass = p.get("moving_mass_kg")
     if mass is None:
