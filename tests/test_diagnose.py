@@ -665,3 +665,71 @@ def test_the_verdict_prefers_a_plausible_effect_the_data_cannot_tell_apart(rig_m
     # a plausible dead volume stays first
     longer_tube = result("dead_volume", [5.0, 0.0, 0.0], 1.00)
     assert _tie_break([longer_tube, exhaust], 0.5, mm)[0].name == "dead_volume"
+
+
+# ---------------------------------------------------------------------- nuisances
+
+def test_the_first_readings_wait_for_the_meter_to_settle():
+    # the meter's state before the machine started is unknown: readings within three
+    # lags (at least a thermal meter's 0.6 s) of the start are left out
+    run = run_of(RIG, 20, rate_hz=5.0, tau_s=0.3, noise=0.3, offset_s=0.0)
+    d = diagnose(RIG, [run], offsets=[0.0], effects=["leak"])
+    rd = d.runs[0]
+    assert rd.start_s.min() >= 3 * 0.6 - 1e-9
+    assert rd.start_s.min() < 3 * 0.6 + 0.2 + 1e-9      # and no more than that
+
+
+def test_a_run_left_out_is_scored_on_its_own_clock():
+    # the second log's clock is given 0.25 s wrong: the fit on the first run cannot
+    # know it, so the left-out run is scored with its own clock refitted; the baseline
+    # and the leak are then as good as the noise allows
+    runs = [run_of(RIG, 20, rate_hz=5.0, tau_s=0.2, noise=0.5, offset_s=3.0, seed=s,
+                   name=f"r{s}.csv") for s in range(2)]
+    d = diagnose(RIG, runs, offsets=[3.0, 3.25], effects=["leak"])
+    assert d.baseline_heldout.rmse_l_min < 1.5 * 0.5, d.report()
+    assert d.verdict == "none", d.report()
+
+
+def test_a_slow_log_trades_meter_lag_for_clock_and_still_finds_nothing():
+    # at 1 Hz a 0.46 s lag looks like a later clock: the alignment takes one for the
+    # other, and the fits must be able to take it back
+    runs = [run_of(PICK, 60, rate_hz=1.0, tau_s=0.46, noise=0.5, offset_s=o, seed=s,
+                   name=f"r{s}.csv") for s, o in enumerate((18.9, 13.5))]
+    d = diagnose(PICK, runs)
+    assert d.verdict == "none", d.report()
+
+
+def test_fewer_parameters_win_when_held_out_samples_cannot_tell(rig_model):
+    from plcpred.diagnose.core import EffectResult, _tie_break
+    from plcpred.diagnose.fit import FitResult, Score
+
+    m, mm, _ = rig_model
+
+    def result(name, n_params, cost, rmse):
+        e = EFFECTS[name]
+        theta = np.ones(n_params)
+        fit = FitResult([e], theta, theta * 0, [], [], [], cost=cost, n_samples=120,
+                        success=True, message="", counts=[n_params])
+        return EffectResult(name, e.title, fit, None, Score(1.0, 1.0, rmse, 120), {}, {})
+
+    # a nozzle factor on each of four knives fits a little better than one leak, by
+    # less than what noise of 3 NL/min does to a held-out MSE of 120 samples
+    knives = result("passive_flow", 4, 430.0, 2.92)
+    leak = result("leak", 1, 457.0, 3.00)
+    assert 3.0 ** 2 - 2.92 ** 2 < 3.0 ** 2 * math.sqrt(2 / 120)
+    assert [r.name for r in _tie_break([knives, leak], 3.0, mm)] == ["leak", "passive_flow"]
+    # by more than that: the data decide
+    assert _tie_break([knives, result("leak", 1, 900.0, 4.0)], 3.0, mm)[0].name == \
+        "passive_flow"
+
+
+def test_a_supply_far_from_the_files_or_at_its_bound_is_implausible(rig_model):
+    m, mm, _ = rig_model
+    supply = EFFECTS["supply_pressure"]
+    (param,) = supply.params(mm, {})
+    p = m.supply_bar_g
+    assert supply.implausible(mm, [p * 1.3]) is None
+    assert supply.implausible(mm, [p * 0.7]) is None
+    assert "against the file's" in supply.implausible(mm, [p * 1.6])
+    assert "bound" in supply.implausible(mm, [param.upper])
+    assert "bound" in supply.implausible(mm, [param.lower])

@@ -278,7 +278,11 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
         sum(float(rd.weight_s.sum()) for rd in rds), 1e-9),
         "meter_tau_s": meter_tau,
         "fitted_tau_s": max(rd.fitted_tau_s for rd in rds)}
-    base_heldout = heldout([], mm, rds, bases, ctx, fold_masks)
+    # the baseline's nuisances (clock, meter lag) are fitted as every effect's are: on
+    # all samples, then each fold from there
+    base_all = fit_effects([], mm, rds, [np.ones(len(rd.end_s), bool) for rd in rds],
+                           bases, ctx)
+    base_heldout = heldout([], mm, rds, bases, ctx, fold_masks, start=base_all.theta)
     results = []
     for name in names:
         forms = [e for e in (EFFECTS[name], CLOSED_LOOP_EFFECTS.get(name))
@@ -362,16 +366,20 @@ def _evaluate(effects: list[Effect], mm, rds, bases, ctx, fold_masks) -> EffectR
 
 
 def _tie_break(results: list[EffectResult], noise: float, mm) -> list[EffectResult]:
-    """Among effects whose held-out RMSE is within 1 % of the best, the lowest BIC
-    (fewest parameters for the same fit) goes first. Then, when the first's fitted values
+    """Among effects whose held-out error is as good as the best's (within one standard
+    deviation of what noise does to a held-out MSE, or 1 % of RMSE), the one with the
+    fewest parameters goes first (the lowest BIC among equals). Then, when the first's fitted values
     are implausible as a plant's truth (:meth:`Effect.implausible`), the best plausible
     effect that the held-out samples cannot tell from it goes first."""
     if len(results) < 2:
         return results
-    best = results[0].heldout_score.rmse_l_min
-    near = [e for e in results if e.heldout_score.rmse_l_min <= best * 1.01 + 1e-12]
+    best = results[0].heldout_score
+    # within one standard deviation of what noise alone does to a held-out MSE (or
+    # 1 % of RMSE): the data do not prefer the better one, parsimony does
+    near = [e for e in results if e.heldout_score.mse - best.mse <= max(
+        0.0201 * best.mse, noise ** 2 * math.sqrt(2.0 / max(e.heldout_score.n, 1)))]
     rest = [e for e in results if e not in near]
-    near.sort(key=lambda e: e.fit.bic)
+    near.sort(key=lambda e: (sum(e.fit.counts), e.fit.bic))
     results = near + rest
     first = results[0]
     if _implausible(first, mm) is None:

@@ -31,6 +31,8 @@ MAX_METER_TAU_S = 10.0
 # a cylinder's own dead volume (end caps, ports, cushions) up to this share of its swept
 # volume, for an incomplete exhaust
 MAX_INNER_DEAD_SHARE = 0.2
+# a supply pressure this share away from the file's (gauge) is an unlikely verdict
+MAX_SUPPLY_CHANGE = 0.5
 # a dead volume fit that takes away more than this share of a drive's stated tube
 MAX_TUBE_OVERSTATEMENT = 0.5
 # an exhaust this fast is complete before any fill: the neutral value, where a fit of
@@ -195,9 +197,12 @@ class SupplyPressure(Effect):
     and leaks follow D2 at their new upstream pressure."""
     name, title = "supply_pressure", "a different supply pressure"
 
-    def params(self, mm, ctx):
+    def _range(self, mm) -> tuple[float, float]:
         p = mm.machine.supply_bar_g
-        return [Param("supply_bar_g", "bar(g)", max(0.2, 0.4 * p), 1.6 * p + 1.0, p)]
+        return max(0.2, 0.4 * p), 1.6 * p + 1.0
+
+    def params(self, mm, ctx):
+        return [Param("supply_bar_g", "bar(g)", *self._range(mm), mm.machine.supply_bar_g)]
 
     def apply(self, mm, p, theta):
         m = mm.machine
@@ -224,6 +229,18 @@ class SupplyPressure(Effect):
 
     def physical(self, mm, theta):
         return {"supply_bar_g": float(theta[0])}
+
+    def implausible(self, mm, theta):
+        # at a bound of its range the pressure did not explain the gap, it ran out; and
+        # a regulator set half as much again (or half as little) as the file says is
+        # less likely than an unmodelled consumer that the data cannot tell from it
+        lo, hi = self._range(mm)
+        p = mm.machine.supply_bar_g
+        if not lo + 1e-3 * (hi - lo) < theta[0] < hi - 1e-3 * (hi - lo):
+            return f"supply pressure at the bound of its range ({theta[0]:.3g} bar(g))"
+        if abs(theta[0] - p) > MAX_SUPPLY_CHANGE * p:
+            return f"supply pressure {theta[0]:.3g} bar(g) against the file's {p:g}"
+        return None
 
     def to_machine(self, mm, data, theta):
         data["machine"]["supply_bar_g"] = round(float(theta[0]), 6)

@@ -202,6 +202,13 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
             fitted_tau = min(max(float(res.x[1]), 0.0), ALIGN_TAUS_S[-1])
     tau = fitted_tau if meter_tau_s is not None else min(fitted_tau, NUISANCE_METER_TAU_S)
     idx, start, end = _intervals(run, offset_s, rm.horizon_s)
+    # what the meter read before the machine started (air on or off, leaks settled or
+    # not) is unknown: its first readings are left out until its lag has settled (a
+    # thermal meter's longest lag when the one found is shorter: a coarse log cannot
+    # tell)
+    settled = start >= SETTLE_LAGS * max(fitted_tau, NUISANCE_METER_TAU_S)
+    if settled.sum() >= 5:
+        idx, start, end = idx[settled], start[settled], end[settled]
     if len(idx) < 5:
         raise DiagnosisError(
             f"{run.name}: only {len(idx)} samples overlap the prediction at the clock "
@@ -215,6 +222,7 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
                    start, end, run.flow_l_min[idx])
 
 
+SETTLE_LAGS = 3.0                  # a first-order meter is within 5 % after three lags
 COARSE_TAUS_S = (0.0, 1.0, 3.0)    # lags the coarse search tries on the prediction
 COARSE_CANDIDATES = 4
 COARSE_MARGIN = 0.1                # other peaks are candidates if this close to the best
@@ -318,8 +326,10 @@ def _by_effect(effects, counts, theta):
     return out
 
 
-CLOCK_REACH_S = 0.3                     # the clock nuisance every fit may move
-CLOCK_GRID_S = tuple(np.round(np.arange(-0.3, 0.301, 0.1), 3))
+# the clock nuisance every fit may move: as far as a thermal meter's lag, which the
+# alignment may have taken for a later clock (at 1 Hz the two look alike)
+CLOCK_REACH_S = NUISANCE_METER_TAU_S
+CLOCK_GRID_S = tuple(np.round(np.arange(-CLOCK_REACH_S, CLOCK_REACH_S + 1e-9, 0.15), 3))
 
 
 def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
@@ -350,8 +360,11 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
     lag_free = ctx.get("meter_tau_s") is None and not any(
         e.name == "sensor_lag" for e in effects)
     if lag_free:
+        # swept with the clock: a log at 1 Hz barely tells a lag from a later clock,
+        # and least squares from the alignment's pair stays in its valley
         flat.append(Param("meter_tau_s", "s", 0.0, NUISANCE_METER_TAU_S,
-                          float(np.mean([b.meter_tau_s for b in bases]))))
+                          float(np.mean([b.meter_tau_s for b in bases])),
+                          tuple(np.linspace(0.0, NUISANCE_METER_TAU_S, 5))))
     lo = np.array([p.lower for p in flat], dtype=float)
     hi = np.array([p.upper for p in flat], dtype=float)
     hi = np.where(hi > lo, hi, lo + 1e-9)
@@ -394,13 +407,14 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
     discrete = np.array([p.discrete for p in flat])
     groups = [list(range(k, k + n)) for k, n in zip(np.cumsum([0] + sizes[:-1]), sizes)]
     rays = _discrete_rays(groups, discrete)
-    def sweep(u_from, ray, best):
+    def sweep(u_from, ray, best, clocks=CLOCK_GRID_S):
         """``best`` (cost, u) improved by each grid value of ``ray``'s parameters, each
-        with every clock adjustment of CLOCK_GRID_S, from ``u_from``."""
+        with every clock adjustment of ``clocks`` (None: ``u_from``'s), from
+        ``u_from``."""
         for v in flat[ray[0]].grid:
             if not lo[ray[0]] <= v <= hi[ray[0]]:
                 continue
-            for c in CLOCK_GRID_S:
+            for c in clocks or [lo[clock] + u_from[clock] * span[clock]]:
                 u = u_from.copy()
                 u[ray] = (v - lo[ray]) / span[ray]
                 u[clock] = (c - lo[clock]) / span[clock]
@@ -430,11 +444,20 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
             together = len(moved) == len(d) > 1 and np.ptp(values) < 1e-9
             for ray in [moved] if together else [[j] for j in moved]:
                 u0 = _golden_refine(cost, u0, ray, flat[ray[0]], lo, span, narrow=True)
-    if start is None and any(p.grid and not p.discrete for p in flat):
-        best = (cost(u0), u0)
-        for j, p in enumerate(flat):
-            if p.grid and not p.discrete:
-                best = sweep(u0, [j], best)
+    gridded = [j for j, p in enumerate(flat) if p.grid and not p.discrete]
+    if start is None and gridded:
+        # first the one parameter that alone explains most, with the clock (swept one
+        # after the other from the start, the first drive of a valve delay would take
+        # a gap that is another's), then the others one after the other from there at
+        # that clock (every drive later and the clock earlier look alike: noise would
+        # choose)
+        alone = {j: sweep(u0, [j], (cost(u0), u0)) for j in gridded}
+        first = min(gridded, key=lambda j: alone[j][0])
+        best = alone[first]
+        u0 = best[1]
+        for j in gridded:
+            if j != first:
+                best = sweep(u0, [j], best, clocks=None)
                 u0 = best[1]
     free = np.flatnonzero(~discrete)
 
@@ -443,16 +466,44 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
         u[free] = v
         return residuals(u)
 
-    res = least_squares(free_residuals, u0[free], bounds=(0.0, 1.0), diff_step=1e-4,
-                        x_scale=1.0, max_nfev=40 * (len(free) + 1))
-    u = u0.copy()
-    u[free] = res.x
+    def solve(u_from):
+        r = least_squares(free_residuals, u_from[free], bounds=(0.0, 1.0), diff_step=1e-4,
+                          x_scale=1.0, max_nfev=40 * (len(free) + 1))
+        u = u_from.copy()
+        u[free] = r.x
+        return r, u
+
+    res, u = solve(u0)
+    if start is None:
+        # the sweep chose the clock with the other parameters at their initial values
+        # (a leak still far from its size): once they are fitted, the clock grid again,
+        # and least squares from a better clock if there is one
+        c0 = 2.0 * res.cost
+        best = (c0, u)
+        for c in CLOCK_GRID_S:
+            trial_u = u.copy()
+            trial_u[clock] = (c - lo[clock]) / span[clock]
+            trial = cost(trial_u)
+            if trial < best[0]:
+                best = (trial, trial_u)
+        if best[0] < c0 * (1.0 - 1e-6):
+            res2, u2 = solve(best[1])
+            if res2.cost < res.cost:
+                res, u = res2, u2
     if start is not None:
         # a parameter these samples say nothing about (a nozzle never on in them) must
         # not keep what the start learnt from other samples: back to its initial value
-        norms = np.linalg.norm(res.jac, axis=0)
-        blind = norms <= 1e-6 * max(float(norms.max()), 1e-300)
-        u[free[blind]] = u_init[free[blind]]
+        # (an effect's parameters only: the nuisances start where the alignment put
+        # them). Blind means that moving it back changes none of these residuals; a
+        # small gradient is not enough (a valve delay between two grid cells has none)
+        r0 = residuals(u)
+        for j in free[free < clock]:
+            if u[j] == u_init[j]:
+                continue
+            trial = u.copy()
+            trial[j] = u_init[j]
+            if np.array_equal(residuals(trial), r0):
+                u = trial
     theta = lo + u * span
     stderr = np.full(len(theta), math.nan)
     try:
@@ -605,5 +656,31 @@ def heldout(effects: list[Effect], mm: MachineModel, rds: list[RunData],
     for masks in fold_masks:
         params = fit_effects(effects, mm, rds, masks, bases, ctx, start).params
         for rd, m, p in zip(rds, masks, params):
+            if not m.any():
+                p = _own_clock(rd, p)
             tally.add(rd, p, ~m)
     return tally.score()
+
+
+def _own_clock(rd: RunData, params: ModelParams) -> ModelParams:
+    """``params`` with the clock adjustment that fits run ``rd`` best (within
+    CLOCK_REACH_S of the fitted one), the model itself unchanged: a run left out of a
+    fit still has its own logger clock, which the alignment found with the nominal model
+    (the same for every effect and the baseline)."""
+    from scipy.optimize import minimize_scalar
+
+    def sq(adj):
+        p = params.copy()
+        p.clock_adjust_s = adj
+        r = rd.readings(p) - rd.measured_l_min
+        return float((r * r) @ rd.weight_s)
+
+    a0 = params.clock_adjust_s
+    grid = [a0 + c for c in CLOCK_GRID_S]
+    best = min(grid, key=sq)
+    step = CLOCK_GRID_S[1] - CLOCK_GRID_S[0]
+    res = minimize_scalar(sq, bounds=(best - step, best + step), method="bounded",
+                          options={"xatol": 1e-3})
+    out = params.copy()
+    out.clock_adjust_s = float(res.x) if res.fun < sq(best) else best
+    return out
