@@ -680,12 +680,13 @@ def test_the_first_readings_wait_for_the_meter_to_settle():
 
 
 def test_a_run_left_out_is_scored_on_its_own_clock():
-    # the second log's clock is given 0.25 s wrong: the fit on the first run cannot
-    # know it, so the left-out run is scored with its own clock refitted; the baseline
-    # and the leak are then as good as the noise allows
+    # the second log's clock is given 0.08 s wrong (two alignments disagree by that
+    # much): the fit on the first run cannot know it, so the left-out run is scored with
+    # its own clock refitted; the baseline and the leak are then as good as the noise
+    # allows
     runs = [run_of(RIG, 20, rate_hz=5.0, tau_s=0.2, noise=0.5, offset_s=3.0, seed=s,
                    name=f"r{s}.csv") for s in range(2)]
-    d = diagnose(RIG, runs, offsets=[3.0, 3.25], effects=["leak"])
+    d = diagnose(RIG, runs, offsets=[3.0, 3.08], effects=["leak"])
     assert d.baseline_heldout.rmse_l_min < 1.5 * 0.5, d.report()
     assert d.verdict == "none", d.report()
 
@@ -733,3 +734,23 @@ def test_a_supply_far_from_the_files_or_at_its_bound_is_implausible(rig_model):
     assert "against the file's" in supply.implausible(mm, [p * 1.6])
     assert "bound" in supply.implausible(mm, [param.upper])
     assert "bound" in supply.implausible(mm, [param.lower])
+
+
+def test_a_gap_below_a_meters_accuracy_is_not_a_finding():
+    from plcpred.diagnose.core import MATERIAL_SHARE, material
+    from plcpred.diagnose.fit import Score
+
+    # RMS beyond the noise falls from sqrt(1.2^2 - 1) = 0.66 to 0: 0.66 NL/min
+    base, fixed = Score(1, 1, 1.2, 400), Score(1, 1, 1.0, 400)
+    assert material(base, fixed, 1.0, 0.66 / MATERIAL_SHARE - 1.0)
+    assert not material(base, fixed, 1.0, 0.66 / MATERIAL_SHARE + 1.0)
+
+    # a leak of 0.1 NL/min on a 32 NL/min machine, logged with little noise: the fit
+    # sees it, but it is well within what a thermal meter reads wrong
+    def with_small_leak(pred, flow):
+        return flow.sum(axis=0) + 0.1
+    run = run_of(PICK, 60, rate_hz=5.0, tau_s=0.2, noise=0.1, offset_s=2.0, seed=3,
+                 transform=with_small_leak)
+    d = diagnose(PICK, [run], effects=["leak"])
+    assert d.effects[0].physical["flow_l_min"] == pytest.approx(0.1, abs=0.05)
+    assert d.verdict == "none", d.report()

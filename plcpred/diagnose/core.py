@@ -11,7 +11,8 @@
    loop), ``stroke_time`` and ``valve_delay`` are also tried with the sequencer run
    again (:mod:`~plcpred.diagnose.timing`), and the better form on held-out samples
    stands for the effect. The verdict is the best effect when it beats the baseline on
-   held-out samples by more than the noise allows, else ``none``.
+   held-out samples by more than the noise allows and by a material share of the flow
+   (:data:`MATERIAL_SHARE`, a thermal meter's accuracy), else ``none``.
 5. **Combination**: from the verdict, effects are added one at a time while each still
    improves the held-out error by more than the noise allows (up to three).
 """
@@ -199,6 +200,21 @@ def significant(base: Score, new: Score, noise_l_min: float) -> bool:
     return gain > max(0.02 * base.mse, 3.0 * noise_l_min ** 2 * math.sqrt(2.0 / n))
 
 
+# a thermal-mass meter reads within about 1.5 % of reading: an effect that explains less
+# of the flow than that (RMS, beyond the noise) is not a finding
+MATERIAL_SHARE = 0.015
+
+
+def material(base: Score, new: Score, noise_l_min: float, mean_l_min: float) -> bool:
+    """Does ``new`` explain a material part of the flow on held-out samples: does the
+    RMS error beyond the noise fall by at least MATERIAL_SHARE of the mean flow?"""
+    if not (math.isfinite(new.mse) and math.isfinite(base.mse)):
+        return False
+    before = math.sqrt(max(base.mse - noise_l_min ** 2, 0.0))
+    after = math.sqrt(max(new.mse - noise_l_min ** 2, 0.0))
+    return before - after >= MATERIAL_SHARE * mean_l_min
+
+
 def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
              max_offset_s: float | None = None, effects=None,
              max_combination: int = MAX_COMBINATION, program=None) -> Diagnosis:
@@ -316,18 +332,21 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     verdict = "none"
     combination = None
     alternatives = []
-    if results and significant(base_heldout, results[0].heldout_score, noise):
+    def finding(base: Score, new: Score) -> bool:
+        return significant(base, new, noise) and material(base, new, noise,
+                                                           ctx["mean_l_min"])
+
+    if results and finding(base_heldout, results[0].heldout_score):
         verdict = results[0].name
         # effects the held-out samples cannot tell from the verdict (a dead volume and an
         # incomplete exhaust when every dwell is the same)
         alternatives = [e.name for e in results[1:]
-                        if significant(base_heldout, e.heldout_score, noise)
+                        if finding(base_heldout, e.heldout_score)
                         and not significant(e.heldout_score, results[0].heldout_score,
                                             noise)]
         chosen = list(results[0].fit.effects)
         best = results[0]
-        candidates = [e for e in results[1:] if significant(base_heldout, e.heldout_score,
-                                                             noise)]
+        candidates = [e for e in results[1:] if finding(base_heldout, e.heldout_score)]
         # nothing is left to explain once the held-out error is down to the noise
         while (len(chosen) < max_combination and candidates
                and best.heldout_score.rmse_l_min > 1.1 * noise):
@@ -335,7 +354,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                                 fold_masks)
                       for c in candidates]
             trial = min(trials, key=lambda e: e.heldout_score.rmse_l_min)
-            if not significant(best.heldout_score, trial.heldout_score, noise):
+            if not finding(best.heldout_score, trial.heldout_score):
                 break
             best = trial
             chosen = list(trial.fit.effects)
