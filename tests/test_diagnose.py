@@ -616,7 +616,7 @@ def test_incomplete_exhaust_effect_sets_time_constant_and_held_air(rig_model):
     effect = EFFECTS["incomplete_exhaust"]
     names = [p.name for p in effect.params(mm, {})]
     assert names[:2] == ["A.dead_volume_cm3", "A.exhaust_tau_s"]
-    theta = [5.0, 0.2, 0.0, 0.002, 0.0, 0.002]       # drive A: 5 cm3 inside, tau 0.2 s
+    theta = [5.0, 0.2, 0.0, 0.0, 0.0, 0.0]        # drive A: 5 cm3 inside, tau 0.2 s
     p = _apply("incomplete_exhaust", mm, theta)
     a = m.consumer("A")
     assert p.exhaust_tau_s[0] == 0.2
@@ -654,13 +654,13 @@ def test_the_verdict_prefers_a_plausible_effect_the_data_cannot_tell_apart(rig_m
                             {})
 
     shorter_tube = result("dead_volume", [-0.9 * tube_cm3, 0.0, 0.0], 1.00)
-    exhaust = result("incomplete_exhaust", [8.0, 0.3] + [0.0, 0.002] * 2, 1.005)
+    exhaust = result("incomplete_exhaust", [8.0, 0.3] + [0.0, 0.0] * 2, 1.005)
     leak = result("leak", [1.0], 3.0)
     # as good on held-out samples: the plausible one first
     assert [r.name for r in _tie_break([shorter_tube, exhaust, leak], 0.5, mm)] == [
         "incomplete_exhaust", "dead_volume", "leak"]
     # clearly worse on held-out samples: the data decide, not plausibility
-    worse = result("incomplete_exhaust", [8.0, 0.3] + [0.0, 0.002] * 2, 2.0)
+    worse = result("incomplete_exhaust", [8.0, 0.3] + [0.0, 0.0] * 2, 2.0)
     assert _tie_break([shorter_tube, worse, leak], 0.5, mm)[0].name == "dead_volume"
     # a plausible dead volume stays first
     longer_tube = result("dead_volume", [5.0, 0.0, 0.0], 1.00)

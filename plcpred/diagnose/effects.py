@@ -31,13 +31,12 @@ MAX_METER_TAU_S = 10.0
 # a cylinder's own dead volume (end caps, ports, cushions) up to this share of its swept
 # volume, for an incomplete exhaust
 MAX_INNER_DEAD_SHARE = 0.2
+# an exhaust time constant below the machine file's smallest is written as off
+MIN_WRITTEN_TAU_S = 1e-4
 # a supply pressure this share away from the file's (gauge) is an unlikely verdict
 MAX_SUPPLY_CHANGE = 0.5
 # a dead volume fit that takes away more than this share of a drive's stated tube
 MAX_TUBE_OVERSTATEMENT = 0.5
-# an exhaust this fast is complete before any fill: the neutral value, where a fit of
-# samples that say nothing about a drive leaves it
-MIN_EXHAUST_TAU_S = 0.002
 NUISANCE_METER_TAU_S = 0.6   # thermal-mass meters respond in 0.1-0.6 s (docs/physics.md: figures)
 
 
@@ -356,8 +355,9 @@ class IncompleteExhaust(Effect):
             out += [Param(f"{name}.dead_volume_cm3", "cm^3", 0.0, top_cm3,
                           float(np.mean(inner)),
                           tuple(top_cm3 * f for f in (0.0, 0.1, 0.25, 0.5, 1.0))),
-                    Param(f"{name}.exhaust_tau_s", "s", MIN_EXHAUST_TAU_S, 5.0,
-                          MIN_EXHAUST_TAU_S, TAU_GRID_S)]
+                    # 0 is off (the nominal model): where a fit of samples that say
+                    # nothing about a drive leaves it
+                    Param(f"{name}.exhaust_tau_s", "s", 0.0, 5.0, 0.0, TAU_GRID_S)]
         return out
 
     def _held_nl_per_cm3(self, mm) -> float:
@@ -383,6 +383,8 @@ class IncompleteExhaust(Effect):
         changes = []
         for k, r in enumerate(mm.drives):
             inner, tau = float(theta[2 * k]), float(theta[2 * k + 1])
+            if tau < MIN_WRITTEN_TAU_S:
+                continue            # off: the drive's exhausts are complete
             name = mm.models[r].name
             t = _consumer_table(data, name)
             t["exhaust_tau_s"] = float(f"{tau:.6g}")
