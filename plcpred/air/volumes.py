@@ -74,16 +74,24 @@ def inner_dead_volumes_cm3(consumer) -> tuple[float, float]:
     return (a_ext * INNER_DEAD_STROKE_MM / 1000.0, a_ret * INNER_DEAD_STROKE_MM / 1000.0)
 
 
+def held_air_nl(volume_cm3: float, supply_pa: float, atmosphere_pa: float,
+                supply_temp_k: float = T0_K) -> float:
+    """Normal litres a dead volume of ``volume_cm3`` at supply pressure holds above
+    atmospheric pressure (docs/physics.md: what D4 adds):
+    ``V_dead * (P_s - P_atm) / P0 * T0 / T_s``."""
+    return volume_cm3 * 1e-3 * (supply_pa - atmosphere_pa) / P0_PA * (T0_K / supply_temp_k)
+
+
 def dead_fill_volumes_nl(consumer, supply_pa: float, atmosphere_pa: float,
                          supply_temp_k: float = T0_K) -> tuple[float, float]:
     """(cap, rod) normal litres that a chamber's dead volume (its tube from the valve and
     the cylinder's own dead volume, :func:`inner_dead_volumes_cm3`) holds above
-    atmospheric pressure when it is at supply pressure: what an exhaust cut short leaves
-    for the next fill (docs/physics.md: what D4 adds; the ``exhaust_tau_s`` option of the
-    air model). ``V_dead * (P_s - P_atm) / P0 * T0 / T_s``."""
+    atmospheric pressure when it is at supply pressure (:func:`held_air_nl`): what an
+    exhaust cut short leaves for the next fill (the ``exhaust_tau_s`` option of the air
+    model)."""
     tube_id = consumer.tube_id_mm or 0.0
     area_mm2 = math.pi * tube_id ** 2 / 4.0
     inner_cm3 = inner_dead_volumes_cm3(consumer)
-    return tuple((length_m * area_mm2 + inner) * 1e-3 * (supply_pa - atmosphere_pa) / P0_PA
-                 * (T0_K / supply_temp_k)
+    return tuple(held_air_nl(length_m * area_mm2 + inner, supply_pa, atmosphere_pa,
+                             supply_temp_k)
                  for length_m, inner in zip(consumer.tube_length_m, inner_cm3))

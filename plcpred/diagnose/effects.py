@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..air.demand import sonic_conductance
-from ..air.volumes import inner_dead_volumes_cm3
+from ..air.volumes import held_air_nl, inner_dead_volumes_cm3
 from ..air.flow import P0_PA, T0_K, bar_g_to_pa, celsius_to_k, flow_nl_min
 from .model import MachineModel, ModelParams
 
@@ -252,6 +252,13 @@ def _tube_area_mm2(consumer) -> float:
     return math.pi * d * d / 4.0
 
 
+def _tube_volumes_cm3(consumer) -> list[float]:
+    """(cap, rod) cm^3 of the tubes the machine file states (none without a bore)."""
+    if not consumer.tube_id_mm:
+        return [0.0 for _ in consumer.tube_length_m]
+    return [length * _tube_area_mm2(consumer) for length in consumer.tube_length_m]
+
+
 class DeadVolume(Effect):
     """More (or less) volume between valve and piston than the file says (a longer tube,
     a fitting, a manifold; D1 also counts a dead volume's air from zero, docs/physics.md
@@ -265,7 +272,7 @@ class DeadVolume(Effect):
         out = []
         for row in mm.drives:
             c = mm.machine.consumers[row]
-            tube_cm3 = min(c.tube_length_m) * _tube_area_mm2(c) if c.tube_id_mm else 0.0
+            tube_cm3 = min(_tube_volumes_cm3(c))
             swept_cm3 = math.pi * c.bore_mm ** 2 / 4.0 * (c.stroke_mm or 0.0) / 1000.0
             out.append(Param(f"{c.name}.extra_cm3", "cm^3", -tube_cm3,
                              max(20.0, 2.0 * swept_cm3), 0.0))
@@ -277,7 +284,7 @@ class DeadVolume(Effect):
         # cut short, a lower supply), which reduce a fill just the same
         for row, v in zip(mm.drives, theta):
             c = mm.machine.consumers[row]
-            tube_cm3 = min(c.tube_length_m) * _tube_area_mm2(c) if c.tube_id_mm else 0.0
+            tube_cm3 = min(_tube_volumes_cm3(c))
             if tube_cm3 > 0 and v < -MAX_TUBE_OVERSTATEMENT * tube_cm3:
                 return (f'{c.name}: {-v:.3g} cm^3 less than its {tube_cm3:.3g} cm^3 of '
                         "tube")
@@ -337,11 +344,6 @@ class IncompleteExhaust(Effect):
     def _inner(self, mm, k) -> tuple[float, float]:
         return inner_dead_volumes_cm3(mm.machine.consumers[mm.drives[k]])
 
-    def _tube_cm3(self, mm, k) -> list[float]:
-        c = mm.machine.consumers[mm.drives[k]]
-        return [length * _tube_area_mm2(c) if c.tube_id_mm else 0.0
-                for length in c.tube_length_m]
-
     def params(self, mm, ctx):
         out = []
         for k, row in enumerate(mm.drives):
@@ -360,18 +362,15 @@ class IncompleteExhaust(Effect):
                     Param(f"{name}.exhaust_tau_s", "s", 0.0, 5.0, 0.0, TAU_GRID_S)]
         return out
 
-    def _held_nl_per_cm3(self, mm) -> float:
-        m = mm.machine       # the air a dead volume keeps above atmosphere (section 7)
-        p_atm = m.atmosphere_kpa * 1000.0
-        return 1e-3 * (_supply_pa(m) - p_atm) / P0_PA * T0_K / celsius_to_k(m.ambient_c)
-
     def apply(self, mm, p, theta):
         q = p.copy()
-        per_cm3 = self._held_nl_per_cm3(mm)
-        for k in range(len(mm.drives)):
+        m = mm.machine
+        state = (_supply_pa(m), m.atmosphere_kpa * 1000.0, celsius_to_k(m.ambient_c))
+        for k, row in enumerate(mm.drives):
             inner, tau = theta[2 * k], theta[2 * k + 1]
             q.exhaust_tau_s[k] = float(tau)
-            q.held_nl[k] = [(t + float(inner)) * per_cm3 for t in self._tube_cm3(mm, k)]
+            q.held_nl[k] = [held_air_nl(t + float(inner), *state)     # the air it keeps
+                            for t in _tube_volumes_cm3(m.consumers[row])]
         return q
 
     def physical(self, mm, theta):

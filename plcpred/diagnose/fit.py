@@ -688,12 +688,8 @@ def _own_clock(rd: RunData, params: ModelParams) -> ModelParams:
         return float((r * r) @ rd.weight_s)
 
     a0 = params.clock_adjust_s
-    grid = [a0 + c for c in CLOCK_GRID_S if abs(c) <= OWN_CLOCK_REACH_S + 1e-9]
-    best = min(grid, key=sq)
-    step = CLOCK_GRID_S[1] - CLOCK_GRID_S[0]
-    res = minimize_scalar(sq, bounds=(max(best - step, a0 - OWN_CLOCK_REACH_S),
-                                      min(best + step, a0 + OWN_CLOCK_REACH_S)),
+    res = minimize_scalar(sq, bounds=(a0 - OWN_CLOCK_REACH_S, a0 + OWN_CLOCK_REACH_S),
                           method="bounded", options={"xatol": 1e-3})
     out = params.copy()
-    out.clock_adjust_s = float(res.x) if res.fun < sq(best) else best
+    out.clock_adjust_s = float(res.x) if res.fun < sq(a0) else a0
     return out

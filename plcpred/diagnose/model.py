@@ -30,8 +30,9 @@ class ModelParams:
     stroke_ext_s: np.ndarray          # NaN: no stroke time (the volume lands in the delay)
     stroke_ret_s: np.ndarray
     exhaust_tau_s: np.ndarray         # 0: chambers fully exhausted (D1)
-    held_nl: np.ndarray               # (drives, 2): cap and rod dead volumes' air above
-                                      # atmosphere at supply (what an exhaust cut short keeps)
+    # (drives, 2): the air the cap and rod dead volumes hold above atmosphere at supply
+    # (what an exhaust cut short keeps)
+    held_nl: np.ndarray
     passive_l_min: np.ndarray         # D2 flow while on (nozzles) or always (leaks)
     extra_leak_l_min: float = 0.0     # an always-on flow the machine file does not have
     refill_fraction: float = 0.0      # shared supply: share of each stroke refilled later
