@@ -133,7 +133,7 @@ def test_graphical_pous_load_with_a_warning_and_only_running_one_is_an_error():
     from plcpred.sequencer.executor import ProgramInstance
     xml = project(
         pous='<pou name="Lad" pouType="functionBlock"><interface><inputVars><variable name="a">'
-             '<type><BOOL/></type></variable></inputVars></interface><body><LD/></body></pou>'
+             '<type><BOOL/></type></variable></inputVars></interface><body><IL/></body></pou>'
              '<pou name="P" pouType="program"><interface><localVars>'
              '<variable name="l"><type><derived name="Lad"/></type></variable>'
              '<variable name="go"><type><BOOL/></type></variable>'
@@ -142,12 +142,12 @@ def test_graphical_pous_load_with_a_warning_and_only_running_one_is_an_error():
              '</xhtml:p></ST></body></pou>')
     prog = parse_plcopen(xml, "g.xml")
     errors, warnings = check_program(prog)
-    assert errors == [] and ["LD body of POU 'Lad'" in w.message for w in warnings] == [True]
+    assert errors == [] and ["IL body of POU 'Lad'" in w.message for w in warnings] == [True]
     inst = ProgramInstance(prog)
     inst.scan(0)
     assert inst.programs[0].N == 1
     inst.programs[0].GO = True
-    with pytest.raises(ExecutionError, match="LD body of POU 'Lad'"):
+    with pytest.raises(ExecutionError, match="IL body of POU 'Lad'"):
         inst.scan(10_000_000)
 
 
@@ -248,3 +248,214 @@ def test_beremiz_logger_and_python_blocks_come_from_the_shipped_stub(tmp_path):
                               ' v := v + 1;]]></xhtml:p></ST></body></pou>'))
     errors, _ = check_program(load_program(f))
     assert errors == []
+
+
+# ---------------------------------------------------------------- FBD and LD networks
+def _at(x, y):
+    return f'<position x="{x}" y="{y}"/>'
+
+
+def _in(ref, formal=None):
+    fp = f' formalParameter="{formal}"' if formal else ""
+    return f'<connection refLocalId="{ref}"{fp}/>'
+
+
+def _cpi(*conns):
+    return "<connectionPointIn>" + "".join(conns) + "</connectionPointIn>"
+
+
+def in_var(lid, expr, y, negated=False):
+    return (f'<inVariable localId="{lid}" negated="{str(negated).lower()}">{_at(10, y)}'
+            f'<connectionPointOut/><expression>{expr}</expression></inVariable>')
+
+
+def out_var(lid, expr, y, *conns):
+    return (f'<outVariable localId="{lid}">{_at(400, y)}{_cpi(*conns)}'
+            f'<expression>{expr}</expression></outVariable>')
+
+
+def in_out_var(lid, expr, y, *conns):
+    return (f'<inOutVariable localId="{lid}">{_at(300, y)}{_cpi(*conns)}<connectionPointOut/>'
+            f'<expression>{expr}</expression></inOutVariable>')
+
+
+def block(lid, type_name, y, inputs, outputs=("OUT",), instance=None):
+    inst = f' instanceName="{instance}"' if instance else ""
+    negated = ' negated="true"'
+    ins = "".join(f'<variable formalParameter="{f}"{negated if neg else ""}>'
+                  f'{_cpi(c)}</variable>' for f, c, neg in inputs)
+    outs = "".join(f'<variable formalParameter="{o}"><connectionPointOut/></variable>'
+                   for o in outputs)
+    return (f'<block localId="{lid}" typeName="{type_name}"{inst}>{_at(150, y)}'
+            f'<inputVariables>{ins}</inputVariables><inOutVariables/>'
+            f'<outputVariables>{outs}</outputVariables></block>')
+
+
+def contact(lid, var, y, *conns, negated=False, edge=None):
+    e = f' edge="{edge}"' if edge else ""
+    return (f'<contact localId="{lid}" negated="{str(negated).lower()}"{e}>{_at(100, y)}'
+            f'{_cpi(*conns)}<connectionPointOut/><variable>{var}</variable></contact>')
+
+
+def coil(lid, var, y, *conns, negated=False, storage=None):
+    st = f' storage="{storage}"' if storage else ""
+    return (f'<coil localId="{lid}" negated="{str(negated).lower()}"{st}>{_at(300, y)}'
+            f'{_cpi(*conns)}<connectionPointOut/><variable>{var}</variable></coil>')
+
+
+def rail(lid, y):
+    return f'<leftPowerRail localId="{lid}">{_at(0, y)}<connectionPointOut/></leftPowerRail>'
+
+
+def graphical_pou(lang, body, variables):
+    decls = "".join(f'<variable name="{n}"><type>{t}</type></variable>' for n, t in variables)
+    return project(pous=f'<pou name="G" pouType="program"><interface><localVars>{decls}'
+                        f'</localVars></interface><body><{lang}>{body}</{lang}></body></pou>')
+
+
+def _same_run(xml, st_source, names, inputs, scans=60, period_ns=10_000_000, seed=3):
+    """Scan the graphical program and its ST equivalent with the same random inputs and
+    return the values of ``names`` after every scan, for both."""
+    import random
+
+    from plcpred.parser import parse_st
+    from plcpred.sequencer.executor import ProgramInstance
+    runs = []
+    for prog in (parse_plcopen(xml, "g.xml"), parse_st(st_source, "g.st")):
+        rng = random.Random(seed)
+        inst = ProgramInstance(prog)
+        trace = []
+        state = dict.fromkeys(inputs, False)
+        for k in range(scans):
+            for name in inputs:       # each input flips now and then, and holds
+                state[name] ^= rng.random() < 0.25
+                setattr(inst.programs[0], name.upper(), state[name])
+            inst.scan(k * period_ns)
+            trace.append(tuple(getattr(inst.programs[0], n.upper()) for n in names))
+        runs.append(trace)
+    return runs
+
+
+BOOLS = [(n, "<BOOL/>") for n in ("a", "b", "c", "q", "s", "nq")]
+
+
+def test_ld_rungs_run_as_their_st_equivalent():
+    # rung 1: a in series with (b parallel to NOT c) -> q; rung 2: rising a sets s;
+    # rung 3: b resets s; rung 4: a -> negated coil nq
+    body = (rail(1, 0)
+            + contact(2, "a", 10, _in(1)) + contact(3, "b", 10, _in(2))
+            + contact(4, "c", 30, _in(2), negated=True) + coil(5, "q", 10, _in(3), _in(4))
+            + rail(6, 100) + contact(7, "a", 100, _in(6), edge="rising")
+            + coil(8, "s", 100, _in(7), storage="set")
+            + rail(9, 200) + contact(10, "b", 200, _in(9)) + coil(11, "s", 200, _in(10),
+                                                                 storage="reset")
+            + rail(12, 300) + contact(13, "a", 300, _in(12)) + coil(14, "nq", 300, _in(13),
+                                                                   negated=True))
+    xml = graphical_pou("LD", body, BOOLS)
+    prog = parse_plcopen(xml, "g.xml")
+    hidden = [d for d in prog.pous[0].decls() if d.type == ir.NamedType("R_TRIG")]
+    assert len(hidden) == 1 and hidden[0].name not in {n for n, _ in BOOLS}
+    st = """PROGRAM G VAR a, b, c, q, s, nq : BOOL; e : R_TRIG; END_VAR
+    q := a AND (b OR NOT c);
+    e(CLK := a); IF e.Q THEN s := TRUE; END_IF;
+    IF b THEN s := FALSE; END_IF;
+    nq := NOT a;
+    END_PROGRAM"""
+    graphical, text = _same_run(xml, st, ["q", "s", "nq"], ["a", "b", "c"])
+    assert graphical == text
+    assert {v for row in graphical for v in row} == {True, False}   # the run exercises both
+
+
+def test_fbd_network_with_feedback_instances_and_operators_runs_as_its_st_equivalent():
+    # cnt := SEL(G := reset, IN0 := cnt + 1, IN1 := 0) with the loop through an
+    # inOutVariable; out := cnt read after it is written; a TON instance; GT(cnt, 3)
+    body = (in_var(1, "reset", 0) + in_var(2, "1", 20) + in_var(3, "0", 40)
+            + block(4, "ADD", 20, [("IN1", _in(5), False), ("IN2", _in(2), False)])
+            + in_out_var(5, "cnt", 10, _in(6, "OUT"))
+            + block(6, "SEL", 10, [("G", _in(1), False), ("IN0", _in(4, "OUT"), False),
+                                   ("IN1", _in(3), False)])
+            + out_var(7, "out", 5, _in(5))
+            + in_var(8, "a", 100) + in_var(9, "T#30ms", 120)
+            + block(10, "TON", 100, [("IN", _in(8), False), ("PT", _in(9), False)],
+                    outputs=("Q", "ET"), instance="t1")
+            + out_var(11, "late", 100, _in(10, "Q"))
+            + in_var(12, "3", 160)
+            + block(13, "GT", 150, [("IN1", _in(5), False), ("IN2", _in(12), False)])
+            + out_var(14, "big", 150, _in(13, "OUT"))
+            + block(15, "AND", 180, [("IN1", _in(8), False), ("IN2", _in(1), True)])
+            + out_var(16, "both", 180, _in(15)))
+    variables = [("reset", "<BOOL/>"), ("a", "<BOOL/>"), ("late", "<BOOL/>"),
+                 ("big", "<BOOL/>"), ("both", "<BOOL/>"), ("cnt", "<INT/>"),
+                 ("out", "<INT/>"), ("t1", '<derived name="TON"/>')]
+    xml = graphical_pou("FBD", body, variables)
+    st = """PROGRAM G VAR reset, a, late, big, both : BOOL; cnt, out : INT; t1 : TON; END_VAR
+    cnt := SEL(G := reset, IN0 := cnt + 1, IN1 := 0);
+    out := cnt;
+    t1(IN := a, PT := T#30ms); late := t1.Q;
+    big := cnt > 3;
+    both := a AND NOT reset;
+    END_PROGRAM"""
+    graphical, text = _same_run(xml, st, ["cnt", "out", "late", "big", "both"],
+                                ["reset", "a"])
+    assert graphical == text
+    assert max(row[0] for row in graphical) > 3 and any(row[2] for row in graphical)
+
+
+def test_fbd_transition_body_is_the_condition():
+    # Beremiz draws a referenced transition as a network assigning the transition's name
+    net = (in_var(1, "go", 0) + block(2, "NOT", 0, [("IN", _in(1), False)])
+           + out_var(3, "STOP", 0, _in(2, "OUT")))
+    xml = sfc_pou('<step localId="1" name="A" initialStep="true"/>'
+                  f'<transition localId="2">{conn(1)}<condition><reference name="STOP"/>'
+                  f'</condition></transition><step localId="3" name="B">{conn(2)}</step>',
+                  transitions=f'<transition name="STOP"><body><FBD>{net}</FBD></body>'
+                              '</transition>')
+    t = parse_plcopen(xml, "t.xml").pous[0].body.transitions[0]
+    assert t.condition == ir.Unary("NOT", ir.Name("go"))
+
+
+def test_ld_condition_drawn_in_the_chart_is_the_condition():
+    xml = sfc_pou('<step localId="1" name="A" initialStep="true"/>'
+                  + rail(5, 0) + contact(6, "go", 0, _in(5), negated=True)
+                  + f'<transition localId="2">{conn(1)}<condition>{_cpi(_in(6))}'
+                    '</condition></transition>'
+                  f'<step localId="3" name="B">{conn(2)}</step>')
+    t = parse_plcopen(xml, "t.xml").pous[0].body.transitions[0]
+    assert t.condition == ir.Binary("AND", ir.Literal(True, "BOOL"),
+                                    ir.Unary("NOT", ir.Name("go")))
+
+
+@pytest.mark.parametrize("body, reason", [
+    (out_var(1, "q", 0, _in(9)), "connection to unknown localId '9'"),
+    (in_var(1, "a", 0) + block(2, "DIVMOD", 0, [("IN", _in(1), False)],
+                               outputs=("Q", "R")) + out_var(3, "q", 0, _in(2, "R")),
+     "only a function's result can be read"),
+    (block(1, "ADD", 0, [("IN1", _in(2, "OUT"), False)])
+     + block(2, "ADD", 0, [("IN1", _in(1, "OUT"), False)]) + out_var(3, "q", 0, _in(1)),
+     "deeper than"),
+])
+def test_a_network_that_cannot_be_converted_loads_and_says_why(body, reason):
+    from plcpred.parser.check import check_program
+    prog = parse_plcopen(graphical_pou("FBD", body, BOOLS), "g.xml")
+    (opaque,) = prog.pous[0].body
+    assert isinstance(opaque, ir.Opaque) and reason in opaque.what
+    errors, warnings = check_program(prog)
+    assert errors == [] and any(reason in w.message for w in warnings)
+
+
+def test_a_machine_programmed_in_ladder_logic_predicts(samples_dir):
+    """samples/ld_ejector.xml: a part every 4 s sets the ejector valve (rising-edge
+    contact, S coil), the end switch resets it (R coil), a TP gives a 300 ms blast when the
+    ejector is out. From the machine file alone: the valve is on from the part's edge until
+    the scan after the end switch (switching delay 15 ms + extend 350 ms), 15 times in 60 s."""
+    from plcpred import unfold
+    from plcpred.machine import load_machine
+    timeline = unfold(load_machine(samples_dir / "ld_ejector.toml"), "60s")
+    eject = timeline.intervals("eject_valve")
+    blast = timeline.intervals("blow_valve")
+    assert len(eject) == len(blast) == 15
+    assert eject.start_s.tolist() == pytest.approx([0.5 + 4 * k for k in range(15)])
+    assert eject.duration_s.min() >= 0.365 and eject.duration_s.max() <= 0.365 + 0.0101
+    assert blast.duration_s.tolist() == pytest.approx([0.3] * 15, abs=1e-9)
+    assert (blast.start_s.to_numpy() == eject.end_s.to_numpy()).all()
+    assert timeline.intervals("jammed").empty

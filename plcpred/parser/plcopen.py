@@ -1,10 +1,12 @@
 """PLCopen XML (TC6, v2.01 and the v2.00 dialect CODESYS/TwinCAT/Beremiz export) import.
 
 Converts data types, global variables, configurations with resources and tasks, and POUs
-whose bodies are ST or SFC (steps, transitions with inline or referenced ST conditions,
-action blocks, selection/simultaneous divergence and convergence, jumps) into the IR.
-Bodies in FBD, LD or IL are named in a clear error. ST text is parsed with its true
-position in the XML file, so errors point at the file's line and column.
+whose bodies are ST, FBD or LD (:mod:`.graphical`) or SFC (steps, transitions with inline
+or referenced ST, FBD or LD conditions, action blocks, selection/simultaneous divergence
+and convergence, jumps) into the IR. An IL body, or a graphical one that cannot be
+converted, is kept opaque: the project loads, and running it is an error that says why.
+ST text is parsed with its true position in the XML file, so errors point at the file's
+line and column.
 """
 from __future__ import annotations
 
@@ -16,6 +18,7 @@ from xml.parsers import expat
 from . import ir
 from .build import make_action_assoc
 from .errors import ProgramError, at
+from .graphical import GraphError, Network
 from .names import validate_names
 from .st import parse_st
 
@@ -147,6 +150,8 @@ def _place(node, pos: ir.Pos) -> None:
 class _Importer:
     def __init__(self, filename: str):
         self.file = filename
+        self._hidden: list[ir.VarDecl] = []   # edge instances the POU's networks need
+        self._taken: set[str] = set()          # names declared in the POU being read
 
     def error(self, el: _El, message: str) -> ProgramError:
         return ProgramError(message, self.file, el.line, el.col)
@@ -308,11 +313,38 @@ class _Importer:
                 return self.st_body(lang)
             if lang.tag == "SFC":
                 return self.sfc(lang, pou_el)
-            if lang.tag in ("FBD", "LD", "IL"):
-                # kept, not read: the project loads; only running this body is an error
-                return [ir.Opaque(f"the {lang.tag} body of POU '{pou_name}'",
+            if lang.tag in ("FBD", "LD"):
+                try:
+                    return self.network(lang.children).statements()
+                except GraphError as e:
+                    # kept, not run: the project loads; only running this body is an error
+                    return [ir.Opaque(f"the {lang.tag} body of POU '{pou_name}' "
+                                      f"({e.message}, line {e.el.line})",
+                                      pos=ir.Pos(self.file, lang.line, lang.col))]
+            if lang.tag == "IL":
+                return [ir.Opaque(f"the IL body of POU '{pou_name}'",
                                   pos=ir.Pos(self.file, lang.line, lang.col))]
         return []
+
+    def network(self, elements) -> Network:
+        """A graphical network of the POU being read (:mod:`.graphical`)."""
+        def expr(node):
+            text, line, col = node.all_text()
+            return self.expr_text(text.strip(), line, col)
+
+        return Network(elements, expr, lambda el: ir.Pos(self.file, el.line, el.col),
+                       self._hidden_instance)
+
+    def _hidden_instance(self, type_name: str) -> str:
+        """Declare an edge-detecting instance a network needs, under a name the POU does
+        not use."""
+        n = len(self._hidden) + 1
+        while f"_NETWORK_{type_name}_{n}" in self._taken:
+            n += 1
+        name = f"_NETWORK_{type_name}_{n}"
+        self._taken.add(name)
+        self._hidden.append(ir.VarDecl(name, ir.NamedType(type_name)))
+        return name
 
     def pou(self, el: _El) -> ir.Pou:
         name = self.req(el, "name")
@@ -324,6 +356,8 @@ class _Importer:
         ret = None
         if iface is not None and iface.find("returnType") is not None:
             ret = self.type_of(iface.find("returnType"), iface)
+        self._hidden = []
+        self._taken = {v.attrib.get("name", "").upper() for v in el.iter("variable")}
         actions = []
         acts = el.find("actions")
         for a in acts.findall("action") if acts is not None else []:
@@ -348,6 +382,8 @@ class _Importer:
             body.actions.extend(actions)
         else:
             pou.actions = actions
+        if self._hidden:
+            pou.var_blocks.append(ir.VarBlock("VAR", self._hidden))
         return pou
 
     # ------------------------------------------------------------------ SFC
@@ -416,7 +452,7 @@ class _Importer:
                 targets = walk(lid, succs, [], set())
                 if not sources or not targets:
                     raise self.error(el, "transition is not connected to steps on both sides")
-                cond = self.condition(el, named_conditions)
+                cond = self.condition(el, named_conditions, sfc_el)
                 prio = self.int_attr(el, "priority", 0, -(1 << 31))
                 transitions.append(ir.Transition(sources, targets, cond, prio,
                                                  pos=ir.Pos(self.file, el.line, el.col)))
@@ -438,24 +474,25 @@ class _Importer:
         return ir.Sfc(steps, transitions, extra_actions,
                       pos=ir.Pos(self.file, sfc_el.line, sfc_el.col))
 
-    def condition(self, el: _El, named: dict):
+    def condition(self, el: _El, named: dict, sfc_el: _El):
         cond = el.find("condition")
         if cond is None:
             raise self.error(el, "transition without a condition")
         for c in cond.children:
             if c.tag == "inline":
                 st = c.find("ST")
-                if st is None:
-                    raise self.error(c, "only ST transition conditions can be converted")
-                return self.st_expr(st)
+                if st is not None:
+                    return self.st_expr(st)
+                return self.graph_condition(c, c.attrib.get("name", ""))
             if c.tag == "reference":
                 name = self.req(c, "name")
                 t = named.get(name)
                 if t is None:
                     raise self.error(c, f"reference to unknown transition {name!r}")
-                st = t.find("body").find("ST") if t.find("body") is not None else None
+                body = t.find("body")
+                st = body.find("ST") if body is not None else None
                 if st is None:
-                    raise self.error(t, f"transition {name!r}: only ST bodies can be converted")
+                    return self.graph_condition(body if body is not None else t, name)
                 text, line, col = st.all_text()
                 if ":=" in text:  # CODESYS style: 'Name := expression;'
                     stmts = self.st_body(st)
@@ -464,7 +501,38 @@ class _Importer:
                         raise self.error(st, f"transition {name!r}: expected one assignment")
                     return assigns[0].value
                 return self.st_expr(st)
-        raise self.error(cond, "only inline or referenced ST conditions can be converted")
+            if c.tag == "connectionPointIn":
+                # Beremiz: the condition is drawn in the SFC itself (contacts, a variable)
+                net = self.network(sfc_el.children)
+                try:
+                    value = net._input(cond)
+                except GraphError as e:
+                    raise self.error(e.el, f"transition condition: {e.message}") from None
+                if net.stmts:
+                    raise self.error(cond, "a transition condition drawn with function "
+                                           "blocks or edges cannot be converted")
+                return value
+        raise self.error(cond, "transition condition in a form plcpred does not read "
+                               "(expected inline, referenced or connected)")
+
+    def graph_condition(self, holder: _El, name: str):
+        """The condition an FBD or LD transition body computes: the value it assigns to
+        the transition's name (or its only assignment)."""
+        lang = next((c for c in holder.children if c.tag in ("FBD", "LD")), None)
+        if lang is None:
+            raise self.error(holder, f"transition {name!r}: its condition must be ST, FBD "
+                                     "or LD")
+        try:
+            stmts = self.network(lang.children).statements()
+        except GraphError as e:
+            raise self.error(e.el, f"transition {name!r}: {e.message}") from None
+        assigns = [s for s in stmts if isinstance(s, ir.Assign)]
+        mine = [s for s in assigns if isinstance(s.target, ir.Name)
+                and s.target.name.upper() == name.upper()] or assigns
+        if len(mine) != 1 or len(stmts) != 1:
+            raise self.error(lang, f"transition {name!r}: expected a network that only "
+                                   "computes the condition (one output)")
+        return mine[0].value
 
     def action_assoc(self, a: _El, step: ir.Step, n: int, extra: list) -> ir.ActionAssoc:
         qualifier = a.attrib.get("qualifier", "N")
