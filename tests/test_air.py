@@ -259,6 +259,26 @@ def test_predict_rejects_a_bad_dt(tmp_path):
     assert r.returncode == 2 and "Traceback" not in r.stderr
 
 
+def test_predict_says_when_the_instantaneous_peak_leaves_steps_out(tmp_path, capsys):
+    """A stroke with no stroke_time_s and no switching delay is a step (a volume with no
+    rate): the instantaneous peak cannot count it, and the printout says so."""
+    from plcpred.cli import main
+    (tmp_path / "p.st").write_text("PROGRAM P\nVAR go AT %IX0.0 : BOOL; v AT %QX0.0 : BOOL;"
+                                   " END_VAR\nv := go;\nEND_PROGRAM\n")
+    machine = tmp_path / "m.toml"
+    machine.write_text('[machine]\nname = "m"\nprogram = "p.st"\nscan_ms = 10\n'
+                       'supply_bar_g = 6\n[[input]]\nsignal = "go"\nperiod_s = 2\n'
+                       'pulse_ms = 500\n[[consumer]]\nname = "stamp"\n'
+                       'kind = "single_acting"\nbore_mm = 32\nstroke_mm = 50\nvalve = "v"\n')
+    assert main(["predict", str(machine), "--horizon", "10s", "--out", str(tmp_path / "o"),
+                 "--no-plot"]) == 0
+    assert "(instantaneous, strokes without stroke_time_s left out)" in capsys.readouterr().out
+    assert main(["predict", str(RIG), "--horizon", "10s", "--out", str(tmp_path / "r"),
+                 "--no-plot"]) == 0
+    out = capsys.readouterr().out
+    assert "(instantaneous)" in out and "left out" not in out
+
+
 MACHINES = sorted(SAMPLES.glob("*.toml")) + sorted((SAMPLES / "prototype_rig").glob("*.toml"))
 
 

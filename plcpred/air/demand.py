@@ -327,6 +327,7 @@ class DemandSteps:
     rate_nl_s: np.ndarray
     cum_nl: np.ndarray
     horizon_s: float
+    n_steps: int = 0          # strokes with no duration (no rate: left out of peaks)
 
     @classmethod
     def of(cls, rects, horizon_s: float) -> "DemandSteps":
@@ -349,7 +350,7 @@ class DemandSteps:
             jump = jump[order]
         del order
         if not len(t):
-            return cls(t, t, t, float(horizon_s))
+            return cls(t, t, t, float(horizon_s), n_step)
         # one breakpoint per distinct time (t is sorted)
         first = np.flatnonzero(np.concatenate([[True], t[1:] != t[:-1]]))
         times = t[first]
@@ -360,7 +361,7 @@ class DemandSteps:
         gaps = np.diff(times, prepend=times[:1])
         rate_before = np.concatenate([[0.0], rate_after[:-1]])
         cum = np.cumsum(rate_before * gaps + jumps)
-        return cls(times, np.clip(rate_after, 0.0, None), cum, float(horizon_s))
+        return cls(times, np.clip(rate_after, 0.0, None), cum, float(horizon_s), n_step)
 
     def cumulative_nl(self, at_s) -> np.ndarray:
         """NL used by each time (steps at a time counted in)."""
