@@ -54,10 +54,28 @@ SOURCES = [
      "MIT"),
     ("beremiz/beremiz", "9eb53af357cda387989c086aee00a211ef95689a", "GPL-2.0"),
 ]
+# libraries the projects above use, fetched beside them (under _libraries/) but not
+# measured themselves: SLAC's own TwinCAT libraries that lcls-twincat-motion references
+LIBRARY_SOURCES = [
+    ("pcdshub/lcls-twincat-general", "02ece2d1975fcf851e0f23f7799177b402036367",
+     "SLAC (BSD-like)"),
+    ("pcdshub/lcls-twincat-pmps", "21b168f8755ecb727f90e15e727fae3fb41b5bde",
+     "SLAC (BSD-like)"),
+    ("pcdshub/lcls-twincat-math", "37e2d8951dc5bf856a655b201996f1ae0c5ea814",
+     "SLAC (BSD-like)"),
+]
+LIBS = "_libraries"
 # libraries a project uses that another fetched project provides (as --lib would give them)
+TCUNIT = "tcunit+TcUnit/TcUnit/TcUnit/TcUnit.plcproj"
 LIBRARIES = {
-    "tcunit+ExampleProjects": ["tcunit+TcUnit/TcUnit/TcUnit/TcUnit.plcproj"],
-    "tcunit+TcUnit": ["tcunit+TcUnit/TcUnit/TcUnit/TcUnit.plcproj"],   # for its verifier
+    "tcunit+ExampleProjects": [TCUNIT],
+    "tcunit+TcUnit": [TCUNIT],   # for its verifier
+    "pcdshub+lcls-twincat-motion": [
+        TCUNIT,
+        f"{LIBS}/pcdshub+lcls-twincat-general/LCLSGeneral/LCLSGeneral/LCLSGeneral.plcproj",
+        f"{LIBS}/pcdshub+lcls-twincat-pmps/lcls-twincat-pmps/PMPS/PMPS.plcproj",
+        f"{LIBS}/pcdshub+lcls-twincat-math/lcls-twincat-math/lcls_twincat_math/"
+        "lcls_twincat_math.plcproj"],
 }
 CACHE = Path.home() / ".cache" / "plcpred-corpus"
 ST_SUFFIXES = (".st", ".iecst")
@@ -65,8 +83,10 @@ ST_SUFFIXES = (".st", ".iecst")
 
 def fetch(root: Path) -> None:
     root.mkdir(parents=True, exist_ok=True)
-    for repo, commit, _ in SOURCES:
-        dest = root / repo.replace("/", "+")
+    for repo, commit, _ in SOURCES + LIBRARY_SOURCES:
+        dest = root / (LIBS if (repo, commit, _) in LIBRARY_SOURCES else "") / repo.replace(
+            "/", "+")
+        dest.parent.mkdir(parents=True, exist_ok=True)
         if not dest.exists():
             subprocess.run(["git", "clone", "--quiet", "--filter=blob:limit=5m",
                             f"https://github.com/{repo}.git", str(dest)], check=True)
@@ -165,7 +185,8 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     if args.fetch:
         fetch(args.root)
-    projects = sorted(p for p in args.root.iterdir() if p.is_dir()) if args.root.is_dir() else []
+    projects = sorted(p for p in args.root.iterdir() if p.is_dir() and p.name != LIBS
+                      ) if args.root.is_dir() else []
     if not projects:
         print(f"no projects under {args.root}: run with --fetch, or give --root")
         return 2

@@ -230,6 +230,18 @@ def test_empty_output_bindings_and_empty_declarations():
     assert parse_st(to_st(parse_st(src, "t.st")), "t.st") == parse_st(src, "t.st")
 
 
+def test_empty_input_bindings_leave_the_input_as_it_was():
+    # TwinCAT accepts ``i := ,``: the input is not assigned by this call
+    src = ("FUNCTION_BLOCK FB_A\nVAR_INPUT\n  a : INT := 5;\n  b : INT;\nEND_VAR\n"
+           "VAR_OUTPUT\n  s : INT;\nEND_VAR\ns := a + b;\nEND_FUNCTION_BLOCK\n"
+           + body("fb : FB_A; m, k : INT;",
+                  "fb(a := , b := k);\nm := fb.s;\nfb(a := 1, b :=);\nfb(a :=, b :=\n);"
+                  "\nk := fb.s;"))
+    # scan 2: a keeps the 1 of the call before (not its initial 5), b takes k = 1
+    assert trace(src, ("M", "K"), lambda k: {}, scans=2) == [(5, 1), (2, 2)]
+    assert problems(src) == []
+
+
 def test_null_ref_to_bit_literals_partial_access_and_empty_initialisers():
     src = ("TYPE ST_X : STRUCT a : INT := 4; END_STRUCT END_TYPE\n"
            + body("p : POINTER TO INT; r : REF_TO INT; b : BOOL; s : ST_X := (); "
@@ -288,3 +300,21 @@ def test_an_iec_class_is_a_function_block_of_methods():
     assert parse_st(src, "t.st").pou("C_Twice").kind == "FUNCTION_BLOCK"
     with pytest.raises(Exception, match="statements belong in its methods"):
         parse_st("CLASS C\nVAR x : INT; END_VAR\nx := 1;\nEND_CLASS\n", "t.st")
+
+
+def test_anonymous_enumerations_in_declarations_and_values_shared_by_two_enumerations():
+    # IEC allows an enumeration written in the declaration; TwinCAT code uses it for
+    # state machines. Two enumerations may both have a value of one name: an assignment
+    # and a comparison take the one of the other side's type.
+    src = ("TYPE E_A : (WAITING, RUN); END_TYPE\nTYPE E_B : (IDLE, BUSY, WAITING); END_TYPE\n"
+           + body("eState : (WAITING, TRIGGER_WRITE, CONFIRM_WRITE);\n"
+                  "eMode : (Idle := 0, Busy := 5) := Busy;\na : E_A; b : E_B; n, m : INT;",
+                  "CASE eState OF\n  WAITING: eState := TRIGGER_WRITE; n := n + 1;\n"
+                  "  TRIGGER_WRITE: eState := CONFIRM_WRITE;\n"
+                  "  CONFIRM_WRITE: eState := WAITING;\nEND_CASE\n"
+                  "IF eMode = Busy THEN n := n + 10; END_IF\n"
+                  "b := WAITING; a := WAITING;\nIF b = WAITING THEN m := m + 1; END_IF"))
+    assert problems(src) == []
+    got = trace(src, ("ESTATE", "EMODE", "N", "A", "B", "M"), lambda k: {}, scans=4)
+    assert got == [(1, 5, 11, 0, 2, 1), (2, 5, 21, 0, 2, 2), (0, 5, 31, 0, 2, 3),
+                   (1, 5, 42, 0, 2, 4)]

@@ -207,3 +207,72 @@ END_FUNCTION_BLOCK
     # a real mistake stays an error
     f.write_text(f.read_text().replace("n := ", "nn := "))
     assert main(["check", "--allow-external", str(f)]) == 1
+
+
+def test_a_library_file_plcpred_cannot_read_leaves_the_rest_of_the_library(tmp_path, capsys):
+    lib = tmp_path / "libs" / "ShopLib"
+    write(tmp_path, "libs/ShopLib/FB_Good.st", "FUNCTION_BLOCK FB_Good\nVAR_OUTPUT q : BOOL; "
+          "END_VAR\nq := TRUE;\nEND_FUNCTION_BLOCK\n")
+    write(tmp_path, "libs/ShopLib/FB_Odd.st", "FUNCTION_BLOCK FB_Odd\nVAR n : INT; END_VAR\n"
+          "IF ((n := n + 1) = 3) THEN n := 0; END_IF\nEND_FUNCTION_BLOCK\n")
+    good = write(tmp_path, "good.st", "PROGRAM P\nVAR fb : FB_Good; b : BOOL; END_VAR\n"
+                 "fb(); b := fb.q;\nEND_PROGRAM\n")
+    odd = write(tmp_path, "odd.st", "PROGRAM P\nVAR fb : FB_Odd; END_VAR\nfb();\nEND_PROGRAM\n")
+    assert main(["check", "--lib", str(lib), str(good)]) == 0
+    capsys.readouterr()
+    assert main(["check", "--lib", str(lib), str(odd)]) == 1
+    err = capsys.readouterr().err
+    assert "unknown type 'FB_Odd'" in err
+    assert "library file plcpred could not read" in err and "FB_Odd.st:3:" in err
+
+
+def test_axis_status_set_position_and_tc2_math(tmp_path):
+    f = write(tmp_path, "m.st", """PROGRAM P
+VAR
+    ax : AXIS_REF;
+    pwr : MC_Power;
+    setPos : MC_SetPosition;
+    mv : MC_MoveAbsolute;
+    go, set, moving, standstill : BOOL;
+    state : MC_AxisStates;
+    f1, f2, c1, m1 : LREAL;
+    sev : TcEventSeverity := TcEventSeverity.Warning;
+END_VAR
+pwr(Axis := ax, Enable := TRUE);
+setPos(Axis := ax, Execute := set, Position := 40.0);
+mv(Axis := ax, Execute := go, Position := 50.0, Velocity := 10.0);
+moving := ax.Status.Moving;
+standstill := ax.Status.StandStill;
+state := ax.Status.MotionState;
+f1 := FLOOR(-1.5); f2 := Tc2_Math.FLOOR(2.0); c1 := CEIL(1.25); m1 := MODABS(-30.0, 360.0);
+END_PROGRAM
+""")
+    trace = []
+    for k, p in run_file(f, 120, lambda p, k: (setattr(p, "SET", k >= 1),
+                                               setattr(p, "GO", k >= 3))):
+        trace.append((p.AX.ACTUALPOSITION, p.MOVING, p.STANDSTILL, int(p.STATE)))
+    standstill, discrete = 2, 6        # MC_AXISSTATE_STANDSTILL, _DISCRETEMOTION
+    assert trace[0] == (0.0, False, True, standstill)
+    assert trace[1][0] == 40.0                            # set, not moved
+    # 40 -> 50 at 10/s (no ramps): 1 s after the edge at scan 3
+    assert trace[50] == (40.0, True, False, discrete)
+    assert trace[110] == (50.0, False, True, standstill)
+    assert (p.F1, p.F2, p.C1, p.M1, int(p.SEV)) == (-2.0, 2.0, 2.0, 330.0, 2)
+
+
+def test_a_variable_named_like_a_library_type_and_a_gvl_of_two_blocks(tmp_path, capsys):
+    # TcUnit: ``GetCpuCounter : GETCPUCOUNTER;`` (the variable does not declare the
+    # type) in a GVL with a second, CONSTANT block read as GVL_X.constant
+    lib = tmp_path / "libs" / "XLib"
+    write(tmp_path, "libs/XLib/GVL_X.TcGVL", """<?xml version="1.0" encoding="utf-8"?>
+<TcPlcObject Version="1.1.0.1"><GVL Name="GVL_X"><Declaration><![CDATA[VAR_GLOBAL
+  GetCpuCounter : GETCPUCOUNTER;
+END_VAR
+VAR_GLOBAL CONSTANT
+  Scale : LREAL := 1.0E-7;
+END_VAR]]></Declaration></GVL></TcPlcObject>
+""")
+    prog = write(tmp_path, "p.st", "PROGRAM P\nVAR t : LREAL; END_VAR\n"
+                 "GVL_X.GetCpuCounter();\nt := UDINT_TO_LREAL(GVL_X.GetCpuCounter.cpuCntLoDW)"
+                 " * GVL_X.Scale;\nEND_PROGRAM\n")
+    assert main(["check", "--lib", str(lib), str(prog)]) == 0, capsys.readouterr().err

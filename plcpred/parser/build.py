@@ -191,12 +191,15 @@ class IRBuilder:
         return ir.Call(ir.Name(str(op).upper(), pos=self._pos(op)), args, pos=self._pos(op))
 
     def args(self, *args):
-        return list(args)
+        # an input bound to nothing (``x := ,``, as TwinCAT accepts) is left open
+        return [a for a in args if a is not None]
 
     def pos_arg(self, value):
         return ir.Arg(None, value, pos=value.pos)
 
     def named_arg(self, name, value):
+        if value is None:
+            return None
         return ir.Arg(str(name), value, pos=self._pos(name))
 
     def out_arg(self, name, target):

@@ -59,6 +59,12 @@ class _Globals:
                         self._add_block(b)
             for p in prog.pous:
                 self.pous.setdefault(p.name.upper(), p)
+                # an anonymous enumeration in a declaration (``s : (IDLE, RUN);``)
+                for block in [*p.var_blocks, *(b for m in p.methods for b in m.var_blocks)]:
+                    for d in block.decls:
+                        if isinstance(d.type, ir.EnumType):
+                            for value, _ in d.type.values:
+                                self.enum_values.setdefault(value.upper(), d.name)
             for t in prog.types:
                 self.types.setdefault(t.name.upper(), t)
                 if isinstance(t.type, ir.EnumType):
@@ -158,6 +164,12 @@ class Checker:
             message += (f" (the project uses libraries plcpred does not have: "
                         f"{', '.join(missing)}; give their declarations with --lib, or check "
                         "with --allow-external)")
+        from .libraries import unread_library_files
+        unread = unread_library_files(self.g.programs)
+        if unread:
+            more = f" and {len(unread) - 1} more" if len(unread) > 1 else ""
+            message += (f" (a library file plcpred could not read may declare it: "
+                        f"{unread[0]}{more})")
         self.error(pos, message)
 
     def _libraries_not_at_hand(self) -> list[str]:

@@ -65,7 +65,7 @@ COMMON = r"""
 
 args: arg (_COMMA arg)* _COMMA?
 ?arg: expr -> pos_arg
-    | NAME _ASSIGN expr -> named_arg
+    | NAME _ASSIGN [expr] -> named_arg
     | NAME _OUTASSIGN [postfix] -> out_arg
     | NOT NAME _OUTASSIGN [postfix] -> neg_out_arg
 

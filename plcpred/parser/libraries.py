@@ -2,8 +2,8 @@
 what real programs use from libraries that are not in their source.
 
 plcpred ships ST stubs of the common ones under ``plcpred/libraries/`` (Beckhoff
-Tc2_System and Tc2_Utilities basics, CODESYS Util, PLCopen motion as Tc2_MC2 and
-SM3_Basic name it); the IEC standard blocks (Tc2_Standard, CODESYS Standard) are built
+Tc2_System, Tc2_Utilities and Tc2_Math basics, Tc3_EventLogger's severities, CODESYS
+Util, PLCopen motion as Tc2_MC2 and SM3_Basic name it); the IEC standard blocks (Tc2_Standard, CODESYS Standard) are built
 in. A user adds their own library declarations as ST, TwinCAT or PLCopen files or
 folders (``plcpred check --lib DIR``, ``libraries = [...]`` in the machine file).
 
@@ -34,6 +34,7 @@ class Library:
     types: dict[str, ir.TypeDecl]
     interfaces: dict[str, ir.Interface]
     globals: list[ir.GlobalVars]
+    unread: list[str] = dataclasses.field(default_factory=list)  # files left out, why
 
 
 def _library(program: ir.Program, namespace: str) -> Library:
@@ -60,15 +61,59 @@ def shipped() -> tuple[Library, ...]:
 
 def user_libraries(paths) -> list[Library]:
     """Libraries from files or folders the user names; the namespace is the file's or
-    folder's name (a .plcproj's stem)."""
-    from . import load_program
-    return [_library(load_program(Path(p), libraries=False), Path(p).stem or Path(p).name)
-            for p in paths]
+    folder's name (a .plcproj's stem). Each is read once while its files stay as they
+    are (a check of many files against one library project reads it once)."""
+    return [_user_library(Path(p).resolve(), _stamp(Path(p))) for p in paths]
+
+
+def _stamp(path: Path) -> tuple:
+    """What changes when a library's files change: their names, sizes and times."""
+    folder = path.parent if path.suffix.lower() == ".plcproj" else path
+    files = [path] if folder.is_file() else sorted(f for f in folder.rglob("*")
+                                                   if f.is_file())
+    try:
+        return tuple((str(f), f.stat().st_size, f.stat().st_mtime_ns) for f in files)
+    except OSError:
+        return ()
+
+
+@functools.lru_cache(maxsize=16)
+def _user_library(path: Path, _stamp: tuple) -> Library:
+    """One library the user names. A library project (a folder or .plcproj) is read
+    file by file when one of its files cannot be read: the rest still declares what it
+    declares, and the files left out are named where a name is missing
+    (:func:`unread_library_files`)."""
+    from . import _load, load_program
+    from .errors import ProgramError
+    from .twincat import project_files
+    namespace = path.stem or path.name
+    try:
+        return _library(load_program(path, libraries=False), namespace)
+    except ProgramError:
+        if not (path.is_dir() or path.suffix.lower() == ".plcproj"):
+            raise
+    read, unread = [], []
+    for f in project_files(path):
+        try:
+            read.append(_load(f))
+        except ProgramError as e:
+            unread.append(str(e))
+    program = functools.reduce(ir.Program.merge, read) if read else ir.Program()
+    lib = _library(program, namespace)
+    lib.unread = unread
+    return lib
 
 
 # ------------------------------------------------------------------------- references
 
 _REFERENCE = "{library-reference "
+_UNREAD = "{library-unread "
+
+
+def unread_library_files(programs) -> list[str]:
+    """Why files of the user's libraries were left out (see :func:`_user_library`)."""
+    return [p[len(_UNREAD):-1] for prog in programs for p, _ in prog.pragmas
+            if p.startswith(_UNREAD)]
 
 
 def reference_pragma(namespace: str) -> str:
@@ -142,8 +187,9 @@ def _push(stack, value, ns):
 
 # ------------------------------------------------------------------------- selection
 
-def _referenced(node) -> set[str]:
-    """Every name (upper case) a piece of IR refers to."""
+def _referenced(node) -> set[tuple[str, str]]:
+    """Every name (upper case) a piece of IR refers to, as ("T", name) where only a type
+    (a POU, TYPE or interface) can answer it and ("V", name) where a variable can too."""
     names, stack = set(), [node]
     while stack:
         n = stack.pop()
@@ -155,27 +201,30 @@ def _referenced(node) -> set[str]:
             continue
         if not dataclasses.is_dataclass(n):
             continue
-        if isinstance(n, (ir.Name, ir.NamedType)):
-            names.add(n.name.upper())
+        if isinstance(n, ir.NamedType):
+            names.add(("T", n.name.upper()))
+        elif isinstance(n, ir.Name):
+            names.add(("V", n.name.upper()))
         elif isinstance(n, ir.Pou):
-            names.update(x.upper() for x in [n.extends or ""] + n.implements if x)
+            names.update(("T", x.upper()) for x in [n.extends or ""] + n.implements if x)
         elif isinstance(n, ir.Interface):
-            names.update(x.upper() for x in n.extends)
+            names.update(("T", x.upper()) for x in n.extends)
         for f in dataclasses.fields(n):
             stack.append(getattr(n, f.name))
     return names
 
 
-def _defined(programs) -> set[str]:
+def _defined(programs) -> set[tuple[str, str]]:
+    """What ``programs`` declare, in the terms of :func:`_referenced`: a variable named
+    like a type (``GetCpuCounter : GETCPUCOUNTER``) does not declare the type."""
     out = set()
     for p in programs:
-        out.update(x.name.upper() for x in p.pous)
-        out.update(x.name.upper() for x in p.types)
-        out.update(x.name.upper() for x in p.interfaces)
+        for x in [*p.pous, *p.types, *p.interfaces]:
+            out.update({("T", x.name.upper()), ("V", x.name.upper())})
         for g in p.globals:
-            out.update(d.name.upper() for d in g.block.decls)
+            out.update(("V", d.name.upper()) for d in g.block.decls)
             if g.name:
-                out.add(g.name.upper())
+                out.add(("V", g.name.upper()))
     return out
 
 
@@ -187,21 +236,26 @@ def library_program(programs: list[ir.Program], paths=()) -> ir.Program:
     for p in programs:
         strip_namespaces(p, namespaces)
     out = ir.Program(source="<libraries>")
+    out.pragmas += [(f"{_UNREAD}{why}}}", ir.Pos("<libraries>", 0, 0))
+                    for lib in libs for why in lib.unread]
     have = _defined(programs)
     wanted = set().union(*(_referenced(p) for p in programs)) - have
     while wanted:
-        name = wanted.pop()
+        kind, name = wanted.pop()
         for lib in libs:
             found = lib.pous.get(name) or lib.types.get(name) or lib.interfaces.get(name)
-            gvl = None if found else next(
+            gvl = None if found or kind == "T" else next(
                 (g for g in lib.globals if name in {d.name.upper() for d in g.block.decls}
                  or (g.name or "").upper() == name), None)
             if found is None and gvl is None:
                 continue
-            item = found or gvl
-            out.add(item)
+            # a named GVL comes whole (all its VAR_GLOBAL blocks: it is one object)
+            items = [found] if found else [g for g in lib.globals if g is gvl or (
+                gvl.name and (g.name or "").upper() == gvl.name.upper())]
+            for item in items:
+                out.add(item)
             new = _defined([out]) | have
-            wanted |= _referenced(item) - new
+            wanted |= _referenced(items) - new
             have = new
             break
     return out

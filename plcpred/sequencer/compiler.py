@@ -81,6 +81,15 @@ def _err(node, message: str) -> CompileError:
     return CompileError(e.message, e.file, e.line, e.col)
 
 
+def _target_enum(compiler, target, scope):
+    """The enumeration type of an assignment's target, if it has one (else None)."""
+    try:
+        t = compiler._expr(target, scope)[1]
+    except CompileError:
+        return None
+    return t if isinstance(t, EnumT) else None
+
+
 @dataclass
 class Scope:
     """Names visible in one body: UPPER name -> (Python code, type)."""
@@ -828,7 +837,11 @@ class Compiler:
                 code, t = self._ref_of(s.value, scope)
                 self._store(s.target, code, None, scope, ind, pos, raw=True)
             elif s.op in (":=", "S=", "R="):
-                code, t = self._expr(s.value, scope)
+                expect = None
+                if isinstance(s.value, ir.Name) and s.op == ":=":
+                    # an enumeration value named by several enumerations is the target's
+                    expect = _target_enum(self, s.target, scope)
+                code, t = self._expr(s.value, scope, expect)
                 if s.op == "S=":
                     e(ind, f"if {code}:", pos)
                     self._store(s.target, "True", BOOL, scope, ind + 1, pos)
