@@ -276,3 +276,20 @@ END_VAR]]></Declaration></GVL></TcPlcObject>
                  "GVL_X.GetCpuCounter();\nt := UDINT_TO_LREAL(GVL_X.GetCpuCounter.cpuCntLoDW)"
                  " * GVL_X.Scale;\nEND_PROGRAM\n")
     assert main(["check", "--lib", str(lib), str(prog)]) == 0, capsys.readouterr().err
+
+
+def test_rtc_runs_on_from_its_preset_and_a_library_enumeration_named_by_value(tmp_path):
+    f = write(tmp_path, "r.st", """PROGRAM P
+VAR r : RTC; go, q : BOOL; now : DT; l : LOGGER; END_VAR
+r(IN := go, PDT := DT#2026-11-24-08:00:00, Q => q, CDT => now);
+l(TRIG := go, MSG := 'tick', LEVEL := DEBUG);
+END_PROGRAM
+""")
+    t0 = None
+    got = []
+    for k, p in run_file(f, 5, lambda p, k: setattr(p, "GO", k >= 1), scan_ms=500):
+        t0 = t0 or p.NOW
+        got.append((p.Q, p.NOW - t0))
+    # the preset holds until IN rises at scan 1, then the clock runs on 0.5 s a scan
+    assert got == [(False, 0), (True, 0), (True, 500 * MS), (True, 1000 * MS),
+                   (True, 1500 * MS)]

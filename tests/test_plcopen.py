@@ -383,19 +383,24 @@ def test_fbd_network_with_feedback_instances_and_operators_runs_as_its_st_equiva
             + block(13, "GT", 150, [("IN1", _in(5), False), ("IN2", _in(12), False)])
             + out_var(14, "big", 150, _in(13, "OUT"))
             + block(15, "AND", 180, [("IN1", _in(8), False), ("IN2", _in(1), True)])
-            + out_var(16, "both", 180, _in(15)))
+            + out_var(16, "both", 180, _in(15))
+            # a block's ENO is its EN (plcpred's blocks do not fail)
+            + block(17, "MOVE", 200, [("EN", _in(15), False), ("IN", _in(5), False)],
+                    outputs=("ENO", "OUT"))
+            + out_var(18, "ran", 200, _in(17, "ENO")))
     variables = [("reset", "<BOOL/>"), ("a", "<BOOL/>"), ("late", "<BOOL/>"),
-                 ("big", "<BOOL/>"), ("both", "<BOOL/>"), ("cnt", "<INT/>"),
+                 ("big", "<BOOL/>"), ("both", "<BOOL/>"), ("ran", "<BOOL/>"), ("cnt", "<INT/>"),
                  ("out", "<INT/>"), ("t1", '<derived name="TON"/>')]
     xml = graphical_pou("FBD", body, variables)
-    st = """PROGRAM G VAR reset, a, late, big, both : BOOL; cnt, out : INT; t1 : TON; END_VAR
+    st = """PROGRAM G VAR reset, a, late, big, both, ran : BOOL; cnt, out : INT; t1 : TON; END_VAR
     cnt := SEL(G := reset, IN0 := cnt + 1, IN1 := 0);
     out := cnt;
     t1(IN := a, PT := T#30ms); late := t1.Q;
     big := cnt > 3;
     both := a AND NOT reset;
+    ran := both;
     END_PROGRAM"""
-    graphical, text = _same_run(xml, st, ["cnt", "out", "late", "big", "both"],
+    graphical, text = _same_run(xml, st, ["cnt", "out", "late", "big", "both", "ran"],
                                 ["reset", "a"])
     assert graphical == text
     assert max(row[0] for row in graphical) > 3 and any(row[2] for row in graphical)
@@ -459,3 +464,31 @@ def test_a_machine_programmed_in_ladder_logic_predicts(samples_dir):
     assert blast.duration_s.tolist() == pytest.approx([0.3] * 15, abs=1e-9)
     assert (blast.start_s.to_numpy() == eject.end_s.to_numpy()).all()
     assert timeline.intervals("jammed").empty
+
+
+def test_a_timer_drawn_in_the_chart_times_its_transition():
+    # Beremiz's traffic light: a TON drawn in the SFC, fed by a step flag, is the
+    # condition of the transition out of that step; it runs every scan of the chart
+    xml = project(pous=(
+        '<pou name="S" pouType="program"><interface><localVars>'
+        '<variable name="t"><type><derived name="TON"/></type></variable>'
+        '<variable name="inB"><type><BOOL/></type></variable></localVars></interface>'
+        '<body><SFC><step localId="1" name="A" initialStep="true"/>'
+        + in_var(10, "A.X", 0) + in_var(11, "T#50ms", 20)
+        + block(12, "TON", 0, [("IN", _in(10), False), ("PT", _in(11), False)],
+                outputs=("Q", "ET"), instance="t")
+        + f'<transition localId="2">{conn(1)}<condition>{_cpi(_in(12, "Q"))}</condition>'
+          '</transition>'
+        f'<step localId="3" name="B">{conn(2)}</step>'
+        f'<actionBlock localId="4">{conn(3)}<action localId="0" qualifier="N">'
+        '<reference name="inB"/></action></actionBlock>'
+        '</SFC></body></pou>'))
+    from plcpred.sequencer.executor import ProgramInstance
+    inst = ProgramInstance(parse_plcopen(xml, "s.xml"))
+    first_in_b = None
+    for k in range(12):
+        inst.scan(k * 10_000_000)
+        if inst.programs[0].INB and first_in_b is None:
+            first_in_b = k
+    # the timer runs from scan 0 (A active): Q at 50 ms, B active from the scan after
+    assert first_in_b in (5, 6)

@@ -233,6 +233,15 @@ class Network:
         raise GraphError(el, f"a {tag} element does not give a value")
 
     def _block_value(self, el, pin, pos):
+        if pin is not None and pin.upper() == "ENO":
+            # ENO is TRUE when the block ran (EN TRUE or open): plcpred's blocks do not
+            # fail, so it is the block's EN
+            if el.attrib.get("instanceName"):
+                self._emit(el)
+            en = next((v for v in self._pins(el, "inputVariables")
+                       if v.attrib.get("formalParameter", "").upper() == "EN"
+                       and self._connections(v, required=False)), None)
+            return self._input(en) if en is not None else ir.Literal(True, "BOOL", pos=pos)
         outputs = self._pins(el, "outputVariables")
         if not outputs:
             raise GraphError(el, f"block {el.attrib.get('typeName')!r} has no output")

@@ -152,6 +152,7 @@ class _Importer:
         self.file = filename
         self._hidden: list[ir.VarDecl] = []   # edge instances the POU's networks need
         self._taken: set[str] = set()          # names declared in the POU being read
+        self._chart_networks: dict[int, Network] = {}   # an SFC's drawn conditions
 
     def error(self, el: _El, message: str) -> ProgramError:
         return ProgramError(message, self.file, el.line, el.col)
@@ -335,14 +336,26 @@ class _Importer:
         return Network(elements, expr, lambda el: ir.Pos(self.file, el.line, el.col),
                        self._hidden_instance)
 
-    def _hidden_instance(self, type_name: str) -> str:
-        """Declare an edge-detecting instance a network needs, under a name the POU does
-        not use."""
-        n = len(self._hidden) + 1
-        while f"_NETWORK_{type_name}_{n}" in self._taken:
+    def chart_network(self, sfc_el: _El) -> Network:
+        """The graphical elements drawn in an SFC (one network for all its conditions,
+        so that a block two conditions read runs once)."""
+        net = self._chart_networks.get(id(sfc_el))
+        if net is None:
+            net = self._chart_networks[id(sfc_el)] = self.network(sfc_el.children)
+        return net
+
+    def _hidden_name(self, kind: str) -> str:
+        """A name the POU being read does not use, for what a network needs."""
+        n = 1
+        while f"_NETWORK_{kind}_{n}" in self._taken:
             n += 1
-        name = f"_NETWORK_{type_name}_{n}"
+        name = f"_NETWORK_{kind}_{n}"
         self._taken.add(name)
+        return name
+
+    def _hidden_instance(self, type_name: str) -> str:
+        """Declare an edge-detecting instance a network needs."""
+        name = self._hidden_name(type_name)
         self._hidden.append(ir.VarDecl(name, ir.NamedType(type_name)))
         return name
 
@@ -357,7 +370,8 @@ class _Importer:
         if iface is not None and iface.find("returnType") is not None:
             ret = self.type_of(iface.find("returnType"), iface)
         self._hidden = []
-        self._taken = {v.attrib.get("name", "").upper() for v in el.iter("variable")}
+        self._taken = {v.attrib.get("name", "").upper()
+                       for tag in ("variable", "action", "transition") for v in el.iter(tag)}
         actions = []
         acts = el.find("actions")
         for a in acts.findall("action") if acts is not None else []:
@@ -463,6 +477,15 @@ class _Importer:
                 step = step_of_id[owners[0]]
                 for n, a in enumerate(el.findall("action")):
                     step.actions.append(self.action_assoc(a, step, n, extra_actions))
+        net = self._chart_networks.pop(id(sfc_el), None)
+        if net is not None and net.stmts:
+            # the blocks the chart's drawn conditions use: an action every step runs
+            # (so once in every scan of the chart)
+            name = self._hidden_name("ACTION")
+            pos = ir.Pos(self.file, sfc_el.line, sfc_el.col)
+            extra_actions.append(ir.SfcAction(name, net.stmts, pos=pos))
+            for step in steps:
+                step.actions.insert(0, ir.ActionAssoc(name, "N", pos=pos))
         # selection divergence: a transition's order among those leaving the same step
         by_source: dict[tuple, list[ir.Transition]] = {}
         for t in transitions:
@@ -502,16 +525,14 @@ class _Importer:
                     return assigns[0].value
                 return self.st_expr(st)
             if c.tag == "connectionPointIn":
-                # Beremiz: the condition is drawn in the SFC itself (contacts, a variable)
-                net = self.network(sfc_el.children)
+                # Beremiz: the condition is drawn in the SFC itself (contacts, blocks);
+                # what its blocks must run (timers, edges) runs in every scan of the
+                # chart, before the condition is read (see sfc())
+                net = self.chart_network(sfc_el)
                 try:
-                    value = net._input(cond)
+                    return net._input(cond)
                 except GraphError as e:
                     raise self.error(e.el, f"transition condition: {e.message}") from None
-                if net.stmts:
-                    raise self.error(cond, "a transition condition drawn with function "
-                                           "blocks or edges cannot be converted")
-                return value
         raise self.error(cond, "transition condition in a form plcpred does not read "
                                "(expected inline, referenced or connected)")
 

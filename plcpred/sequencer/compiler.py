@@ -1236,7 +1236,7 @@ class Compiler:
             raise _err(x, f"step {x.name} used as a value: use {x.name}.X or {x.name}.T")
         if isinstance(expect, EnumT) and key in expect.values:
             return str(expect.values[key]), expect
-        cands = self.types.enum_values.get(key)
+        cands = self.types.enum_candidates(key)
         if cands:
             t, v = cands[0]
             return str(v), t

@@ -231,6 +231,18 @@ class TypeTable:
         self.fbs: dict[str, FbT] = {}
         self.enum_values: dict[str, list[tuple[EnumT, int]]] = {}
         self.constants: dict[str, int] = {}  # integer constants for array bounds
+        self._every_enum = False
+
+    def enum_candidates(self, key: str):
+        """(type, number) of each enumeration with a value ``key``; enumerations no
+        declaration has used yet are resolved the first time a value is not found (a
+        library's LOGLEVEL is named by its values before anything declares one)."""
+        if key not in self.enum_values and not self._every_enum:
+            self._every_enum = True
+            for up, decl in self.decls.items():
+                if isinstance(decl.type, ir.EnumType) and up not in self.resolved:
+                    self.named(decl.name, decl.pos)
+        return self.enum_values.get(key)
 
     def named(self, name: str, pos=None):
         up = name.upper()
