@@ -137,3 +137,14 @@ def test_samples_check_clean(samples_dir):
     for path in sorted(samples_dir.rglob("*.st")):
         errors, _ = check_program(load_program(path))
         assert errors == [], (path, [str(e) for e in errors])
+
+
+def test_a_constant_read_only_in_a_declaration_is_used():
+    from plcpred.parser import parse_st
+    from plcpred.parser.check import check_program
+    prog = parse_st("PROGRAM P\nVAR\n  a : ARRAY[1..N] OF INT;\n  s : STRING(L);\nEND_VAR\n"
+                    "VAR CONSTANT\n  N : INT := 3;\n  L : INT := 8;\n  unused : INT := 1;\n"
+                    "END_VAR\na[3] := 5; s := 'x';\nEND_PROGRAM\n", "t.st")
+    errors, warnings = check_program(prog)
+    assert errors == []
+    assert [w.message for w in warnings] == ["variable 'unused' is declared but never used"]

@@ -293,3 +293,17 @@ END_PROGRAM
     # the preset holds until IN rises at scan 1, then the clock runs on 0.5 s a scan
     assert got == [(False, 0), (True, 0), (True, 500 * MS), (True, 1000 * MS),
                    (True, 1500 * MS)]
+
+
+def test_char_codes_to_lower_case_and_codesys_type_classes(tmp_path):
+    f = write(tmp_path, "c.st", """PROGRAM P
+VAR s : STRING; b : BYTE; c : STRING(1); t : TypeClass; u : __SYSTEM.TYPE_CLASS; END_VAR
+s := F_ToLCase('AbC-Z9');
+b := CHAR_TO_BYTE(STRING_TO_CHAR('A'));
+c := CHAR_TO_STRING(BYTE_TO_CHAR(b + 1));
+t := IBaseLibrary.TypeClass.TYPE_LREAL;
+u := TYPE_CLASS.TYPE_INT;
+END_PROGRAM
+""")
+    (_, p), = run_file(f, 1)
+    assert (p.S, p.B, p.C, int(p.T), int(p.U)) == ("abc-z9", 65, "B", 15, 7)

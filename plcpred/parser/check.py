@@ -299,6 +299,11 @@ class Checker:
                                    pou, scope, extra, usage, own_name=prop.name)
         # warnings
         own = {d.name.upper(): (d, b.kind) for b in pou.var_blocks for d in b.decls}
+        # a constant read in a declaration (an array bound, a string length, an
+        # initial value) is used
+        from .libraries import referenced_names
+        usage.read |= {n for kind, n in referenced_names(
+            [(d.type, d.init) for d, _ in own.values()]) if kind == "V"}
         for key, (d, kind) in own.items():
             is_output = kind == "VAR_OUTPUT" or (d.address or "").startswith("%Q")
             if is_output and key not in usage.written:

@@ -187,7 +187,7 @@ def _push(stack, value, ns):
 
 # ------------------------------------------------------------------------- selection
 
-def _referenced(node) -> set[tuple[str, str]]:
+def referenced_names(node) -> set[tuple[str, str]]:
     """Every name (upper case) a piece of IR refers to, as ("T", name) where only a type
     (a POU, TYPE or interface) can answer it and ("V", name) where a variable can too."""
     names, stack = set(), [node]
@@ -215,7 +215,7 @@ def _referenced(node) -> set[tuple[str, str]]:
 
 
 def _defined(programs) -> set[tuple[str, str]]:
-    """What ``programs`` declare, in the terms of :func:`_referenced`: a variable named
+    """What ``programs`` declare, in the terms of :func:`referenced_names`: a variable named
     like a type (``GetCpuCounter : GETCPUCOUNTER``) does not declare the type."""
     out = set()
     for p in programs:
@@ -239,7 +239,7 @@ def library_program(programs: list[ir.Program], paths=()) -> ir.Program:
     out.pragmas += [(f"{_UNREAD}{why}}}", ir.Pos("<libraries>", 0, 0))
                     for lib in libs for why in lib.unread]
     have = _defined(programs)
-    wanted = set().union(*(_referenced(p) for p in programs)) - have
+    wanted = set().union(*(referenced_names(p) for p in programs)) - have
     while wanted:
         kind, name = wanted.pop()
         for lib in libs:
@@ -255,7 +255,7 @@ def library_program(programs: list[ir.Program], paths=()) -> ir.Program:
             for item in items:
                 out.add(item)
             new = _defined([out]) | have
-            wanted |= _referenced(items) - new
+            wanted |= referenced_names(items) - new
             have = new
             break
     return out

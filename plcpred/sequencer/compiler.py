@@ -1528,6 +1528,8 @@ class Compiler:
                 raise _err(call, f"unknown conversion {key}")
             src = ts[0].cat if ts[0].cat in ("bool", "int", "real", "time", "string") else (
                 "time" if ts[0].cat == "date" else "int")
+            if getattr(ts[0], "name", "") in ("CHAR", "WCHAR") and t.cat == "int":
+                src = "char"          # a character's code, not its text read as a number
             if t.cat == "int":
                 return f"_to_int({codes[0]}, {t.bits}, {t.signed}, {src!r})", t
             if t.cat == "real":
@@ -1536,6 +1538,8 @@ class Compiler:
                 return f"_to_time({codes[0]}, {src!r})", t
             if t.cat == "bool":
                 return f"_to_bool({codes[0]}, {src!r})", BOOL
+            if dst in ("CHAR", "WCHAR"):
+                return f"_to_string({codes[0]}, {src!r}, True)", t
             return f"_to_string({codes[0]}, {src!r})", STRING
         if key in ("MIN", "MAX"):
             need(1)

@@ -238,6 +238,8 @@ def to_int(value, bits: int, signed: bool, source: str):
         value = int(value) // 1_000_000  # TIME counts milliseconds when converted
     elif source == "string":
         value = int(str(value).strip() or 0)
+    elif source == "char":        # CHAR_TO_BYTE: the character's code
+        value = ord(value[0]) if value else 0
     return wrap(int(value), bits, signed)
 
 
@@ -263,7 +265,10 @@ def to_bool(value, source: str) -> bool:
     return value != 0
 
 
-def to_string(value, source: str) -> str:
+def to_string(value, source: str, char: bool = False) -> str:
+    """``value`` as text; with ``char``, an integer is a character code (BYTE_TO_CHAR)."""
+    if char and source == "int":
+        return chr(int(value) & 0xFFFF)
     if source == "bool":
         return "TRUE" if value else "FALSE"
     if source == "time":
