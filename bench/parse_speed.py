@@ -2,9 +2,15 @@
 
 Prints lines per second for tokenizing alone, parsing (tokenize + LALR + IR build) and the
 semantic check, and the ratio of full parsing to tokenizing measured in the same process.
-Target (issue 2): at least 20,000 lines/s for parsing.
+Target: at least 20,000 lines/s for parsing.
 
-    python bench/parse_speed.py [--lines N] [--repeat R]
+With ``--blark N`` (blark installed: ``pip install blark``) it also parses the first N lines'
+worth of the program with blark, a lark-based IEC 61131-3 parser, and with plcpred, in the
+same process, and prints the ratio of their times (target: plcpred at least 100x faster).
+The program written for this comparison says ``EXPT(x, 2)`` where the main one says
+``x ** 2``, which blark does not read.
+
+    python bench/parse_speed.py [--lines N] [--repeat R] [--blark N]
 """
 from __future__ import annotations
 
@@ -93,6 +99,9 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--lines", type=int, default=20_000)
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--blark", type=int, default=0, metavar="N",
+                    help="also compare with blark on an N-line program (blark takes about "
+                         "15 s per 1,000 lines)")
     args = ap.parse_args(argv)
     src = generate(args.lines)
     n_lines = src.count("\n")
@@ -110,6 +119,32 @@ def main(argv=None):
     print(f"parse / tokenize time ratio: {t_parse / t_lex:.2f}")
     print(f"target 20,000 lines/s: {'met' if n_lines / t_parse >= 20_000 else 'NOT met'} "
           f"({n_lines / t_parse / 20_000:.2f}x)")
+    if args.blark:
+        compare_with_blark(args.blark)
+
+
+def compare_with_blark(lines: int) -> None:
+    try:
+        from blark.parse import get_parser, parse_source_code
+    except ImportError:
+        print("blark is not installed (pip install blark): no comparison")
+        return
+    src = generate(lines).replace("DINT_TO_REAL(nCount) ** 2", "EXPT(DINT_TO_REAL(nCount), 2)")
+    n_lines = src.count("\n")
+    get_parser()                      # blark's grammar, built outside the timing
+    t0 = time.perf_counter()
+    result = parse_source_code(src)
+    t_blark = time.perf_counter() - t0
+    if result.exception is not None:
+        print(f"blark did not read the program: {result.exception}")
+        return
+    t_ours = best_of(lambda: parse_st(src, "bench.st"), 3)
+    print(f"blark         : {n_lines / t_blark:10,.0f} lines/s  ({t_blark * 1e3:7.1f} ms, "
+          f"{n_lines} lines)")
+    print(f"plcpred       : {n_lines / t_ours:10,.0f} lines/s  ({t_ours * 1e3:7.1f} ms)")
+    ratio = t_blark / t_ours
+    print(f"plcpred / blark speed: {ratio:.0f}x (target >= 100x: "
+          f"{'met' if ratio >= 100 else 'NOT met'})")
 
 
 if __name__ == "__main__":
