@@ -2,7 +2,7 @@
 read as its vendor reads it (one test per construct, not per file)."""
 import pytest
 
-from plcpred.parser import parse_st
+from plcpred.parser import ir, parse_st
 from plcpred.parser.check import check_program
 from plcpred.sequencer import CompileError
 from plcpred.sequencer.executor import ProgramInstance
@@ -318,3 +318,15 @@ def test_anonymous_enumerations_in_declarations_and_values_shared_by_two_enumera
     got = trace(src, ("ESTATE", "EMODE", "N", "A", "B", "M"), lambda k: {}, scans=4)
     assert got == [(1, 5, 11, 0, 2, 1), (2, 5, 21, 0, 2, 2), (0, 5, 31, 0, 2, 3),
                    (1, 5, 42, 0, 2, 4)]
+
+
+def test_fb_init_arguments_on_an_array_of_function_blocks():
+    src = ("FUNCTION_BLOCK FB_V\nVAR_OUTPUT q : INT; END_VAR\nq := q + 1;\n"
+           "END_FUNCTION_BLOCK\n"
+           + body("v : ARRAY[1..3] OF FB_V(SIZEOF(INT), 0); n : INT;", "v[2](); n := v[2].q;"))
+    decl = next(d for d in parse_st(src, "t.st").pou("P").decls() if d.name == "v")
+    assert isinstance(decl.type, ir.ArrayType) and len(decl.init_args) == 2
+    assert problems(src) == []
+    assert trace(src, ("N",), lambda k: {}, scans=2) == [(1,), (2,)]
+    from plcpred.parser.printer import to_st
+    assert parse_st(to_st(parse_st(src, "t.st")), "t.st") == parse_st(src, "t.st")

@@ -345,7 +345,11 @@ class IRBuilder:
         return ir.StringType(tok.type == "WSTRING", length, pos=self._pos(tok))
 
     def array_type(self, *parts):
-        return ir.ArrayType(list(parts[:-1]), self._plain(parts[-1]))
+        element = parts[-1]
+        if isinstance(element, _FbInit):
+            # ``ARRAY[1..3] OF FB_T(5)``: every element gets the FB_init arguments
+            return _FbInit(ir.ArrayType(list(parts[:-1]), element.type), element.args)
+        return ir.ArrayType(list(parts[:-1]), element)
 
     def array_dim(self, low, high):
         return (low, high)
