@@ -467,6 +467,21 @@ def build_parser() -> argparse.ArgumentParser:
                         "are built in")
     p.set_defaults(func=cmd_check)
 
+    p = sub.add_parser("init", help="write a machine file to start from, from a program's I/O",
+                       description="Write a commented machine file for a program: its "
+                                   "name, program and task interval filled in, every input "
+                                   "as an [[input]] and every BOOL output as a [[consumer]] "
+                                   "to uncomment and complete. The file loads as it is "
+                                   "(the program alone, nothing scheduled). Without --out "
+                                   "it is printed.")
+    p.add_argument("program", metavar="PROGRAM",
+                   help="the program (.st, .seq, PLCopen .xml, TwinCAT file, .plcproj or "
+                        "folder)")
+    p.add_argument("--out", "-o", metavar="MACHINE.toml",
+                   help="write the machine file here (the program is named relative to it)")
+    p.add_argument("--force", action="store_true", help="overwrite --out if it exists")
+    p.set_defaults(func=cmd_init)
+
     p = sub.add_parser("timeline", help="run a machine's program into output-bit timelines",
                        description="Run the machine's PLC program against its plant I/O "
                                    "model (cylinder end switches, input schedules) over a "
@@ -662,6 +677,40 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write MACHINE with the identified C, b, m, a in CONSUMER")
     p.set_defaults(func=cmd_identify)
     return ap
+
+
+def cmd_init(args) -> int:
+    from pathlib import Path
+
+    from .init import machine_skeleton
+    from .output import OutputError, atomic_write_text
+    from .parser import ProgramError, load_program
+
+    out = Path(args.out) if args.out else None
+    if out is not None and out.exists() and not args.force:
+        print(f"plcpred init: {out} exists; give --force to overwrite it", file=sys.stderr)
+        return 2
+    if out is not None and out.suffix.lower() != ".toml":
+        print(f"plcpred init: {out}: a machine file ends in .toml", file=sys.stderr)
+        return 2
+    try:
+        program = load_program(args.program)
+    except ProgramError as e:
+        for err in [e, *getattr(e, "more", ())]:
+            print(err, file=sys.stderr)
+        return 1
+    text = machine_skeleton(program, Path(args.program), out)
+    if out is None:
+        print(text, end="")
+        return 0
+    try:
+        atomic_write_text(out, text)
+    except (OSError, OutputError) as e:
+        print(f"plcpred init: cannot write {out}: {e}", file=sys.stderr)
+        return 2
+    print(f"wrote {out}: fill in its inputs and consumers, then "
+          f"plcpred predict {out} --horizon 60s --out out/")
+    return 0
 
 
 def cmd_identify(args) -> int:

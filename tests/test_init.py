@@ -1,0 +1,55 @@
+"""``plcpred init``: a machine file to start from, written from a program's I/O."""
+import re
+
+from plcpred.cli import main
+from plcpred.machine import load_machine
+
+
+def test_init_writes_a_machine_file_that_loads_and_lists_the_io(samples_dir, tmp_path, capsys):
+    out = tmp_path / "machines" / "rig.toml"
+    out.parent.mkdir()
+    program = samples_dir / "prototype_rig" / "rig.st"
+    assert main(["init", str(program), "--out", str(out)]) == 0
+    text = out.read_text()
+    machine = load_machine(out)                      # loads as it is
+    assert machine.program_path.resolve() == program.resolve()
+    assert machine.scan_ms == 10 and machine.consumers == []
+    # every located output is a consumer to fill in, every located input a schedule
+    for name in re.findall(r"(\w+)\s+AT\s+%Q", program.read_text()):
+        assert f'# valve = "{name}"' in text
+    for name in re.findall(r"(\w+)\s+AT\s+%I", program.read_text()):
+        assert f'# signal = "{name}"' in text
+    assert "A_EXT at %IX0.3  (an end switch?" in text
+
+
+def test_a_consumer_block_uncommented_is_a_valid_consumer(samples_dir, tmp_path, capsys):
+    out = tmp_path / "rig.toml"
+    assert main(["init", str(samples_dir / "prototype_rig" / "rig.st"), "-o", str(out)]) == 0
+    text = out.read_text()
+    start = text.index("# [[consumer]]")
+    block = text[start:text.index("\n\n", start)].splitlines()
+    uncommented = "\n".join(line[2:] for line in block if not line.startswith("#   ("))
+    out.write_text(text + "\n" + uncommented.replace('"..."', '"A_RET"', 1)
+                   .replace('"..."', '"A_EXT"', 1) + "\n")
+    machine = load_machine(out)
+    (c,) = machine.consumers
+    assert (c.kind, c.bore_mm, c.stroke_mm) == ("double_acting", 32, 100)
+    assert main(["predict", str(out), "--horizon", "5s", "--out", str(tmp_path / "p"),
+                 "--no-plot"]) == 0
+
+
+def test_init_prints_without_out_and_refuses_to_overwrite(samples_dir, tmp_path, capsys):
+    program = samples_dir / "twincat_project"
+    assert main(["init", str(program)]) == 0
+    printed = capsys.readouterr().out
+    assert 'name = "MAIN"' in printed and "twincat_project/" in printed
+    out = tmp_path / "m.toml"
+    out.write_text("keep me")
+    assert main(["init", str(program), "-o", str(out)]) == 2
+    assert "--force" in capsys.readouterr().err and out.read_text() == "keep me"
+    assert main(["init", str(program), "-o", str(out), "--force"]) == 0
+    assert main(["init", str(program), "-o", str(tmp_path / "m.txt")]) == 2
+    bad = tmp_path / "bad.st"
+    bad.write_text("PROGRAM P\nVAR x : INT; END_VAR\nx := ;\nEND_PROGRAM\n")
+    assert main(["init", str(bad)]) == 1
+    assert f"{bad}:3:6:" in capsys.readouterr().err
