@@ -11,6 +11,7 @@ import numpy as np
 from .output import SHOWN_CONSUMERS
 
 MAX_POINTS = 3000
+MAX_CYCLES_DRAWN = 150    # more cycles than this on a time axis are drawn per bin
 
 
 def _bin_width(n: int) -> int:
@@ -32,6 +33,18 @@ def _bins(values, k: int, reduce=np.mean):
         return head
     tail = reduce(values[..., m:], axis=-1)[..., None]
     return np.concatenate([head, tail], axis=-1)
+
+
+def _whole_periods(k: int, period_s: float | None, dt_s: float, n_cells: int) -> int:
+    """Cells per plotted bin for a repeating machine: whole periods when the horizon
+    holds too many cycles to draw one by one (bins that cut cycles in drifting places
+    draw a moire of stripes; bins of whole cycles all average the same air), else ``k``."""
+    if not period_s:
+        return k
+    per = max(1, int(round(period_s / dt_s)))
+    if n_cells / per <= MAX_CYCLES_DRAWN:
+        return k
+    return max(1, int(np.ceil(k / per))) * per
 
 
 def _time_axis(horizon_s: float) -> tuple[float, str]:
@@ -63,7 +76,8 @@ def plot_demand(profile, path, title="Air demand", shown: int | None = SHOWN_CON
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    k = _bin_width(profile.n_cells)
+    k = _whole_periods(_bin_width(profile.n_cells), getattr(profile, "period_s", None),
+                       profile.dt_s, profile.n_cells)
     # each layer's air integrated straight onto the plot's bins (exact, as the grid is)
     bin_edges = profile.edges_s[::k]
     if bin_edges[-1] < profile.edges_s[-1]:
@@ -156,8 +170,26 @@ def _save_fig(fig, path) -> None:
             os.unlink(tmp)
 
 
+def _cycle_window(profile, sizing) -> tuple[float, float, str]:
+    """(start s, end s, label) of the stretch the sizing plot shows at full resolution:
+    the last whole steady cycle where the machine has one (a steady cycle is like every
+    other), or the first minute."""
+    if sizing.cycle_s:
+        c = float(sizing.cycle_s)
+        n = int(profile.horizon_s // c)
+        if n >= 1:
+            start = min(max(0.0, (n - 1) * c), profile.horizon_s - c)
+            return start, start + c, f"one steady cycle ({c:.3g} s, {sizing.cycle_source})"
+    end = min(profile.horizon_s, 60.0)
+    return 0.0, end, f"the first {end:g} s"
+
+
 def plot_sizing(profile, sizing, path, title="Sizing") -> None:
-    """Total demand against the mean and the design flow, and the receiver's deficit."""
+    """Four views of the total demand against the mean and the design flow: one cycle at
+    the grid's full resolution, stacked by consumer (leaks as the base layer); the
+    load-duration curve (the flow exceeded for a share of the time); the trend over the
+    horizon as min, mean and max per bin (a long horizon is not drawn cell by cell); the
+    receiver's deficit over the design flow."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -166,46 +198,130 @@ def plot_sizing(profile, sizing, path, title="Sizing") -> None:
 
     total = profile.total_flow_l_min
     _, _, deficit = receiver_deficit(total, profile.dt_s, sizing.design_flow_l_min)
-    k = _bin_width(len(total))
+    # trend bins of whole cycles where there is one: a bin then never cuts a cycle in a
+    # different place from its neighbour (the moire a long horizon otherwise shows)
+    k = _whole_periods(_bin_width(len(total)), sizing.cycle_s, profile.dt_s, len(total))
     mean_b, max_b = _bins(total, k), _bins(total, k, np.max)
-    def_b = _bins(deficit, k, np.max)
+    min_b, def_b = _bins(total, k, np.min), _bins(deficit, k, np.max)
     tb = np.arange(len(mean_b)) * profile.dt_s * k
     scale, unit = _time_axis(profile.horizon_s)
-    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(11, 7), dpi=100, sharex=True,
-                                  gridspec_kw={"height_ratios": [3, 2]})
-    if k > 1:
-        ax.fill_between(tb * scale, 0, max_b, step="post", color="#9ecae1",
-                        label=f"demand, max per {profile.dt_s * k:g} s")
-    ax.step(tb * scale, mean_b, where="post", color="#3182bd", lw=0.9,
-            label="demand" if k == 1 else f"demand, mean per {profile.dt_s * k:g} s")
-    ax.axhline(sizing.mean_l_min, color="black", ls="--", lw=1,
-               label=f"mean {sizing.mean_l_min:.1f} NL/min")
-    ax.axhline(sizing.design_flow_l_min, color="#d62728", lw=1.3,
-               label=f"design flow {sizing.design_flow_l_min:.1f} NL/min")
-    ax.set_ylabel("flow (NL/min)")
-    ax.set_ylim(bottom=0)
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc="upper right", fontsize=8)
-    ax.set_title(_plain(title), fontsize=10)
-    ax2.fill_between(tb * scale, 0, def_b, step="post", color="#fdae6b")
-    ax2.axvline(sizing.deficit_at_s * scale, color="#d62728", lw=1)
-    ax2.set_ylabel("deficit over design flow (NL)")
-    ax2.set_xlabel(f"time ({unit})")
-    ax2.set_ylim(bottom=0)
-    ax2.grid(True, alpha=0.3)
-    ax2.annotate(f"largest {sizing.deficit_nl:.2f} NL -> receiver {sizing.receiver_l:.1f} L "
-                 f"for {sizing.band_bar:g} bar", xy=(sizing.deficit_at_s * scale,
-                                                      sizing.deficit_nl),
-                 xytext=(0.02, 0.85), textcoords="axes fraction", fontsize=9)
-    ax2.set_xlim(0, profile.horizon_s * scale)
+    fig, axes = plt.subplots(2, 2, figsize=(12, 8), dpi=100,
+                             gridspec_kw={"width_ratios": [3, 2], "height_ratios": [1, 1]})
+    (ax_cycle, ax_ldc), (ax_trend, ax_def) = axes
+    design = sizing.design_flow_l_min
+
+    def levels(ax, legend=True):
+        ax.axhline(sizing.mean_l_min, color="black", ls="--", lw=1,
+                   label=f"mean {sizing.mean_l_min:.1f} NL/min")
+        ax.axhline(design, color="#d62728", lw=1.3, label=f"design flow {design:.1f} NL/min")
+        ax.set_ylim(bottom=0)
+        ax.grid(True, alpha=0.3)
+
+    # one cycle at full resolution, by consumer
+    a, b, what = _cycle_window(profile, sizing)
+    edges = profile.edges_s[(profile.edges_s >= a - 1e-9) & (profile.edges_s <= b + 1e-9)]
+    if len(edges) >= 2:
+        widths = np.diff(edges)
+        groups = profile.groups(SHOWN_CONSUMERS)
+        group_nl = [float(profile.consumer_nl[idx].sum()) for _, idx in groups]
+        order = sorted(range(len(groups)), key=lambda g: (
+            not all(profile.roles[i] == "leak" for i in groups[g][1]), -group_nl[g]))
+        if order:
+            flows = np.array([profile.cells_nl(groups[g][1], edges) / widths * 60.0
+                              for g in order])
+            ax_cycle.stackplot(edges[:-1] - a, flows, step="post", alpha=0.85,
+                               labels=[_plain(groups[g][0]) for g in order])
+    levels(ax_cycle)
+    ax_cycle.set_xlim(0, b - a)
+    ax_cycle.set_xlabel(f"time in the window (s; it starts at {a:g} s)")
+    ax_cycle.set_ylabel("flow (NL/min)")
+    ax_cycle.set_title(f"{_plain(title)}\n{what}, grid {profile.dt_s:g} s", fontsize=10)
+    h, lab = ax_cycle.get_legend_handles_labels()
+    ax_cycle.legend(h[::-1], lab[::-1], loc="upper right", fontsize=7, framealpha=0.9)
+
+    # load-duration curve
+    ordered = np.sort(total)[::-1]
+    share = (np.arange(len(ordered)) + 0.5) / max(len(ordered), 1) * 100.0
+    ax_ldc.step(share, ordered, where="mid", color="#3182bd", lw=1.2, label="demand")
+    levels(ax_ldc)
+    ax_ldc.set_xlim(0, 100)
+    ax_ldc.set_xlabel("share of the time the flow is at least this (%)")
+    ax_ldc.set_ylabel("flow (NL/min)")
+    ax_ldc.set_title("load-duration curve", fontsize=10)
+    ax_ldc.legend(loc="upper right", fontsize=8)
+
+    # the trend: min, mean and max per bin
+    span = profile.dt_s * k
+    ax_trend.fill_between(tb * scale, min_b, max_b, step="post", color="#c6dbef",
+                          label=f"min to max per {span:g} s")
+    ax_trend.step(tb * scale, mean_b, where="post", color="#3182bd", lw=1.0,
+                  label=f"mean per {span:g} s")
+    levels(ax_trend)
+    ax_trend.set_xlim(0, profile.horizon_s * scale)
+    ax_trend.set_xlabel(f"time ({unit})")
+    ax_trend.set_ylabel("flow (NL/min)")
+    ax_trend.set_title("over the horizon", fontsize=10)
+    ax_trend.legend(loc="upper right", fontsize=8)
+
+    # the receiver's deficit
+    ax_def.fill_between(tb * scale, 0, def_b, step="post", color="#fdae6b")
+    ax_def.axvline(sizing.deficit_at_s * scale, color="#d62728", lw=1)
+    ax_def.set_ylabel("deficit over design flow (NL)")
+    ax_def.set_xlabel(f"time ({unit})")
+    ax_def.set_xlim(0, profile.horizon_s * scale)
+    ax_def.set_ylim(bottom=0)
+    ax_def.grid(True, alpha=0.3)
+    ax_def.set_title(f"largest {sizing.deficit_nl:.2f} NL -> receiver "
+                     f"{sizing.receiver_l:.1f} L for {sizing.band_bar:g} bar", fontsize=10)
     fig.tight_layout()
     _save_fig(fig, path)
 
 
-def sizing_markdown(machine_name: str, s, profile, plots=("sizing.png", "demand.png")) -> str:
+def sizing_assumptions(machine, s, today=None) -> list[tuple[str, str]]:
+    """What a sizing rests on, for the report's assumptions table: the files, pressures,
+    reference condition, consumers, horizon, allowances, hours, energy and price, the
+    tool's version and the date."""
+    import datetime
+    from collections import Counter
+
+    from . import __version__
+    from .air.sizing import ISOTHERMAL_EFFICIENCY, specific_energy_kwh_per_nm3
+
+    kinds = Counter(c.kind for c in machine.consumers)
+    curve = specific_energy_kwh_per_nm3(machine.supply_bar_g, machine.atmosphere_kpa)
+    sec_how = ("isothermal compression to the supply pressure over "
+               f"{100 * ISOTHERMAL_EFFICIENCY:.1f} % efficiency (E1)"
+               if abs(s.sec_kwh_per_nm3 - curve) < 1e-12 else "given (--sec)")
+    money = f" {s.currency}" if s.currency else ""
+    def shown(path) -> str:
+        try:
+            return os.path.relpath(path)
+        except ValueError:          # another drive (Windows)
+            return str(path)
+
+    return [
+        ("machine file", shown(machine.path)),
+        ("program", shown(machine.program_path)),
+        ("supply pressure", f"{machine.supply_bar_g:g} bar(g), atmosphere "
+                            f"{machine.atmosphere_kpa:g} kPa"),
+        ("reference condition", "ISO 8778 (100 kPa, 20 °C)"),
+        ("consumers", ", ".join(f"{n} {k}" for k, n in sorted(kinds.items())) or "none"),
+        ("horizon, grid", f"{s.horizon_s:g} s, {s.dt_s:g} s"),
+        ("design flow allowance, receiver band",
+         f"{100 * s.allowance:g} % over the mean, {s.band_bar:g} bar"),
+        ("operating hours per year", f"{s.hours_per_year:g} h"),
+        ("specific energy", f"{s.sec_kwh_per_nm3:.4g} kWh/Nm³, {sec_how}"),
+        ("energy price", f"{s.price_per_kwh:g}{money} per kWh"),
+        ("tool", f"plcpred {__version__}, {(today or datetime.date.today()).isoformat()}"),
+    ]
+
+
+def sizing_markdown(machine_name: str, s, profile, plots=("sizing.png", "demand.png"),
+                    assumptions=()) -> str:
     def pct(x):
         return f"{100 * x:.1f} %"
     total = s.total_nl or 1.0
+    money = f" {_cell(s.currency)}" if s.currency else ""
     lines = [
         f"# Compressed-air sizing: {machine_name}",
         "",
@@ -226,8 +342,8 @@ def sizing_markdown(machine_name: str, s, profile, plots=("sizing.png", "demand.
         f"| **receiver** for a {s.band_bar:g} bar band | **{s.receiver_l:.1f} L** |",
         f"| energy per year ({s.hours_per_year:g} h, {s.sec_kwh_per_nm3:.3g} kWh/Nm³) | "
         f"{s.energy_kwh_per_year:,.0f} kWh |",
-        f"| cost per year (at {s.price_per_kwh:g} {_cell(s.currency)} per kWh) | "
-        f"{s.cost_per_year:,.0f} {_cell(s.currency)} |",
+        f"| cost per year (at {s.price_per_kwh:g}{money} per kWh) | "
+        f"{s.cost_per_year:,.0f}{money} |",
         f"| steady cycle | {s.cycle_s:.3g} s ({s.cycles_per_hour:.4g} per hour, by "
         f"{_cell(s.cycle_source)}) |" if s.cycle_s is not None else
         "| steady cycle | none found (no cycle_signal, no repeating state) |",
@@ -257,6 +373,10 @@ def sizing_markdown(machine_name: str, s, profile, plots=("sizing.png", "demand.
         lines.append(f"| {_cell(name)} | {profile.roles[i]} | {profile.consumer_nl[i]:.2f} | "
                      f"{pct(profile.consumer_nl[i] / total)} |")
     lines.append("")
+    if assumptions:
+        lines += ["| assumption | value |", "|---|---|"]
+        lines += [f"| {_cell(k)} | {_cell(v)} |" for k, v in assumptions]
+        lines.append("")
     for p in plots:
         lines.append(f"![{p}]({p})")
     lines.append("")
@@ -329,7 +449,8 @@ def write_sizing_report(result, sizing, out_dir) -> list[Path]:
                 title=f"{name}: demand and compressor design flow")
     plot_demand(result.profile, out / "demand.png", title=f"{name}: air demand",
                 shown=result.shown)
-    md = sizing_markdown(name, sizing, result.profile)
+    md = sizing_markdown(name, sizing, result.profile,
+                         assumptions=sizing_assumptions(result.machine, sizing))
     atomic_write_text(out / "sizing.md", md)
     images = {p: (out / p).read_bytes() for p in ("sizing.png", "demand.png")}
     atomic_write_text(out / "sizing.html", sizing_html(md, images))

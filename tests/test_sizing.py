@@ -351,3 +351,30 @@ def test_currency_is_shown_with_the_cost(tmp_path):
     bad = run("size", PICK, "--horizon", "20s", "--out", tmp_path / "b", "--currency",
               "<script>")
     assert bad.returncode == 2 and "currency" in bad.stderr
+
+
+def test_the_report_says_what_the_sizing_rests_on(tmp_path):
+    r = run("size", PICK, "--horizon", "20s", "--out", tmp_path / "a")
+    assert r.returncode == 0, r.stderr
+    md = (tmp_path / "a" / "sizing.md").read_text()
+    assumptions = md[md.index("| assumption | value |"):]
+    assert "| supply pressure | 6 bar(g), atmosphere 101.325 kPa |" in assumptions
+    assert "isothermal compression to the supply pressure" in assumptions
+    assert "| operating hours per year | 4000 h |" in assumptions
+    assert "pick_place.toml" in assumptions and "codesys_pick_place.st" in assumptions
+    assert "(at 0.15 per kWh)" in md          # no currency: no gap where it would be
+    r = run("size", PICK, "--horizon", "20s", "--out", tmp_path / "b", "--sec", "0.12")
+    md = (tmp_path / "b" / "sizing.md").read_text()
+    assert "| specific energy | 0.12 kWh/Nm³, given (--sec) |" in md
+
+
+def test_long_horizon_plots_bin_whole_cycles():
+    from plcpred.report import MAX_CYCLES_DRAWN, _whole_periods
+    # a 4 s cycle on a 10 ms grid over an hour: 900 cycles, bins of 120 cells would cut
+    # cycles in drifting places; they become one whole cycle (400 cells) or more
+    assert _whole_periods(120, 4.0, 0.01, 360_000) == 400
+    assert _whole_periods(1000, 4.0, 0.01, 360_000) == 1200
+    # few cycles on the axis: drawn as they are
+    cells = int(MAX_CYCLES_DRAWN * 400)
+    assert _whole_periods(20, 4.0, 0.01, cells) == 20
+    assert _whole_periods(20, None, 0.01, 360_000) == 20
