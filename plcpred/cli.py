@@ -272,7 +272,10 @@ def cmd_size(args) -> int:
     try:
         result = predict(args.machine, horizon_s, dt=dt_s, program=args.program,
                          max_events=args.max_events, shown=args.consumers)
-        s = size(result.profile, allowance=allowance, band_bar=band, hours_per_year=args.hours,
+        from .sweep import production_hours
+        s = size(result.profile, allowance=allowance, band_bar=band,
+                 hours_per_year=production_hours(result.machine, args.hours),
+                 calendar=result.machine.calendar,
                  sec_kwh_per_nm3=args.sec, price_per_kwh=args.price, idle_after_s=idle_after,
                  cycles=cycles_of(result.machine, result.timeline, result.profile),
                  last_switch_s=last_switch_s(result.machine, result.timeline),
@@ -296,6 +299,12 @@ def cmd_size(args) -> int:
     money = f" {s.currency}" if s.currency else ""
     print(f"energy {s.energy_kwh_per_year:,.0f} kWh/year, cost {s.cost_per_year:,.0f}{money}"
           f"/year; idle air {100 * s.idle_share:.1f} %")
+    if result.machine.calendar is not None:
+        print(f"year ([calendar]): {s.air_nm3_per_year:,.0f} Nm3, {s.hours_per_year:,.0f} h "
+              f"producing at {s.mean_l_min:.1f} NL/min and {s.idle_hours_per_year:,.0f} h "
+              f"standing at {s.idle_flow_l_min:.1f} NL/min (leaks"
+              f"{', blowers left on' if result.machine.calendar.idle_state == 'program' else ''}"
+              ")")
     if s.cycle_s is not None:
         print(f"cycle {s.cycle_s:.3g} s ({s.cycles_per_hour:.4g} per hour, by "
               f"{s.cycle_source}): {s.nl_per_cycle:.3f} NL per cycle")
@@ -368,7 +377,8 @@ def cmd_sweep(args) -> int:
         out = check_out_dir(args.out) if args.out else None
         settings = [parse_setting(t) for t in args.set]
         rows = sweep(args.machine, settings, horizon_s, dt_s, engine=args.engine,
-                     scheduler=args.scheduler, workers=args.workers, program=args.program)
+                     scheduler=args.scheduler, workers=args.workers, program=args.program,
+                     hours=args.hours, sec=args.sec, price=args.price)
     except (SweepError, OutputError) as e:
         return _fail(str(e))
     except PlcpredError as e:
@@ -377,8 +387,11 @@ def cmd_sweep(args) -> int:
     except ValueError as e:
         return _fail(str(e))
     keys = [st.key for st in settings]
-    shown = keys + ["total_nl", "mean_l_min", "peak_l_min", "energy_kwh_per_year"]
-    table = [shown] + [[str(r[k]) if k in keys else f"{r[k]:.2f}" for k in shown]
+    shown = keys + ["total_nl", "mean_l_min", "peak_l_min", "energy_kwh_per_year",
+                    "cost_per_year"]
+    heads = [f"cost_per_year_{args.currency}" if k == "cost_per_year" and args.currency
+             else k for k in shown]
+    table = [heads] + [[str(r[k]) if k in keys else f"{r[k]:.2f}" for k in shown]
                        for r in rows]
     widths = [max(len(row[c]) for row in table) for c in range(len(shown))]
     for k, row in enumerate(table):
@@ -433,6 +446,31 @@ def _positive_int(text: str) -> int:
     if n <= 0:
         raise argparse.ArgumentTypeError("must be at least 1")
     return n
+
+
+def _energy_args(p) -> None:
+    """How a year's energy and cost are counted (size and sweep)."""
+    p.add_argument("--hours", type=_nonneg_float, default=None,
+                   help="production hours per year (default: the machine file's "
+                        "[calendar], else 4000)")
+    p.add_argument("--sec", type=_nonneg_float, default=None,
+                   help="specific energy, kWh per normal m^3 (default: isothermal "
+                        "compression to the supply pressure over 57.4 %% efficiency, "
+                        "0.1 at 7 bar gauge)")
+    p.add_argument("--price", type=_nonneg_float, default=0.15,
+                   help="energy price per kWh (default 0.15)")
+    p.add_argument("--currency", default="", type=_currency,
+                   help="what --price and the cost are in, shown with them (EUR, USD, ...)")
+
+
+def _nonneg_float(text: str) -> float:
+    try:
+        x = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, not {text!r}") from None
+    if not x >= 0 or x == float("inf"):
+        raise argparse.ArgumentTypeError("must be a finite number >= 0")
+    return x
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -523,16 +561,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="design flow above the mean (default 10%%)")
     p.add_argument("--band", default="1bar",
                    help="pressure band the receiver must hold (default 1bar)")
-    p.add_argument("--hours", type=float, default=4000.0,
-                   help="operating hours per year (default 4000)")
-    p.add_argument("--sec", type=float, default=None,
-                   help="specific energy, kWh per normal m^3 (default: isothermal "
-                        "compression to the supply pressure over 57.4 %% efficiency, "
-                        "0.1 at 7 bar gauge)")
-    p.add_argument("--price", type=float, default=0.15,
-                   help="energy price per kWh (default 0.15)")
-    p.add_argument("--currency", default="", type=_currency,
-                   help="what --price and the cost are in, shown with them (EUR, USD, ...)")
+    _energy_args(p)
     p.add_argument("--idle-after", metavar="DURATION",
                    help="count air as idle only once no cylinder has moved for this long "
                         "(default: whenever no cylinder moves)")
@@ -583,6 +612,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler (tcp://host:8786)")
     p.add_argument("--workers", type=int, help="local processes (default: one per core)")
     p.add_argument("--out", metavar="DIR", help="also write DIR/sweep.csv")
+    _energy_args(p)
     p.set_defaults(func=cmd_sweep)
 
     p = sub.add_parser("diagnose", help="diagnose the gap between prediction and a measured "

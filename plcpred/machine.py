@@ -124,6 +124,28 @@ class Line:
     check_valves: bool = False            # every drive on the line has a supply check valve
 
 
+HOURS_PER_YEAR = 8760.0
+
+
+@dataclass
+class Calendar:
+    """When the machine produces (``[calendar]``), for annual air, energy and cost: the
+    supply stays pressurised all year, so leaks count for 8,760 h."""
+    shifts_per_day: float = 1.0
+    hours_per_shift: float = 8.0
+    days_per_week: float = 5.0
+    weeks_per_year: float = 52.0
+    production_share: float = 1.0     # of the scheduled hours, the share it produces
+    idle_state: str = "off"           # outside production: "off" (valves de-energised:
+    #                                   leaks only) or "program" (as the program leaves it
+    #                                   when nothing moves: leaks and blowers left on)
+
+    @property
+    def production_hours(self) -> float:
+        return (self.shifts_per_day * self.hours_per_shift * self.days_per_week
+                * self.weeks_per_year * self.production_share)
+
+
 @dataclass
 class Machine:
     name: str
@@ -138,6 +160,7 @@ class Machine:
     consumers: list[Consumer] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     meter: Meter | None = None
+    calendar: Calendar | None = None
     lines: list[Line] = field(default_factory=list)
     # a BOOL that rises (or a counter that counts up) once per machine cycle or part
     cycle_signal: str | None = None
@@ -182,6 +205,9 @@ _LINE_KEYS = {"name", "volume_l", "pressure_bar_g", "network_bar_g", "C", "b", "
 _METER_KEYS = {"tau_s", "rate_hz", "reference", "noise_l_min", "offset_l_min",
                "full_scale_l_min", "line"}
 METER_REFERENCES = ("iso8778", "din1343", "iso2533")
+_CALENDAR_KEYS = {"shifts_per_day", "hours_per_shift", "days_per_week", "weeks_per_year",
+                  "production_share", "idle_state"}
+CALENDAR_IDLE_STATES = ("off", "program")
 
 
 # Physical ranges of every number in a machine file: (lowest, highest). Wider than any real
@@ -207,7 +233,8 @@ RANGES = {
     "friction_viscous_ns_m": (0.0, 1e7), "stribeck_velocity_m_s": (1e-5, 10.0),
     "spring_n": (0.0, 1e6), "switch_ramp_s": (0.0, 10.0), "heat_transfer_w_m2k": (0.0, 1e4),
     "dead_volume_cm3": (0.0, 1e7), "volume_l": (1e-4, 1e6), "network_bar_g": (0.0, 100.0),
-    "droop_bar": (1e-3, 50.0),
+    "droop_bar": (1e-3, 50.0), "shifts_per_day": (0.0, 24.0), "hours_per_shift": (0.0, 24.0),
+    "days_per_week": (0.0, 7.0), "weeks_per_year": (0.0, 53.0), "production_share": (0.0, 1.0),
 }
 MAX_PULSES = 1_000_000
 
@@ -457,6 +484,20 @@ def _meter(file: str, table: dict) -> Meter:
                  line=r.string("line"))
 
 
+def _calendar(file: str, table: dict) -> Calendar:
+    r = _Reader(file, "[calendar]", table, _CALENDAR_KEYS)
+    c = Calendar(shifts_per_day=r.number("shifts_per_day", 1.0, nonneg=True),
+                 hours_per_shift=r.number("hours_per_shift", 8.0, nonneg=True),
+                 days_per_week=r.number("days_per_week", 5.0, nonneg=True),
+                 weeks_per_year=r.number("weeks_per_year", 52.0, nonneg=True),
+                 production_share=r.number("production_share", 1.0, nonneg=True),
+                 idle_state=r.string("idle_state", "off", choices=CALENDAR_IDLE_STATES))
+    day_h = c.shifts_per_day * c.hours_per_shift
+    if day_h > 24.0:
+        raise r.error(f"shifts_per_day x hours_per_shift is {day_h:g} h, more than a day")
+    return c
+
+
 _PROGRAM_SUFFIXES = {".st", ".iecst", ".seq", ".xml", ".tcpou", ".tcgvl", ".tcdut", ".tcio",
                      ".tctto", ".plcproj"}
 
@@ -495,11 +536,12 @@ def machine_from_data(data: dict, path) -> Machine:
     is relative to it and errors name it."""
     path = Path(path)
     file = str(path)
-    unknown = sorted(set(data) - {"machine", "signals", "input", "consumer", "meter", "line"})
+    unknown = sorted(set(data) - {"machine", "signals", "input", "consumer", "meter", "line",
+                                  "calendar"})
     if unknown:
         raise MachineError(file, "", f"unknown table [{unknown[0]}] (known: [machine], "
                                      "[signals], [[input]], [[consumer]], [[line]], "
-                                     "[meter])")
+                                     "[meter], [calendar])")
     if "machine" not in data:
         raise MachineError(file, "", "missing the [machine] table")
     r = _Reader(file, "[machine]", data["machine"], _MACHINE_KEYS)
@@ -544,6 +586,8 @@ def machine_from_data(data: dict, path) -> Machine:
                        else builder(file, i, t))
     if "meter" in data:
         machine.meter = _meter(file, data["meter"])
+    if "calendar" in data:
+        machine.calendar = _calendar(file, data["calendar"])
     seen = set()
     for c in machine.consumers:
         if c.name in seen:

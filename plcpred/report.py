@@ -309,11 +309,21 @@ def sizing_assumptions(machine, s, today=None) -> list[tuple[str, str]]:
         ("horizon, grid", f"{s.horizon_s:g} s, {s.dt_s:g} s"),
         ("design flow allowance, receiver band",
          f"{100 * s.allowance:g} % over the mean, {s.band_bar:g} bar"),
-        ("operating hours per year", f"{s.hours_per_year:g} h"),
+        ("operating hours per year", f"{s.hours_per_year:g} h" + (
+            f" (the [calendar]: {_calendar_text(machine.calendar)})"
+            if machine.calendar is not None else "")),
         ("specific energy", f"{s.sec_kwh_per_nm3:.4g} kWh/Nm³, {sec_how}"),
         ("energy price", f"{s.price_per_kwh:g}{money} per kWh"),
         ("tool", f"plcpred {__version__}, {(today or datetime.date.today()).isoformat()}"),
     ]
+
+
+def _calendar_text(c) -> str:
+    idle = ("leaks and the blowers the program leaves on" if c.idle_state == "program"
+            else "leaks only")
+    return (f"{c.shifts_per_day:g} x {c.hours_per_shift:g} h shifts, {c.days_per_week:g} "
+            f"days a week, {c.weeks_per_year:g} weeks, {100 * c.production_share:g} % "
+            f"producing; standing: {idle}, supply on all year")
 
 
 def sizing_markdown(machine_name: str, s, profile, plots=("sizing.png", "demand.png"),
@@ -340,8 +350,12 @@ def sizing_markdown(machine_name: str, s, profile, plots=("sizing.png", "demand.
         f"| largest deficit over the design flow | {s.deficit_nl:.2f} NL at "
         f"{s.deficit_at_s:g} s |",
         f"| **receiver** for a {s.band_bar:g} bar band | **{s.receiver_l:.1f} L** |",
-        f"| energy per year ({s.hours_per_year:g} h, {s.sec_kwh_per_nm3:.3g} kWh/Nm³) | "
-        f"{s.energy_kwh_per_year:,.0f} kWh |",
+        (f"| energy per year ({s.hours_per_year:g} h, {s.sec_kwh_per_nm3:.3g} kWh/Nm³) | "
+         f"{s.energy_kwh_per_year:,.0f} kWh |" if not s.idle_hours_per_year else
+         f"| energy per year ({s.hours_per_year:,.0f} h producing, "
+         f"{s.idle_hours_per_year:,.0f} h standing at {s.idle_flow_l_min:.1f} NL/min; "
+         f"{s.air_nm3_per_year:,.0f} Nm³ at {s.sec_kwh_per_nm3:.3g} kWh/Nm³) | "
+         f"{s.energy_kwh_per_year:,.0f} kWh |"),
         f"| cost per year (at {s.price_per_kwh:g}{money} per kWh) | "
         f"{s.cost_per_year:,.0f}{money} |",
         f"| steady cycle | {s.cycle_s:.3g} s ({s.cycles_per_hour:.4g} per hour, by "

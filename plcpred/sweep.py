@@ -146,11 +146,12 @@ def _set_program_value(program, name: str, value: str, key: str):
 
 
 def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
-                 program_path: str | None = None, hours: float = 4000.0,
-                 sec: float | None = None) -> dict:
-    """One prediction with the scenario applied: a row of totals."""
+                 program_path: str | None = None, hours: float | None = None,
+                 sec: float | None = None, price: float | None = None) -> dict:
+    """One prediction with the scenario applied: a row of totals, and the year's air,
+    energy and cost (``hours`` None: the machine file's [calendar], else 4000 h)."""
     from .air import predict
-    from .air.sizing import size
+    from .air.sizing import DEFAULT_PRICE, size
     from .machine import machine_from_data, read_machine_data
 
     data = read_machine_data(machine_path)
@@ -158,12 +159,16 @@ def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
     program = base.read_program(program_path)
     machine, program = apply_settings(data, machine_path, program, scenario)
     result = predict(machine, horizon_s, dt=dt_s, program=program)
-    s = size(result.profile, hours_per_year=hours, sec_kwh_per_nm3=sec,
-             supply=(machine.supply_bar_g, machine.atmosphere_kpa))
+    s = size(result.profile, hours_per_year=production_hours(machine, hours),
+             sec_kwh_per_nm3=sec, price_per_kwh=DEFAULT_PRICE if price is None else price,
+             supply=(machine.supply_bar_g, machine.atmosphere_kpa),
+             calendar=machine.calendar)
     row = dict(scenario)
     row.update({"total_nl": s.total_nl, "mean_l_min": s.mean_l_min,
                 "peak_l_min": s.peak_l_min, "peak_1s_l_min": s.peak_1s_l_min,
-                "energy_kwh_per_year": s.energy_kwh_per_year})
+                "air_nm3_per_year": s.air_nm3_per_year,
+                "energy_kwh_per_year": s.energy_kwh_per_year,
+                "cost_per_year": s.cost_per_year})
     for name, v in zip(result.profile.names, result.profile.consumer_nl):
         row[f"{name}_nl"] = float(v)
     return row
@@ -188,9 +193,19 @@ class _Progress:
             sys.stderr.flush()
 
 
+def production_hours(machine, hours: float | None) -> float:
+    """The hours a year the machine produces: ``hours`` when given, else its
+    [calendar]'s, else the default 4000 h."""
+    from .air.sizing import DEFAULT_HOURS
+    if hours is not None:
+        return hours
+    return machine.calendar.production_hours if machine.calendar else DEFAULT_HOURS
+
+
 def sweep(machine_path, settings: list[Setting], horizon_s: float, dt_s=None,
           engine: str = "local", scheduler: str | None = None, workers: int | None = None,
-          progress: bool | None = None, program=None) -> list[dict]:
+          progress: bool | None = None, program=None, hours: float | None = None,
+          sec: float | None = None, price: float | None = None) -> list[dict]:
     """Rows of :func:`run_scenario` for every scenario, in scenario order."""
     machine_path = str(machine_path)
     combos = scenarios(settings)
@@ -203,7 +218,8 @@ def sweep(machine_path, settings: list[Setting], horizon_s: float, dt_s=None,
     for sc in combos:
         apply_settings(data, machine_path, prog, sc)
     bar = _Progress(len(combos), progress)
-    args = [(machine_path, sc, horizon_s, dt_s, program_path) for sc in combos]
+    args = [(machine_path, sc, horizon_s, dt_s, program_path, hours, sec, price)
+            for sc in combos]
     if engine == "dask":
         return _run_dask(args, scheduler, bar)
     if engine != "local":

@@ -198,7 +198,7 @@ def test_every_machine_file_key_is_documented():
     from plcpred import machine as mf
     doc = (Path(__file__).resolve().parent.parent / "docs" / "machine-file.md").read_text()
     keys = (mf._MACHINE_KEYS | mf._INPUT_KEYS | mf._CONSUMER_KEYS | mf._LINE_KEYS
-            | mf._METER_KEYS)
+            | mf._METER_KEYS | mf._CALENDAR_KEYS)
     missing = sorted(k for k in keys if f"`{k}`" not in doc)
     assert not missing, f"undocumented keys: {missing}"
 

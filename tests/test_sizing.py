@@ -378,3 +378,68 @@ def test_long_horizon_plots_bin_whole_cycles():
     cells = int(MAX_CYCLES_DRAWN * 400)
     assert _whole_periods(20, 4.0, 0.01, cells) == 20
     assert _whole_periods(20, None, 0.01, 360_000) == 20
+
+
+def _with_calendar(tmp_path, calendar: str):
+    program = (PICK.parent / "codesys_pick_place.st").as_posix()
+    text = PICK.read_text().replace('program = "codesys_pick_place.st"',
+                                    f'program = "{program}"')
+    path = tmp_path / "pick_cal.toml"
+    path.write_text(text + "\n[calendar]\n" + calendar)
+    return path
+
+
+def test_a_production_calendar_counts_leaks_all_year(tmp_path):
+    """(E2) by hand: 2 x 8 h x 5 days x 50 weeks x 0.9 = 3,600 h producing at the mean;
+    the other 5,160 h the supply stays on and the leak (pick_place's fittings) flows."""
+    machine = _with_calendar(tmp_path, "shifts_per_day = 2\nhours_per_shift = 8\n"
+                                       "days_per_week = 5\nweeks_per_year = 50\n"
+                                       "production_share = 0.9\n")
+    r = run("size", machine, "--horizon", "60s", "--out", tmp_path / "a")
+    assert r.returncode == 0, r.stderr
+    d = json.loads((tmp_path / "a" / "sizing.json").read_text())
+    leak = next(c for c in d["consumers"].values() if c["role"] == "leak")
+    leak_l_min = leak["total_nl"] / 60.0 * 60.0
+    assert d["hours_per_year"] == pytest.approx(3600.0)
+    assert d["idle_hours_per_year"] == pytest.approx(5160.0)
+    assert d["idle_flow_l_min"] == pytest.approx(leak_l_min, rel=1e-9)
+    air = (d["mean_l_min"] * 3600 + leak_l_min * 5160) * 60 / 1000
+    assert d["air_nm3_per_year"] == pytest.approx(air, rel=1e-9)
+    assert d["energy_kwh_per_year"] == pytest.approx(air * d["sec_kwh_per_nm3"], rel=1e-9)
+    assert "5,160 h standing" in (tmp_path / "a" / "sizing.md").read_text()
+    # --hours still sets the production hours; the rest of the year stands
+    r = run("size", machine, "--horizon", "60s", "--out", tmp_path / "b", "--hours", "8000")
+    d = json.loads((tmp_path / "b" / "sizing.json").read_text())
+    assert (d["hours_per_year"], d["idle_hours_per_year"]) == (8000.0, 760.0)
+    # without a calendar, as before: the year is the production hours
+    r = run("size", PICK, "--horizon", "60s", "--out", tmp_path / "c")
+    d = json.loads((tmp_path / "c" / "sizing.json").read_text())
+    assert (d["hours_per_year"], d["idle_hours_per_year"]) == (4000.0, 0.0)
+    assert d["air_nm3_per_year"] == pytest.approx(d["mean_l_min"] * 4000 * 60 / 1000)
+
+
+def test_a_calendar_that_does_not_fit_is_named(tmp_path):
+    machine = _with_calendar(tmp_path, "shifts_per_day = 3\nhours_per_shift = 9\n")
+    r = run("size", machine, "--horizon", "10s", "--out", tmp_path / "a")
+    assert r.returncode == 1 and "[calendar]" in r.stderr and "more than a day" in r.stderr
+    machine = _with_calendar(tmp_path, "idle_state = \"sometimes\"\n")
+    r = run("size", machine, "--horizon", "10s", "--out", tmp_path / "b")
+    assert r.returncode == 1 and "idle_state" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_sweep_counts_energy_and_cost_with_the_same_options(tmp_path):
+    r = run("sweep", PICK, "--horizon", "20s", "--set", "supply_bar_g=5,6", "--workers", "1",
+            "--hours", "2000", "--price", "0.3", "--currency", "EUR", "--out", tmp_path / "s")
+    assert r.returncode == 0, r.stderr
+    assert "cost_per_year_EUR" in r.stdout
+    import csv
+    rows = list(csv.DictReader((tmp_path / "s" / "sweep.csv").open()))
+    for row in rows:
+        mean = float(row["mean_l_min"])
+        assert float(row["air_nm3_per_year"]) == pytest.approx(mean * 2000 * 60 / 1000)
+        assert float(row["cost_per_year"]) == pytest.approx(
+            float(row["energy_kwh_per_year"]) * 0.3)
+    # a lower supply saves twice: less air and less work per normal m^3 (E1)
+    e5, e6 = (float(r_["energy_kwh_per_year"]) for r_ in rows)
+    m5, m6 = (float(r_["mean_l_min"]) for r_ in rows)
+    assert e5 / e6 < m5 / m6

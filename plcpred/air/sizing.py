@@ -9,7 +9,10 @@
   volume that keeps the pressure within the band dP: ``V = deficit_NL * P0 / dP``
   (normal litres are at P0 = 100 kPa).
 * **Energy**: ``E = q_avg * SEC * hours / efficiency`` with the specific energy SEC in kWh per
-  normal m^3; cost = E * price. SEC defaults to the isothermal work of compressing a normal
+  normal m^3; cost = E * price. (E2) With a production calendar the year's air is
+  ``q_avg * hours + q_idle * (8760 h - hours)``: the supply stays pressurised, so leaks
+  (and blowers the program leaves on, when the calendar says the machine stays on) run
+  all year. SEC defaults to the isothermal work of compressing a normal
   m^3 from the atmosphere to the supply pressure over the compressor's isothermal
   efficiency (:func:`specific_energy_kwh_per_nm3`), 0.1 kWh/Nm^3 at 7 bar gauge (the
   published 0.30-0.35 kW per l/s), so that a lower supply pressure saves energy twice:
@@ -37,6 +40,7 @@ DEFAULT_SEC_KWH_NM3 = 0.1      # at 7 bar gauge, the published figure
 # ISO 8778 normal m^3 (P0 = 100 kPa) and a 101.325 kPa atmosphere: 0.0574 / 0.1
 ISOTHERMAL_EFFICIENCY = P0_PA * math.log(801.325 / 101.325) / 3.6e6 / DEFAULT_SEC_KWH_NM3
 DEFAULT_HOURS = 4000.0      # two shifts, about 250 days
+HOURS_PER_YEAR = 8760.0     # the supply's year with a [calendar]
 DEFAULT_PRICE = 0.15        # per kWh, in the user's currency
 STOPS_EARLY = 0.8           # valves still after this share of the horizon: a warning
 
@@ -74,6 +78,11 @@ class Sizing:
     cycles_per_hour: float | None = None
     warnings: list = field(default_factory=list)
     currency: str = ""              # what the price and the cost are in (EUR, USD, ...)
+    # a year as the machine file's [calendar] has it: hours_per_year are production hours,
+    # and the rest of the 8,760 h the supply stays pressurised (leaks, blowers left on)
+    idle_hours_per_year: float = 0.0
+    idle_flow_l_min: float = 0.0
+    air_nm3_per_year: float = 0.0
     # the idle air split: leaks, and nozzles / blowers left on while nothing moves
     idle_leak_nl: float = 0.0
     idle_blowers_nl: float = 0.0
@@ -130,12 +139,16 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
          hours_per_year: float = DEFAULT_HOURS, sec_kwh_per_nm3: float | None = None,
          price_per_kwh: float = DEFAULT_PRICE, efficiency: float = 1.0,
          idle_after_s: float = 0.0, cycles=None, last_switch_s: float | None = None,
-         supply: tuple[float, float] | None = None) -> Sizing:
+         supply: tuple[float, float] | None = None, calendar=None) -> Sizing:
     """Size the supply for ``profile`` (module note); ``cycles`` (a
     :class:`~plcpred.air.cycles.Cycles`) adds the steady cycle's figures, and
     ``last_switch_s`` (when the valves last switch) warns of a machine that stops long
     before the horizon ends. ``sec_kwh_per_nm3`` None: from ``supply`` (supply bar
-    gauge, atmosphere kPa) by E1, without it DEFAULT_SEC_KWH_NM3."""
+    gauge, atmosphere kPa) by E1, without it DEFAULT_SEC_KWH_NM3. With a ``calendar``
+    (:class:`~plcpred.machine.Calendar`) the machine produces for ``hours_per_year`` and
+    stands for the rest of the 8,760 h with the supply on: its leaks flow, and with
+    ``idle_state = "program"`` the blowers the program leaves on when nothing moves
+    (their rate over the run's idle time) (E2)."""
     if sec_kwh_per_nm3 is None:
         sec_kwh_per_nm3 = (DEFAULT_SEC_KWH_NM3 if supply is None
                            else specific_energy_kwh_per_nm3(*supply))
@@ -148,12 +161,25 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
     design = mean * (1.0 + allowance)
     deficit, at_s, _ = receiver_deficit(total, profile.dt_s, design)
     receiver_l = deficit * P0_PA / (band_bar * 1e5)
-    energy = mean * 60.0 / 1000.0 * sec_kwh_per_nm3 * hours_per_year / efficiency
     split = profile.by_role_nl()
     idle = idle_mask(profile, idle_after_s)
     idle_by_consumer = profile.consumer_nl_within(idle)
     idle_nl = float(idle_by_consumer.sum())
     roles = np.array(profile.roles)
+    idle_blowers_nl = float(idle_by_consumer[roles == "passive"].sum())
+    idle_hours = idle_flow = 0.0
+    if calendar is not None:
+        if hours_per_year > HOURS_PER_YEAR:
+            raise ValueError(f"{hours_per_year:g} production hours do not fit in a year "
+                             f"({HOURS_PER_YEAR:g} h)")
+        idle_hours = HOURS_PER_YEAR - hours_per_year
+        idle_flow = split["leak"] / profile.horizon_s * 60.0          # leaks: always
+        idle_s = float(np.diff(profile.edges_s)[idle].sum())
+        if calendar.idle_state == "program" and idle_s > 0:
+            idle_flow += idle_blowers_nl / idle_s * 60.0
+    # (E2) annual air: production hours at the mean, idle hours at the idle flow
+    air_nm3 = (mean * hours_per_year + idle_flow * idle_hours) * 60.0 / 1000.0
+    energy = air_nm3 * sec_kwh_per_nm3 / efficiency
     warnings = []
     if last_switch_s is not None and last_switch_s < STOPS_EARLY * profile.horizon_s:
         warnings.append(
@@ -174,7 +200,8 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
         leak_nl=split["leak"], idle_nl=idle_nl,
         idle_share=idle_nl / profile.total_nl if profile.total_nl > 0 else 0.0,
         idle_leak_nl=float(idle_by_consumer[roles == "leak"].sum()),
-        idle_blowers_nl=float(idle_by_consumer[roles == "passive"].sum()),
+        idle_blowers_nl=idle_blowers_nl, idle_hours_per_year=idle_hours,
+        idle_flow_l_min=idle_flow, air_nm3_per_year=air_nm3,
         horizon_s=profile.horizon_s, dt_s=profile.dt_s,
         **({} if cycles is None or cycles.cycle_s is None else {
             "cycle_source": cycles.source, "cycle_s": cycles.cycle_s,
