@@ -370,12 +370,15 @@ def cmd_sweep(args) -> int:
     import io
 
     from .output import OutputError, atomic_write_text, check_out_dir, output_dir
-    from .sweep import SweepError, parse_setting, sweep
+    from .sweep import SweepError, measure_setting, parse_setting, sweep
 
     try:
         horizon_s, dt_s = _durations(args)
         out = check_out_dir(args.out) if args.out else None
         settings = [parse_setting(t) for t in args.set]
+        settings += [measure_setting(t) for t in args.measure]
+        if not settings:
+            raise SweepError("give at least one --set or --measure")
         rows = sweep(args.machine, settings, horizon_s, dt_s, engine=args.engine,
                      scheduler=args.scheduler, workers=args.workers, program=args.program,
                      hours=args.hours, sec=args.sec, price=args.price)
@@ -601,13 +604,20 @@ def build_parser() -> argparse.ArgumentParser:
                                    "scenario. KEY is a [machine] key (supply_bar_g, scan_ms, "
                                    "...), CONSUMER.FIELD (\"air knives.pressure_bar_g\", "
                                    "A.stroke_time_s with 0.2/0.3 for extend/retract), "
-                                   "input.SIGNAL.FIELD, or program.VAR for a variable's "
-                                   "initial value as an ST literal (program.BLOW_TIME=T#2s). "
+                                   "input.SIGNAL.FIELD, program.VAR for a variable's "
+                                   "initial value as an ST literal (program.BLOW_TIME=T#2s), "
+                                   "or measure.leaks / measure.pressure (saving measures, "
+                                   "also as --measure). Energy and cost count a year as "
+                                   "size does (--hours, the machine file's [calendar]). "
                                    "Scenarios run in parallel local processes, or on a Dask "
                                    "cluster with --engine dask --scheduler ADDRESS.")
     _machine_args(p, out=None)
-    p.add_argument("--set", action="append", required=True, metavar="KEY=V1,V2,...",
+    p.add_argument("--set", action="append", default=[], metavar="KEY=V1,V2,...",
                    help="values to sweep (repeat for a cartesian product)")
+    p.add_argument("--measure", action="append", default=[], metavar="NAME=VALUE",
+                   help="an energy-saving measure, swept as without and with it: "
+                        "leaks=-30%% (repair that share of every leak), pressure=-0.5bar "
+                        "(lower the supply); the same as --set measure.NAME=0,VALUE")
     p.add_argument("--engine", choices=("local", "dask"), default="local")
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler (tcp://host:8786)")
     p.add_argument("--workers", type=int, help="local processes (default: one per core)")

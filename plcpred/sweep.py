@@ -8,7 +8,11 @@ A setting is ``KEY=V1,V2,...``:
   ``A.stroke_time_s`` (one value for both directions or ``0.2/0.3``), ``knives.C``;
 * ``input.SIGNAL.FIELD`` - an input schedule, e.g. ``input.PB1.period_s``;
 * ``program.VAR`` - the initial value of a program variable or constant, as an ST literal,
-  e.g. ``program.BLOW_TIME=T#2s,T#5s`` (a timer preset).
+  e.g. ``program.BLOW_TIME=T#2s,T#5s`` (a timer preset);
+* ``measure.NAME`` - an energy-saving measure as audits (MEASUR, AIRMaster+) list them:
+  ``measure.leaks=0%,-30%`` repairs that share of every leak (its conductance: a leak's
+  flow is proportional to it, ISO 6358), ``measure.pressure=0,-0.5`` lowers the supply by
+  that many bar (regulators set above the new supply then give the supply).
 
 Each scenario is a plain function call (:func:`run_scenario`) on picklable arguments, so
 the local process pool and Dask give identical results.
@@ -78,6 +82,9 @@ def apply_settings(data: dict, path, program, scenario: dict):
         if key in MACHINE_KEYS:
             d.setdefault("machine", {})[key] = _number(key, value)
             continue
+        if key.lower().startswith("measure."):
+            _apply_measure(d, key, value)
+            continue
         head, _, field = key.rpartition(".")
         if key.lower().startswith("program."):
             prog = _set_program_value(prog if prog is not program else copy.deepcopy(program),
@@ -115,6 +122,56 @@ def apply_settings(data: dict, path, program, scenario: dict):
         shown = ", ".join(f"{k}={v}" for k, v in scenario.items())
         raise SweepError(f"scenario {shown}: {e}") from None
     return machine, prog
+
+
+MEASURES = ("leaks", "pressure")
+
+
+def _apply_measure(d: dict, key: str, value: str) -> None:
+    """A saving measure (module note) applied to the machine file's data."""
+    name = key.split(".", 1)[1].lower()
+    text = value.strip().lower()
+    if name == "leaks":
+        pct = _number(key, text.removesuffix("%"))
+        if not -100.0 <= pct <= 0.0:
+            raise SweepError(f"{key}: {value!r}: a leak repair is a share from 0% to -100%")
+        factor = 1.0 + pct / 100.0
+        consumers = _tables(d, "consumer")
+        leaks = [t for t in consumers if t.get("kind") == "leak"]
+        if not leaks:
+            raise SweepError(f"{key}: the machine file has no leak consumer")
+        if factor == 0.0:
+            d["consumer"] = [t for t in consumers if t.get("kind") != "leak"]
+            return
+        for t in leaks:
+            if "C" in t:
+                t["C"] = _number(key, t["C"]) * factor
+            elif "Cd" in t:
+                t["Cd"] = _number(key, t["Cd"]) * factor
+        return
+    if name == "pressure":
+        dp = _number(key, text.removesuffix("bar"))
+        machine = d.setdefault("machine", {})
+        supply = _number(key, machine.get("supply_bar_g", 6.0)) + dp
+        machine["supply_bar_g"] = supply
+        for t in _tables(d, "consumer"):
+            if "pressure_bar_g" in t and _number(key, t["pressure_bar_g"]) > supply:
+                t["pressure_bar_g"] = max(supply, 0.0)
+        return
+    raise SweepError(f"{key}: no measure '{name}' (measures: {', '.join(MEASURES)})")
+
+
+def measure_setting(text: str) -> Setting:
+    """``--measure NAME=VALUE``: the machine as it is and with the measure."""
+    if "=" not in text:
+        raise SweepError(f"--measure {text!r}: write NAME=VALUE (leaks=-30%, "
+                         "pressure=-0.5bar)")
+    name, _, value = text.partition("=")
+    name, value = name.strip().lower(), value.strip()
+    if name not in MEASURES or not value:
+        raise SweepError(f"--measure {text!r}: measures are {', '.join(MEASURES)} "
+                         "(leaks=-30%, pressure=-0.5bar)")
+    return Setting(f"measure.{name}", ["0%" if name == "leaks" else "0bar", value])
 
 
 def _tables(data: dict, key: str) -> list:

@@ -118,3 +118,35 @@ def test_the_allocator_setting_applies_once_on_glibc():
         pytest.skip("glibc only")
     assert use_large_malloc_thresholds() is True
     assert use_large_malloc_thresholds() is True          # once; then a no-op
+
+
+def test_saving_measures_repair_leaks_and_lower_the_supply():
+    from plcpred.sweep import measure_setting
+    settings = [measure_setting("leaks=-30%"), measure_setting("pressure=-1bar")]
+    assert [s.values for s in settings] == [["0%", "-30%"], ["0bar", "-1bar"]]
+    rows = sweep(RIG, settings, 20.0, 0.05, workers=1)
+    by = {(r["measure.leaks"], r["measure.pressure"]): r for r in rows}
+    leak = next(c.name for c in load_machine(RIG).consumers if c.kind == "leak")
+    base, fixed = by[("0%", "0bar")], by[("-30%", "0bar")]
+    # a leak's flow is proportional to its conductance: 30 % of it repaired
+    assert fixed[f"{leak}_nl"] == pytest.approx(0.7 * base[f"{leak}_nl"], rel=1e-9)
+    assert fixed["total_nl"] == pytest.approx(
+        base["total_nl"] - 0.3 * base[f"{leak}_nl"], rel=1e-9)
+    # one bar less is the machine at one bar less, and regulators above it give the supply
+    seq2 = SAMPLES / "prototype_rig" / "rig_seq2.toml"      # knives regulated to 2 bar g
+    m, _ = apply_settings(read_machine_data(seq2), seq2,
+                          load_program(load_machine(seq2).program_path),
+                          {"measure.pressure": "-3"})
+    assert m.supply_bar_g == pytest.approx(load_machine(seq2).supply_bar_g - 3)
+    knives = [c for c in m.consumers if c.pressure_bar_g is not None]
+    assert knives and all(c.pressure_bar_g == pytest.approx(m.supply_bar_g) for c in knives)
+    data = read_machine_data(RIG)
+    program = load_program(load_machine(RIG).program_path)
+    lower = by[("0%", "-1bar")]
+    (same,) = sweep(RIG, [parse_setting(f"supply_bar_g={load_machine(RIG).supply_bar_g - 1}")],
+                    20.0, 0.05, workers=1)
+    assert lower["total_nl"] == pytest.approx(same["total_nl"], rel=1e-12)
+    with pytest.raises(SweepError, match="measures are leaks, pressure"):
+        measure_setting("valves=-1")
+    with pytest.raises(SweepError, match="from 0% to -100%"):
+        apply_settings(data, RIG, program, {"measure.leaks": "+20%"})
