@@ -256,7 +256,7 @@ def _bar(text: str) -> float:
 
 def cmd_size(args) -> int:
     from .air import predict
-    from .air.cycles import cycles_of, last_switch_s
+    from .air.cycles import cycles_of, last_switch_s, rest_mask
     from .air.sizing import size
     from .output import OutputError, check_out_dir, output_dir
     from .report import write_sizing_report
@@ -276,6 +276,7 @@ def cmd_size(args) -> int:
         s = size(result.profile, allowance=allowance, band_bar=band,
                  hours_per_year=production_hours(result.machine, args.hours),
                  calendar=result.machine.calendar,
+                 waiting=rest_mask(result.machine, result.timeline, result.profile),
                  sec_kwh_per_nm3=args.sec, price_per_kwh=args.price, idle_after_s=idle_after,
                  cycles=cycles_of(result.machine, result.timeline, result.profile),
                  last_switch_s=last_switch_s(result.machine, result.timeline),

@@ -371,7 +371,8 @@ def sizing_markdown(machine_name: str, s, profile, plots=("sizing.png", "demand.
         f"{pct(s.active_nl / total)} |",
         f"| passive (nozzles, air knives) | {s.passive_nl:.2f} | {pct(s.passive_nl / total)} |",
         f"| leaks | {s.leak_nl:.2f} | {pct(s.leak_nl / total)} |",
-        f"| **while idle** (no cylinder moving) | {s.idle_nl:.2f} | **{pct(s.idle_share)}** |",
+        f"| **while idle** (waiting: no cylinder moving, outputs as it waits) | "
+        f"{s.idle_nl:.2f} | **{pct(s.idle_share)}** |",
         f"| of it leaks | {s.idle_leak_nl:.2f} | {pct(s.idle_leak_nl / total)} |",
         f"| of it nozzles and blowers left on | {s.idle_blowers_nl:.2f} | "
         f"{pct(s.idle_blowers_nl / total)} |",

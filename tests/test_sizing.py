@@ -8,8 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from plcpred import predict
 from plcpred.air import demand_profile
 from plcpred.air.demand import ConsumerModel
+from plcpred.air.cycles import last_switch_s
 from plcpred.air.sizing import receiver_deficit, size
 from plcpred.sequencer.timeline import Signal, Timeline
 
@@ -443,3 +445,37 @@ def test_sweep_counts_energy_and_cost_with_the_same_options(tmp_path):
     e5, e6 = (float(r_["energy_kwh_per_year"]) for r_ in rows)
     m5, m6 = (float(r_["mean_l_min"]) for r_ in rows)
     assert e5 / e6 < m5 / m6
+
+
+def test_idle_air_is_air_while_the_machine_waits(tmp_path):
+    """The rig blows its knives while its cylinders stand still in the sequence: that is
+    productive blow-off, not idle air (it counted 86 % as idle when idle meant 'no
+    cylinder moving'). Its waiting state is everything off: the leak before the start
+    press and after the sequence is idle. A blower the program never switches off is
+    left on: while the machine waits, its air is idle air."""
+    from plcpred.air.cycles import rest_mask
+    rig = predict(RIG, 20.0)
+    s = size(rig.profile, waiting=rest_mask(rig.machine, rig.timeline, rig.profile))
+    assert s.idle_blowers_nl == 0.0 and s.passive_nl > 0
+    leak_l_min = s.leak_nl / 20.0 * 60.0
+    # waiting: before the start press (0.5 s) and after the last valve switches
+    quiet_s = 0.5 + 20.0 - last_switch_s(rig.machine, rig.timeline)
+    assert s.idle_leak_nl == pytest.approx(leak_l_min * quiet_s / 60.0, rel=0.02)
+    assert size(rig.profile).idle_share > 0.8            # the old, cylinder-only idea
+    # a part every 4 s: the clamp closes for 1 s (strokes 0.2 s each way); the blower
+    # stays on: it is left on for the 4 - 1 - 0.2 s of each cycle the machine waits
+    (tmp_path / "p.st").write_text(
+        "PROGRAM P\nVAR go AT %IX0.0 : BOOL; clamp AT %QX0.0 : BOOL; blow AT %QX0.1 : BOOL;"
+        " t : TP; END_VAR\nt(IN := go, PT := T#1s);\nclamp := t.Q;\nblow := TRUE;\n"
+        "END_PROGRAM\n")
+    (tmp_path / "m.toml").write_text(
+        '[machine]\nname = "m"\nprogram = "p.st"\nscan_ms = 10\nsupply_bar_g = 6\n'
+        '[[input]]\nsignal = "go"\nperiod_s = 4\noffset_s = 0.5\npulse_ms = 100\n'
+        '[[consumer]]\nname = "clamp"\nkind = "double_acting"\nbore_mm = 32\nrod_mm = 12\n'
+        'stroke_mm = 50\nvalve = "clamp"\nstroke_time_s = [0.2, 0.2]\n'
+        '[[consumer]]\nname = "blower"\nkind = "nozzle"\nvalve = "blow"\norifice_mm = 1\n'
+        'Cd = 0.8\n')
+    m = predict(tmp_path / "m.toml", 400.0)
+    b = size(m.profile, waiting=rest_mask(m.machine, m.timeline, m.profile))
+    blower = float(m.profile.consumer_nl[m.profile.names.index("blower")])
+    assert b.idle_blowers_nl / blower == pytest.approx((4.0 - 1.0 - 0.2) / 4.0, abs=0.01)

@@ -131,3 +131,58 @@ def last_switch_s(machine, timeline) -> float | None:
             if len(t) > 1:          # the first row is the initial value
                 last = max(last, float(t[-1]) / NS)
     return last
+
+
+def rest_mask(machine, timeline, profile) -> np.ndarray | None:
+    """Grid cells in which the machine's valve outputs are in its *waiting state*: every
+    output off but those that are on throughout (over one repeating period of a tiled
+    run, else over the run). A machine waits with everything off, or with what its
+    program never switches off (a blower left on is then idle air while it waits, and
+    productive blow-off in a cycle is not); a machine that never rests (a blow-off line
+    with parts always in it) never waits. None when no consumer has a valve."""
+    signals = list(dict.fromkeys(v for c in machine.consumers for v in c.valve))
+    if not signals:
+        return None
+    edges = [_executed_edges(timeline, s) for s in signals]
+    t1, t2 = timeline.tiled if timeline.tiled is not None else (0, timeline.horizon_ns)
+    times, states = _output_states(edges, t1, t2)
+    lasting = np.diff(times) > 0
+    waiting = np.logical_and.reduce(states[lasting], axis=0)
+    resting = (states == waiting[None, :]).all(axis=1) & lasting
+    a, b = times[:-1][resting], times[1:][resting]
+    if timeline.tiled is not None:
+        # the period's spells repeat to the horizon; the start-up has its own
+        p = t2 - t1
+        reps = np.arange(int((timeline.horizon_ns - t1) // p) + 1, dtype=np.int64) * p
+        a = (a[None, :] + reps[:, None]).ravel()
+        b = (b[None, :] + reps[:, None]).ravel()
+        if t1 > 0:
+            times0, states0 = _output_states(edges, 0, t1)
+            rest0 = (states0 == waiting[None, :]).all(axis=1)
+            a = np.concatenate([times0[:-1][rest0], a])
+            b = np.concatenate([times0[1:][rest0], b])
+    a = np.clip(a, 0, timeline.horizon_ns) / NS
+    b = np.clip(b, 0, timeline.horizon_ns) / NS
+    rest_before = np.concatenate([[0.0], np.cumsum(b - a)])     # spells are sorted
+
+    def rest_time(x):
+        k = np.searchsorted(a, x, side="right") - 1
+        kk = np.clip(k, 0, None)
+        return np.where(k >= 0, rest_before[kk] + np.clip(np.minimum(x, b[kk]) - a[kk], 0,
+                                                          None), 0.0)
+
+    e = profile.edges_s
+    return rest_time(e[1:]) - rest_time(e[:-1]) >= np.diff(e) * (1.0 - 1e-9)
+
+
+def _output_states(edges, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
+    """(times ns, states): the times in [lo, hi] at which any of the signals whose
+    ``edges`` are given changes (with lo and hi), and every signal's value (TRUE or not)
+    from each of them to the next."""
+    times = np.unique(np.concatenate([[lo, hi]] + [t[(t > lo) & (t < hi)] for t, _ in edges]))
+    starts = times[:-1]
+    states = np.empty((len(starts), len(edges)), dtype=bool)
+    for j, (t, v) in enumerate(edges):
+        k = np.searchsorted(t, starts, side="right") - 1
+        states[:, j] = np.where(k >= 0, v[np.clip(k, 0, None)] != 0, False)
+    return times, states

@@ -19,10 +19,12 @@
   less air (D1, D2) and less work per normal m^3.
 * **Per cycle**: with a steady cycle (:mod:`~plcpred.air.cycles`) the cycle time and the
   air per cycle, which do not depend on the horizon.
-* **Idle air**: air used while no cylinder is moving (only leaks and blowers on), as a share
-  of the total, split into leaks and blowers left on (the non-productive air of the
-  published case study); with ``idle_after_s`` the machine must also have been still
-  that long.
+* **Idle air**: air used while the machine waits: no cylinder is moving and, given the
+  machine's outputs, they are in the state it waits in (the one it spends the most time
+  in, :func:`~plcpred.air.cycles.rest_mask`: blow-off within a cycle is productive, a
+  blower the program leaves on while waiting is not), as a share of the total, split
+  into leaks and blowers left on (the non-productive air of the published case study);
+  with ``idle_after_s`` the machine must also have been still that long.
 """
 from __future__ import annotations
 
@@ -139,7 +141,8 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
          hours_per_year: float = DEFAULT_HOURS, sec_kwh_per_nm3: float | None = None,
          price_per_kwh: float = DEFAULT_PRICE, efficiency: float = 1.0,
          idle_after_s: float = 0.0, cycles=None, last_switch_s: float | None = None,
-         supply: tuple[float, float] | None = None, calendar=None) -> Sizing:
+         supply: tuple[float, float] | None = None, calendar=None,
+         waiting=None) -> Sizing:
     """Size the supply for ``profile`` (module note); ``cycles`` (a
     :class:`~plcpred.air.cycles.Cycles`) adds the steady cycle's figures, and
     ``last_switch_s`` (when the valves last switch) warns of a machine that stops long
@@ -148,7 +151,9 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
     (:class:`~plcpred.machine.Calendar`) the machine produces for ``hours_per_year`` and
     stands for the rest of the 8,760 h with the supply on: its leaks flow, and with
     ``idle_state = "program"`` the blowers the program leaves on when nothing moves
-    (their rate over the run's idle time) (E2)."""
+    (their rate over the run's idle time) (E2). ``waiting`` (a cell mask,
+    :func:`~plcpred.air.cycles.rest_mask`) narrows idle to the cells in which the
+    machine's outputs are as it waits: productive blow-off in a cycle is not idle air."""
     if sec_kwh_per_nm3 is None:
         sec_kwh_per_nm3 = (DEFAULT_SEC_KWH_NM3 if supply is None
                            else specific_energy_kwh_per_nm3(*supply))
@@ -163,6 +168,8 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
     receiver_l = deficit * P0_PA / (band_bar * 1e5)
     split = profile.by_role_nl()
     idle = idle_mask(profile, idle_after_s)
+    if waiting is not None:
+        idle = idle & waiting
     idle_by_consumer = profile.consumer_nl_within(idle)
     idle_nl = float(idle_by_consumer.sum())
     roles = np.array(profile.roles)
