@@ -330,3 +330,33 @@ def test_fb_init_arguments_on_an_array_of_function_blocks():
     assert trace(src, ("N",), lambda k: {}, scans=2) == [(1,), (2,)]
     from plcpred.parser.printer import to_st
     assert parse_st(to_st(parse_st(src, "t.st")), "t.st") == parse_st(src, "t.st")
+
+
+def test_anonymous_located_declarations_type_an_address():
+    # IEC 61131-3: ``AT %IX1.1 : BOOL;`` declares the address without a name; code reads
+    # it by its address
+    src = body("AT %IX1.1 : BOOL;\nAT %QW2 : WORD;\nx AT %QX0.0 : BOOL;",
+               "x := %IX1.1;\n%QW2 := 16#00FF;")
+    prog = parse_st(src, "t.st")
+    decls = {d.address: d for d in prog.pou("P").decls()}
+    assert decls["%IX1.1"].type == ir.NamedType("BOOL")
+    assert decls["%QW2"].type == ir.NamedType("WORD")
+    errors, warnings = check_program(prog)
+    assert errors == [] and warnings == []
+    assert trace(src, ("X",), lambda k: {decls["%IX1.1"].name.upper(): k == 1},
+                 scans=3) == [(False,), (True,), (False,)]
+
+
+def test_var_access_paths_are_read():
+    src = ("CONFIGURATION C\nVAR_ACCESS\n  speed : R.Main.nSpeed : INT READ_ONLY;\n"
+           "  lamp : %QX0.1 : BOOL;\nEND_VAR\nRESOURCE R ON PLC\n TASK t(INTERVAL := T#10ms);\n"
+           " PROGRAM Main WITH t : P;\nEND_RESOURCE\nEND_CONFIGURATION\n"
+           + body("nSpeed : INT;", "nSpeed := nSpeed + 1;"))
+    prog = parse_st(src, "t.st")
+    (block,) = prog.configurations[0].var_blocks
+    assert block.kind == "VAR_ACCESS"
+    assert [(d.name, d.type) for d in block.decls] == [("speed", ir.NamedType("INT")),
+                                                         ("lamp", ir.NamedType("BOOL"))]
+    assert problems(src) == []
+    with pytest.raises(Exception, match="READ_WRITE or READ_ONLY"):
+        parse_st(src.replace("READ_ONLY", "READ_SOMETIMES"), "t.st")

@@ -434,6 +434,26 @@ class IRBuilder:
         return [ir.VarDecl(str(n), type_, init, addr, pos=self._pos(n), init_args=args,
                            edge=edge) for n in names]
 
+    def anonymous_at_decl(self, address, type_, init):
+        """``AT %IX1.1 : BOOL;``: a located variable without a name (IEC 61131-3 allows
+        it; code reads it by its address). It is declared under a name made from the
+        address (``_AT_IX1_1``), which no IEC identifier the user writes can clash with
+        by accident and which names the address in messages."""
+        addr = address.value.upper()
+        return [ir.VarDecl(anonymous_at_name(addr), self._plain(type_), init, addr,
+                           pos=self._pos(address))]
+
+    def access_decl(self, names, path, type_, mode):
+        """A VAR_ACCESS entry: ``name : Resource.Instance.var : INT READ_WRITE;``. The
+        access name is read as a variable of its own (the path is for a client, OPC or
+        HMI, that reaches the program through it; plcpred does not follow it)."""
+        if len(names) != 1:
+            raise self._err("a VAR_ACCESS entry names one access path", self._pos(names[1]))
+        if mode is not None and str(mode).upper() not in ("READ_WRITE", "READ_ONLY"):
+            raise self._err(f"expected READ_WRITE or READ_ONLY, found '{mode}'",
+                            self._pos(mode))
+        return [ir.VarDecl(str(names[0]), self._plain(type_), pos=self._pos(names[0]))]
+
     def config_path(self, *names):
         return _QualName(".".join(n.value for n in names), self._pos(names[0]))
 
@@ -649,6 +669,12 @@ class IRBuilder:
                 else:
                     last_pou.actions.append(item)
         return prog
+
+
+def anonymous_at_name(address: str) -> str:
+    """The name a located variable declared without one is kept under: ``%IX1.1`` ->
+    ``_AT_IX1_1`` (upper case, as names are compared)."""
+    return "_AT_" + "".join(ch if ch.isalnum() else "_" for ch in address.upper()[1:])
 
 
 def make_action_assoc(name, qualifier, rest, pos, err):

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 from . import ir
 from .errors import ProgramError, ProgramWarning, at
+from .build import anonymous_at_name
 from .stdlib import ELEMENTARY_TYPES, STANDARD_FBS, is_standard_function, std_fb_pins
 
 _LOCAL_KINDS = ("VAR", "VAR_TEMP", "VAR_STAT", "VAR_INST")
@@ -305,6 +306,8 @@ class Checker:
         usage.read |= {n for kind, n in referenced_names(
             [(d.type, d.init) for d, _ in own.values()]) if kind == "V"}
         for key, (d, kind) in own.items():
+            if d.address and key == anonymous_at_name(d.address):
+                continue        # ``AT %IX1.1 : BOOL;`` types an address code reads as such
             is_output = kind == "VAR_OUTPUT" or (d.address or "").startswith("%Q")
             if is_output and key not in usage.written:
                 self.warn(d.pos, f"output '{d.name}' is never written")

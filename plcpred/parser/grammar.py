@@ -141,6 +141,9 @@ var_block: var_kind var_qualifier* (var_decl | _SEMI)* _END_VAR
 !var_qualifier: CONSTANT | RETAIN | NON_RETAIN | PERSISTENT
 var_decl: name_list [_AT ADDRESS] _COLON type_spec [NAME] [_ASSIGN initializer] _SEMI
         | config_path _AT ADDRESS _COLON type_spec [_ASSIGN initializer] _SEMI -> config_decl
+        | _AT ADDRESS _COLON type_spec [_ASSIGN initializer] _SEMI -> anonymous_at_decl
+        | name_list _COLON access_path _COLON type_spec [NAME] _SEMI -> access_decl
+?access_path: qual_name | ADDRESS
 config_path: NAME (_DOT NAME)+
 """
 
