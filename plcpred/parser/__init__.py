@@ -33,10 +33,16 @@ def _load(path) -> "ir.Program":
 
     from . import twincat
 
+    from .bnr import BNR_SUFFIXES, is_bnr_folder, load_bnr
+
     p = Path(path)
     if p.is_dir() or p.suffix.lower() == ".plcproj":
         from functools import reduce
-        merged = reduce(ir.Program.merge, [_load(f) for f in twincat.project_files(p)])
+        files = twincat.project_files(p)
+        if p.is_dir() and is_bnr_folder(files, twincat.read_source):
+            # B&R Automation Studio: program folders, .var/.typ/.fun (see .bnr)
+            return load_bnr(p, files, twincat.read_source)
+        merged = reduce(ir.Program.merge, [_load(f) for f in files])
         merged.source = str(path)
         # kept for naming the libraries a check misses (see check.Checker.missing)
         from .libraries import reference_pragma
@@ -44,6 +50,13 @@ def _load(path) -> "ir.Program":
                            for name in twincat.project_references(p)]
         return merged
     text = twincat.read_source(p)
+    if p.suffix.lower() in BNR_SUFFIXES or (
+            p.suffix.lower() == ".st" and _BNR_CYCLIC.search(text)):
+        # one file of a B&R program: the program is its folder
+        folder = p.parent
+        files = sorted(f for f in folder.iterdir() if f.is_file()
+                       and f.suffix.lower() in BNR_SUFFIXES + (".st",))
+        return load_bnr(folder, files, twincat.read_source)
     kind = _sniff(text) or p.suffix.lower()
     if kind == ".seq":
         from .seq import parse_seq
@@ -60,6 +73,7 @@ def _load(path) -> "ir.Program":
     return parse_st(text, str(path))
 
 
+_BNR_CYCLIC = re.compile(r"^\s*PROGRAM\s+_CYCLIC\b", re.I | re.M)
 _XML_ROOT = re.compile(r"\s*(?:<\?xml[^>]*\?>\s*)?(?:<!--[\s\S]*?-->\s*)*<(?:\w+:)?(\w+)")
 _MACHINE_TABLE = re.compile(r"^\s*\[machine\]\s*$", re.M)
 

@@ -2,6 +2,8 @@
 ever materialised), and the glue that runs a grammar over a :class:`Tokenizer`."""
 from __future__ import annotations
 
+import contextvars
+
 import itertools
 import threading
 
@@ -243,6 +245,9 @@ class IRBuilder:
         return ir.Assign(target, value, "?=", pos=target.pos)
 
     def call_stmt(self, expr):
+        if isinstance(expr, (ir.Name, ir.Member)) and DIALECT.get() == "bnr":
+            # B&R calls an action (or an FB instance) by its name alone: ``Blow;``
+            return ir.CallStmt(ir.Call(expr, [], pos=expr.pos), pos=expr.pos)
         if not isinstance(expr, ir.Call):
             raise self._err("expected ':=' (assignment) or '(' (call) after this expression",
                             expr.pos)
@@ -669,6 +674,11 @@ class IRBuilder:
                 else:
                     last_pou.actions.append(item)
         return prog
+
+
+# the dialect of the file being read where vendors disagree ("iec", or "bnr": B&R
+# Automation Studio, whose files call an action by its name alone)
+DIALECT: contextvars.ContextVar[str] = contextvars.ContextVar("dialect", default="iec")
 
 
 def anonymous_at_name(address: str) -> str:

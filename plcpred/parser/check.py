@@ -305,7 +305,13 @@ class Checker:
         from .libraries import referenced_names
         usage.read |= {n for kind, n in referenced_names(
             [(d.type, d.init) for d, _ in own.values()]) if kind == "V"}
+        # a function block or function with no code at all is a declaration (a B&R .fun,
+        # a library's interface): what it leaves unwritten is not a finding
+        declaration_only = pou.kind != "PROGRAM" and not pou.body and not pou.methods \
+            and not pou.actions and not pou.properties
         for key, (d, kind) in own.items():
+            if declaration_only:
+                break
             if d.address and key == anonymous_at_name(d.address):
                 continue        # ``AT %IX1.1 : BOOL;`` types an address code reads as such
             is_output = kind == "VAR_OUTPUT" or (d.address or "").startswith("%Q")

@@ -260,11 +260,12 @@ def project_files(path: Path) -> list[Path]:
                                "or its folder", str(path), 0, 0)
         if projects:
             return project_files(projects[0])
+        from .bnr import BNR_SUFFIXES
         files = sorted(p for p in path.rglob("*") if p.is_file()
-                       and p.suffix.lower() in OBJECT_SUFFIXES + _ST_SUFFIXES)
+                       and p.suffix.lower() in OBJECT_SUFFIXES + _ST_SUFFIXES + BNR_SUFFIXES)
         if not files:
             raise ProgramError("the folder holds no program files (.TcPOU, .TcGVL, .TcDUT, "
-                               ".TcIO, .TcTTO, .st)", str(path), 0, 0)
+                               ".TcIO, .TcTTO, .st; B&R .var, .typ, .fun)", str(path), 0, 0)
         return files
     root = _parse_xml(read_source(path), str(path), "Project", "a TwinCAT .plcproj file")
     files = []
