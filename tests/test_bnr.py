@@ -64,3 +64,15 @@ def test_calling_an_action_by_its_name_alone_is_b_and_r_only():
         parse_st(src, "p.st")
     prog = parse_st(src, "p.st", dialect="bnr")
     assert prog.pous[0].body[0].call.func.name == "Act"
+
+
+def test_a_hostile_folder_name_becomes_a_plain_identifier(tmp_path):
+    import shutil
+    folder = tmp_path / "x\"); __import__('os').system('echo pwned') #é"
+    shutil.copytree(BNR / "Logical" / "Station", folder)
+    shutil.copy(BNR / "Logical" / "Global.var", tmp_path)
+    prog = load_program(tmp_path)
+    (station,) = [p for p in prog.pous if p.kind == "PROGRAM"]
+    assert station.name.isidentifier() and station.name.isascii()
+    inst = ProgramInstance(prog)
+    inst.scan(0)

@@ -19,6 +19,7 @@ from pathlib import Path
 
 from . import ir
 from .errors import ProgramError
+from .names import validate_names
 
 BNR_SUFFIXES = (".var", ".typ", ".fun")
 _PHASES = ("_INIT", "_CYCLIC", "_EXIT")
@@ -50,8 +51,11 @@ def _only_actions(text: str) -> bool:
 
 
 def _program_name(folder: Path) -> str:
-    name = "".join(ch if ch.isalnum() or ch == "_" else "_" for ch in folder.name)
-    if not name or name[0].isdigit():
+    """The PROGRAM a folder becomes: its name as an IEC identifier (ASCII letters, digits
+    and underscores; anything else an underscore)."""
+    name = "".join(ch if (ch.isascii() and ch.isalnum()) or ch == "_" else "_"
+                   for ch in folder.name)
+    if not name.strip("_") or name[0].isdigit():
         name = "P_" + name
     return name
 
@@ -117,7 +121,8 @@ def load_bnr(root: Path, files: list[Path], read) -> ir.Program:
         out.configurations.append(ir.Configuration(
             "BnR", [], [ir.Resource("CPU", None, tasks=[task], programs=[
                 ir.ProgramInstance(p.name, p.name, task.name) for p in programs])]))
-    return out
+    # what was put together here passes the same gate as what was parsed
+    return validate_names(out)
 
 
 def _where(pou) -> tuple[str, int, int]:
