@@ -430,6 +430,17 @@ def test_ld_condition_drawn_in_the_chart_is_the_condition():
                                     ir.Unary("NOT", ir.Name("go")))
 
 
+def _diamonds(levels):
+    """Blocks each read twice by the next: written out as expressions they would double
+    per level (2**levels reads), a hostile file's way to make the import run forever."""
+    out = in_var(1, "a", 0)
+    for k in range(levels):
+        lid = 10 + k
+        prev = 1 if k == 0 else lid - 1
+        out += block(lid, "ADD", k, [("IN1", _in(prev), False), ("IN2", _in(prev), False)])
+    return out + out_var(9, "q", 0, _in(10 + levels - 1))
+
+
 @pytest.mark.parametrize("body, reason", [
     (out_var(1, "q", 0, _in(9)), "connection to unknown localId '9'"),
     (in_var(1, "a", 0) + block(2, "DIVMOD", 0, [("IN", _in(1), False)],
@@ -438,6 +449,7 @@ def test_ld_condition_drawn_in_the_chart_is_the_condition():
     (block(1, "ADD", 0, [("IN1", _in(2, "OUT"), False)])
      + block(2, "ADD", 0, [("IN1", _in(1, "OUT"), False)]) + out_var(3, "q", 0, _in(1)),
      "deeper than"),
+    (_diamonds(40), "too large to convert"),
 ])
 def test_a_network_that_cannot_be_converted_loads_and_says_why(body, reason):
     from plcpred.parser.check import check_program

@@ -34,6 +34,9 @@ _FOLD = {"ADD": "+", "MUL": "*", "AND": "AND", "OR": "OR", "XOR": "XOR"}
 _BINARY = {"SUB": "-", "DIV": "/", "MOD": "MOD", "EXPT": "**"}
 _COMPARE = {"GT": ">", "GE": ">=", "EQ": "=", "LE": "<=", "LT": "<", "NE": "<>"}
 MAX_NETWORK_DEPTH = 150   # elements chained in one network (the expression limit is 100)
+# wires followed in converting one body: a value read twice is written out twice, so a
+# file of blocks each read by two others (a diamond lattice) would double per level
+MAX_NETWORK_WORK = 200_000
 
 
 class GraphError(Exception):
@@ -88,6 +91,7 @@ class Network:
         self._running: set[str] = set()    # sinks being emitted (feedback stops here)
         self._trigs: dict[tuple[str, str], str] = {}
         self._depth = 0
+        self._work = 0
 
     # ---------------------------------------------------------------- statements
     def statements(self) -> list:
@@ -191,8 +195,12 @@ class Network:
         if el is None:
             raise GraphError(conn, f"connection to unknown localId {ref!r}")
         self._depth += 1
+        self._work += 1
         if self._depth > MAX_NETWORK_DEPTH:
             raise GraphError(el, f"network deeper than {MAX_NETWORK_DEPTH} elements")
+        if self._work > MAX_NETWORK_WORK:
+            raise GraphError(el, f"network too large to convert (more than "
+                                 f"{MAX_NETWORK_WORK:,} wires followed)")
         try:
             return self._value(el, conn.attrib.get("formalParameter") or None)
         finally:
