@@ -63,8 +63,17 @@ def task_scan_ms(program: ir.Program) -> float | None:
 
 
 def _toml_string(text: str) -> str:
-    """A TOML basic string (names and paths: no control characters reach it)."""
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    """A TOML basic string: quotes and backslashes escaped, and control characters (a
+    file name may hold a newline) as \\uXXXX, so no text can end the string."""
+    out = []
+    for ch in text:
+        if ch in ('"', "\\"):
+            out.append("\\" + ch)
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append(f"\\u{ord(ch):04X}")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
 
 
 def _looks_like_switch(name: str) -> bool:
@@ -138,7 +147,8 @@ def machine_skeleton(program: ir.Program, program_path: Path, out_path: Path | N
     scan = task_scan_ms(program)
     day = (today or datetime.date.today()).isoformat()
     lines = [
-        f"# Machine file for {program_path.name}, written by `plcpred init` on {day}.",
+        f"# Machine file for {_toml_string(program_path.name)[1:-1]}, written by "
+        f"`plcpred init` on {day}.",
         "# It loads and runs as it is (the program alone, nothing scheduled). Fill in what",
         "# the program cannot tell: what drives its inputs and which air consumer each",
         "# output switches (uncomment and complete the blocks below). Every key, with its",

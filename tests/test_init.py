@@ -1,6 +1,8 @@
 """``plcpred init``: a machine file to start from, written from a program's I/O."""
 import re
 
+import pytest
+
 from plcpred.cli import main
 from plcpred.machine import load_machine
 
@@ -53,3 +55,19 @@ def test_init_prints_without_out_and_refuses_to_overwrite(samples_dir, tmp_path,
     bad.write_text("PROGRAM P\nVAR x : INT; END_VAR\nx := ;\nEND_PROGRAM\n")
     assert main(["init", str(bad)]) == 1
     assert f"{bad}:3:6:" in capsys.readouterr().err
+
+
+def test_a_file_name_cannot_write_toml_of_its_own(tmp_path, capsys):
+    import tomllib
+    folder = tmp_path / 'odd"\n[[consumer]]\nname = "x'
+    folder.mkdir()
+    (folder / "p.st").write_text("PROGRAM P\nVAR y AT %QX0.0 : BOOL; END_VAR\ny := TRUE;\n"
+                                 "END_PROGRAM\n")
+    out = tmp_path / "m.toml"
+    assert main(["init", str(folder / "p.st"), "-o", str(out)]) == 0
+    data = tomllib.loads(out.read_text())
+    assert set(data) == {"machine"}                 # the name stayed inside its string
+    assert data["machine"]["program"] == folder.name + "/p.st"
+    from plcpred.machine import MachineError
+    with pytest.raises(MachineError, match=r"\[machine\]: program must be printable"):
+        load_machine(out)
