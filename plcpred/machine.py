@@ -495,6 +495,9 @@ def _calendar(file: str, table: dict) -> Calendar:
     day_h = c.shifts_per_day * c.hours_per_shift
     if day_h > 24.0:
         raise r.error(f"shifts_per_day x hours_per_shift is {day_h:g} h, more than a day")
+    if c.production_hours > HOURS_PER_YEAR:
+        raise r.error(f"the calendar's {c.production_hours:g} production hours do not fit "
+                      f"in a year ({HOURS_PER_YEAR:g} h)")
     return c
 
 
