@@ -159,8 +159,9 @@ def test_names_in_attributes_are_identifiers_or_a_positioned_error(tmp_path):
 
 def test_a_plcproj_naming_a_missing_file_and_a_folder_of_two_projects(tmp_path):
     shutil.copytree(PROJECT, tmp_path / "A")
-    (tmp_path / "A" / "POUs" / "MAIN.TcPOU").unlink()
-    with pytest.raises(ProgramError, match="MAIN.TcPOU.*not found"):
+    for f in (tmp_path / "A").rglob("*.Tc*"):
+        f.unlink()
+    with pytest.raises(ProgramError, match="none of the files the project lists"):
         load_program(tmp_path / "A")
     shutil.copytree(PROJECT, tmp_path / "B")
     with pytest.raises(ProgramError, match="2 PLC projects"):
@@ -193,3 +194,20 @@ def test_a_missing_name_names_the_libraries_the_project_references_and_plcpred_l
     err = capsys.readouterr().err
     assert "unknown type 'Vendor_Lib.FB_X'" in err
     assert "libraries plcpred does not have: Vendor_Lib;" in err      # Tc2_* are known
+
+
+def test_a_file_the_plcproj_lists_but_that_is_not_there(samples_dir, tmp_path, capsys):
+    """Left out of source control: the project still loads, and a name that file would
+    have declared is reported with it."""
+    import shutil
+
+    from plcpred.cli import main
+    project = tmp_path / "ClampStation"
+    shutil.copytree(samples_dir / "twincat_project" / "ClampStation", project)
+    (project / "DUTs" / "E_Step.TcDUT").unlink()
+    assert main(["check", str(project)]) == 1
+    err = capsys.readouterr().err
+    assert "E_Step" in err and "the .plcproj lists a file that is not there" in err
+    assert "ClampStation.plcproj:11:" in err and "E_Step.TcDUT" in err
+    assert "warning: the .plcproj lists DUTs/E_Step.TcDUT, which is not there" in err
+    assert "Traceback" not in err

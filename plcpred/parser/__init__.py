@@ -38,16 +38,20 @@ def _load(path) -> "ir.Program":
     p = Path(path)
     if p.is_dir() or p.suffix.lower() == ".plcproj":
         from functools import reduce
-        files = twincat.project_files(p)
+        missing: list[str] = []
+        files = twincat.project_files(p, missing)
+        if not files:
+            raise ProgramError("none of the files the project lists is there", str(p), 0, 0)
         if p.is_dir() and is_bnr_folder(files, twincat.read_source):
             # B&R Automation Studio: program folders, .var/.typ/.fun (see .bnr)
             return load_bnr(p, files, twincat.read_source)
         merged = reduce(ir.Program.merge, [_load(f) for f in files])
         merged.source = str(path)
         # kept for naming the libraries a check misses (see check.Checker.missing)
-        from .libraries import reference_pragma
+        from .libraries import missing_pragma, reference_pragma
         merged.pragmas += [(reference_pragma(name), ir.Pos(str(path), 0, 0))
                            for name in twincat.project_references(p)]
+        merged.pragmas += [(missing_pragma(m), ir.Pos(str(path), 0, 0)) for m in missing]
         return merged
     text = twincat.read_source(p)
     if p.suffix.lower() in BNR_SUFFIXES or (

@@ -110,6 +110,20 @@ _REFERENCE = "{library-reference "
 _UNREAD = "{library-unread "
 
 
+_MISSING = "{project-missing "
+
+
+def missing_pragma(where: str) -> str:
+    """How a project records a file its .plcproj lists that is not there."""
+    return f"{_MISSING}{where}}}"
+
+
+def missing_project_files(programs) -> list[str]:
+    """The files the projects among ``programs`` list but do not have."""
+    return [p[len(_MISSING):-1] for prog in programs for p, _ in prog.pragmas
+            if p.startswith(_MISSING)]
+
+
 def unread_library_files(programs) -> list[str]:
     """Why files of the user's libraries were left out (see :func:`_user_library`)."""
     return [p[len(_UNREAD):-1] for prog in programs for p, _ in prog.pragmas

@@ -247,10 +247,12 @@ def parse_twincat(text: str, filename: str = "<input>") -> ir.Program:
 
 # --------------------------------------------------------------------------- projects
 
-def project_files(path: Path) -> list[Path]:
+def project_files(path: Path, missing: list | None = None) -> list[Path]:
     """The program files of a TwinCAT project: those a ``.plcproj`` compiles (in its
     order), or for a folder, those of the one ``.plcproj`` under it, else every TwinCAT
-    object and ST file under it (sorted)."""
+    object and ST file under it (sorted). A file the ``.plcproj`` lists that is not there
+    (left out of source control) is left out and named in ``missing`` (the project still
+    loads; a name it would have declared is then reported with it)."""
     if path.is_dir():
         projects = sorted(p for p in path.rglob("*") if p.suffix.lower() == ".plcproj")
         if len(projects) > 1:
@@ -259,7 +261,7 @@ def project_files(path: Path) -> list[Path]:
                                f"{', ...' if len(projects) > 5 else ''}): name one .plcproj "
                                "or its folder", str(path), 0, 0)
         if projects:
-            return project_files(projects[0])
+            return project_files(projects[0], missing)
         from .bnr import BNR_SUFFIXES
         files = sorted(p for p in path.rglob("*") if p.is_file()
                        and p.suffix.lower() in OBJECT_SUFFIXES + _ST_SUFFIXES + BNR_SUFFIXES)
@@ -276,8 +278,11 @@ def project_files(path: Path) -> list[Path]:
                 continue
             target = Path(os.path.normpath(path.parent / include))
             if not target.is_file():
-                raise ProgramError(f"<Compile Include={include!r}>: file not found",
-                                   str(path), item.line, item.col)
+                if missing is None:
+                    raise ProgramError(f"<Compile Include={include!r}>: file not found",
+                                       str(path), item.line, item.col)
+                missing.append(f"{path}:{item.line}:{item.col}: {include}")
+                continue
             files.append(target)
     return files
 
