@@ -49,7 +49,7 @@ def cmd_check(args) -> int:
     failed = False
     for path in args.programs:
         try:
-            parsed[path] = load_program(path, libraries=False)
+            parsed[path] = load_program(path, libraries=False, dialect=args.dialect)
         except ProgramError as e:
             for err in [e, *getattr(e, "more", ())]:   # every syntax error, up to 20
                 print(err, file=sys.stderr)
@@ -507,6 +507,12 @@ def build_parser() -> argparse.ArgumentParser:
                         "PLCopen file, a .plcproj or a folder (repeatable; its name is "
                         "its namespace, as in Lib.FB_X). Stubs of common vendor libraries "
                         "are built in")
+    p.add_argument("--dialect", choices=("auto", "iec", "bnr"), default="auto",
+                   help="where vendors read ST differently: auto (default) tells a B&R "
+                        "Automation Studio program by its files (.var/.typ/.fun, "
+                        "PROGRAM _CYCLIC); bnr reads every file the B&R way (Act; calls an "
+                        "action; a file of actions is read with its program folder); iec "
+                        "never does")
     p.set_defaults(func=cmd_check)
 
     p = sub.add_parser("init", help="write a machine file to start from, from a program's I/O",

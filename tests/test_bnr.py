@@ -76,3 +76,18 @@ def test_a_hostile_folder_name_becomes_a_plain_identifier(tmp_path):
     assert station.name.isidentifier() and station.name.isascii()
     inst = ProgramInstance(prog)
     inst.scan(0)
+
+
+def test_the_dialect_option(tmp_path, capsys):
+    from plcpred.cli import main
+    f = tmp_path / "act.st"
+    f.write_text("PROGRAM P\nVAR x : INT; END_VAR\nAct;\nACTION Act:\nx := 1;\nEND_ACTION\n"
+                 "END_PROGRAM\n")
+    assert main(["check", str(f)]) == 1
+    assert "read the file with --dialect bnr" in capsys.readouterr().err
+    assert main(["check", "--dialect", "bnr", str(f)]) == 0
+    # iec never reads a folder the B&R way
+    assert main(["check", "--dialect", "iec", str(BNR / "Logical")]) == 1
+    assert main(["check", str(BNR / "Logical")]) == 0
+    with pytest.raises(ValueError, match="dialect must be one of"):
+        load_program(f, dialect="codesys2")

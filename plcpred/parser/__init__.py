@@ -12,7 +12,11 @@ from .st import parse_st
 __all__ = ["ir", "ProgramError", "ProgramWarning", "parse_st", "load_program"]
 
 
-def load_program(path, libraries: bool = True, lib_dirs=()) -> "ir.Program":
+DIALECTS = ("auto", "iec", "bnr")
+
+
+def load_program(path, libraries: bool = True, lib_dirs=(), dialect: str = "auto"
+                 ) -> "ir.Program":
     """Read and parse a program: an ST file (``.st``, also ``.iecst``, ``.txt``), a
     ``.seq`` chart, a PLCopen ``.xml`` export, a TwinCAT 3 object file (``.TcPOU``,
     ``.TcGVL``, ``.TcDUT``, ``.TcIO``, ``.TcTTO``), or a whole project: a TwinCAT
@@ -20,15 +24,20 @@ def load_program(path, libraries: bool = True, lib_dirs=()) -> "ir.Program":
     otherwise (a ``.TcPOU`` saved as ``.st``). Errors name the file, line and column.
 
     With ``libraries``, what the program uses from vendor libraries (the shipped stubs,
-    and declarations under ``lib_dirs``) is added to it (see :mod:`.libraries`)."""
-    program = _load(path)
+    and declarations under ``lib_dirs``) is added to it (see :mod:`.libraries`).
+    ``dialect`` settles what vendors read differently: "auto" tells a B&R Automation
+    Studio program by its files (``.var``/``.typ``/``.fun``, ``PROGRAM _CYCLIC``), "bnr"
+    reads ST the B&R way (``Act;`` calls an action), "iec" never does."""
+    if dialect not in DIALECTS:
+        raise ValueError(f"dialect must be one of {', '.join(DIALECTS)}, not {dialect!r}")
+    program = _load(path, dialect)
     if not libraries:
         return program
     from .libraries import library_program
     return program.merge(library_program([program], lib_dirs))
 
 
-def _load(path) -> "ir.Program":
+def _load(path, dialect: str = "auto") -> "ir.Program":
     from pathlib import Path
 
     from . import twincat
@@ -42,10 +51,11 @@ def _load(path) -> "ir.Program":
         files = twincat.project_files(p, missing)
         if not files:
             raise ProgramError("none of the files the project lists is there", str(p), 0, 0)
-        if p.is_dir() and is_bnr_folder(files, twincat.read_source):
+        if p.is_dir() and (dialect == "bnr" or (
+                dialect == "auto" and is_bnr_folder(files, twincat.read_source))):
             # B&R Automation Studio: program folders, .var/.typ/.fun (see .bnr)
             return load_bnr(p, files, twincat.read_source)
-        merged = reduce(ir.Program.merge, [_load(f) for f in files])
+        merged = reduce(ir.Program.merge, [_load(f, dialect) for f in files])
         merged.source = str(path)
         # kept for naming the libraries a check misses (see check.Checker.missing)
         from .libraries import missing_pragma, reference_pragma
@@ -54,8 +64,11 @@ def _load(path) -> "ir.Program":
         merged.pragmas += [(missing_pragma(m), ir.Pos(str(path), 0, 0)) for m in missing]
         return merged
     text = twincat.read_source(p)
-    if p.suffix.lower() in BNR_SUFFIXES or (
-            p.suffix.lower() == ".st" and _BNR_CYCLIC.search(text)):
+    from .bnr import only_actions
+    suffix = p.suffix.lower()
+    part_of_folder = suffix in BNR_SUFFIXES or (suffix == ".st" and (
+        _BNR_CYCLIC.search(text) is not None or (dialect == "bnr" and only_actions(text))))
+    if dialect != "iec" and part_of_folder:
         # one file of a B&R program: the program is its folder
         folder = p.parent
         files = sorted(f for f in folder.iterdir() if f.is_file()
@@ -74,7 +87,7 @@ def _load(path) -> "ir.Program":
         raise ProgramError("this is a machine file (TOML), not a PLC program: give it to "
                            "predict, timeline, size, compare, sweep or diagnose, which read "
                            "the program it names", str(path), 1, 1)
-    return parse_st(text, str(path))
+    return parse_st(text, str(path), dialect="bnr" if dialect == "bnr" else "iec")
 
 
 _BNR_CYCLIC = re.compile(r"^\s*PROGRAM\s+_CYCLIC\b", re.I | re.M)

@@ -37,13 +37,13 @@ def is_bnr_folder(files: list[Path], read) -> bool:
 
 def _parse(path: Path, text: str) -> ir.Program:
     from .st import parse_st
-    if path.suffix.lower() == ".st" and _only_actions(text):
+    if path.suffix.lower() == ".st" and only_actions(text):
         # an action in a file of its own: read it as if written after a POU, on line 1
         return parse_st(f"PROGRAM {_HOLDER} END_PROGRAM " + text, str(path), dialect="bnr")
     return parse_st(text, str(path), dialect="bnr")
 
 
-def _only_actions(text: str) -> bool:
+def only_actions(text: str) -> bool:
     """Whether the file starts (after comments) with an ACTION: B&R's action files."""
     import re
     stripped = re.sub(r"\(\*.*?\*\)|//[^\n]*|/\*.*?\*/", " ", text, flags=re.S).lstrip()

@@ -249,8 +249,10 @@ class IRBuilder:
             # B&R calls an action (or an FB instance) by its name alone: ``Blow;``
             return ir.CallStmt(ir.Call(expr, [], pos=expr.pos), pos=expr.pos)
         if not isinstance(expr, ir.Call):
-            raise self._err("expected ':=' (assignment) or '(' (call) after this expression",
-                            expr.pos)
+            hint = (" (B&R calls an action by its name alone: read the file with "
+                    "--dialect bnr)" if isinstance(expr, ir.Name) else "")
+            raise self._err("expected ':=' (assignment) or '(' (call) after this "
+                            f"expression{hint}", expr.pos)
         return ir.CallStmt(expr, pos=expr.pos)
 
     def if_stmt(self, tok, cond, body, *rest):
