@@ -210,7 +210,7 @@ def plot_sizing(profile, sizing, path, title="Sizing") -> None:
     (ax_cycle, ax_ldc), (ax_trend, ax_def) = axes
     design = sizing.design_flow_l_min
 
-    def levels(ax, legend=True):
+    def levels(ax):
         ax.axhline(sizing.mean_l_min, color="black", ls="--", lw=1,
                    label=f"mean {sizing.mean_l_min:.1f} NL/min")
         ax.axhline(design, color="#d62728", lw=1.3, label=f"design flow {design:.1f} NL/min")

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..sequencer.timeline import NS
+from .demand import DemandSteps
 
 
 @dataclass
@@ -163,16 +164,10 @@ def rest_mask(machine, timeline, profile) -> np.ndarray | None:
             b = np.concatenate([times0[1:][rest0], b])
     a = np.clip(a, 0, timeline.horizon_ns) / NS
     b = np.clip(b, 0, timeline.horizon_ns) / NS
-    rest_before = np.concatenate([[0.0], np.cumsum(b - a)])     # spells are sorted
-
-    def rest_time(x):
-        k = np.searchsorted(a, x, side="right") - 1
-        kk = np.clip(k, 0, None)
-        return np.where(k >= 0, rest_before[kk] + np.clip(np.minimum(x, b[kk]) - a[kk], 0,
-                                                          None), 0.0)
-
+    # the time spent waiting up to any instant: the spells as a rate of 1 s per s
+    waited = DemandSteps.of([(a, b - a, b - a)], profile.horizon_s)
     e = profile.edges_s
-    return rest_time(e[1:]) - rest_time(e[:-1]) >= np.diff(e) * (1.0 - 1e-9)
+    return np.diff(waited.cumulative_nl(e)) >= np.diff(e) * (1.0 - 1e-9)
 
 
 def _output_states(edges, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:

@@ -20,11 +20,11 @@
 * **Per cycle**: with a steady cycle (:mod:`~plcpred.air.cycles`) the cycle time and the
   air per cycle, which do not depend on the horizon.
 * **Idle air**: air used while the machine waits: no cylinder is moving and, given the
-  machine's outputs, they are in the state it waits in (the one it spends the most time
-  in, :func:`~plcpred.air.cycles.rest_mask`: blow-off within a cycle is productive, a
-  blower the program leaves on while waiting is not), as a share of the total, split
-  into leaks and blowers left on (the non-productive air of the published case study);
-  with ``idle_after_s`` the machine must also have been still that long.
+  machine's outputs, they are in the state it waits in (every output off but those it
+  never switches off, :func:`~plcpred.air.cycles.rest_mask`: blow-off within a cycle is
+  productive, a blower the program leaves on while waiting is not), as a share of the
+  total, split into leaks and blowers left on (the non-productive air of the published
+  case study); with ``idle_after_s`` the machine must also have been still that long.
 """
 from __future__ import annotations
 
@@ -33,6 +33,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from ..machine import HOURS_PER_YEAR
 from .flow import P0_PA
 
 DEFAULT_ALLOWANCE = 0.10
@@ -42,7 +43,6 @@ DEFAULT_SEC_KWH_NM3 = 0.1      # at 7 bar gauge, the published figure
 # ISO 8778 normal m^3 (P0 = 100 kPa) and a 101.325 kPa atmosphere: 0.0574 / 0.1
 ISOTHERMAL_EFFICIENCY = P0_PA * math.log(801.325 / 101.325) / 3.6e6 / DEFAULT_SEC_KWH_NM3
 DEFAULT_HOURS = 4000.0      # two shifts, about 250 days
-HOURS_PER_YEAR = 8760.0     # the supply's year with a [calendar]
 DEFAULT_PRICE = 0.15        # per kWh, in the user's currency
 STOPS_EARLY = 0.8           # valves still after this share of the horizon: a warning
 

@@ -42,12 +42,12 @@ def _load(path, dialect: str = "auto") -> "ir.Program":
 
     from . import twincat
 
-    from .bnr import BNR_SUFFIXES, is_bnr_folder, load_bnr
+    from .bnr import BNR_SUFFIXES, has_cyclic, is_bnr_folder, load_bnr, only_actions
 
     p = Path(path)
     if p.is_dir() or p.suffix.lower() == ".plcproj":
         from functools import reduce
-        missing: list[str] = []
+        missing: list = []
         files = twincat.project_files(p, missing)
         if not files:
             raise ProgramError("none of the files the project lists is there", str(p), 0, 0)
@@ -61,13 +61,12 @@ def _load(path, dialect: str = "auto") -> "ir.Program":
         from .libraries import missing_pragma, reference_pragma
         merged.pragmas += [(reference_pragma(name), ir.Pos(str(path), 0, 0))
                            for name in twincat.project_references(p)]
-        merged.pragmas += [(missing_pragma(m), ir.Pos(str(path), 0, 0)) for m in missing]
+        merged.pragmas += [(missing_pragma(include), pos) for include, pos in missing]
         return merged
     text = twincat.read_source(p)
-    from .bnr import only_actions
     suffix = p.suffix.lower()
     part_of_folder = suffix in BNR_SUFFIXES or (suffix == ".st" and (
-        _BNR_CYCLIC.search(text) is not None or (dialect == "bnr" and only_actions(text))))
+        has_cyclic(text) or (dialect == "bnr" and only_actions(text))))
     if dialect != "iec" and part_of_folder:
         # one file of a B&R program: the program is its folder
         folder = p.parent
@@ -90,7 +89,6 @@ def _load(path, dialect: str = "auto") -> "ir.Program":
     return parse_st(text, str(path), dialect="bnr" if dialect == "bnr" else "iec")
 
 
-_BNR_CYCLIC = re.compile(r"^\s*PROGRAM\s+_CYCLIC\b", re.I | re.M)
 _XML_ROOT = re.compile(r"\s*(?:<\?xml[^>]*\?>\s*)?(?:<!--[\s\S]*?-->\s*)*<(?:\w+:)?(\w+)")
 _MACHINE_TABLE = re.compile(r"^\s*\[machine\]\s*$", re.M)
 

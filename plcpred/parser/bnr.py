@@ -15,16 +15,25 @@ program folder on one task, as the controller's cyclic task classes run them.
 """
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from . import ir
-from .errors import ProgramError
+from .errors import at
 from .names import validate_names
 
 BNR_SUFFIXES = (".var", ".typ", ".fun")
 _PHASES = ("_INIT", "_CYCLIC", "_EXIT")
 _HOLDER = "__BNR_HOLDER"           # a POU the loose ACTIONs of a file are read into
 _INIT_DONE = "_BNR_INIT_DONE"
+_CYCLIC = re.compile(r"^\s*PROGRAM\s+_CYCLIC\b", re.I | re.M)
+_COMMENTS = re.compile(r"\(\*.*?\*\)|//[^\n]*|/\*.*?\*/", re.S)
+_ACTION_FIRST = re.compile(r"ACTION\s", re.I)
+
+
+def has_cyclic(text: str) -> bool:
+    """Whether an ST file holds a B&R ``PROGRAM _CYCLIC``."""
+    return _CYCLIC.search(text) is not None
 
 
 def is_bnr_folder(files: list[Path], read) -> bool:
@@ -32,7 +41,7 @@ def is_bnr_folder(files: list[Path], read) -> bool:
     ``.fun`` files, or a ``PROGRAM _CYCLIC``."""
     if any(f.suffix.lower() in BNR_SUFFIXES for f in files):
         return True
-    return any("_CYCLIC" in read(f).upper() for f in files if f.suffix.lower() == ".st")
+    return any(has_cyclic(read(f)) for f in files if f.suffix.lower() == ".st")
 
 
 def _parse(path: Path, text: str) -> ir.Program:
@@ -45,9 +54,7 @@ def _parse(path: Path, text: str) -> ir.Program:
 
 def only_actions(text: str) -> bool:
     """Whether the file starts (after comments) with an ACTION: B&R's action files."""
-    import re
-    stripped = re.sub(r"\(\*.*?\*\)|//[^\n]*|/\*.*?\*/", " ", text, flags=re.S).lstrip()
-    return stripped[:7].upper() == "ACTION " or stripped[:7].upper() == "ACTION\t"
+    return _ACTION_FIRST.match(_COMMENTS.sub(" ", text).lstrip()) is not None
 
 
 def _program_name(folder: Path) -> str:
@@ -63,7 +70,6 @@ def _program_name(folder: Path) -> str:
 def load_bnr(root: Path, files: list[Path], read) -> ir.Program:
     """The IR of the B&R program folders under ``root`` (module note)."""
     by_folder: dict[Path, list[ir.Program]] = {}
-    shared = ir.Program(source=str(root))
     for f in files:
         prog = _parse(f, read(f))
         by_folder.setdefault(f.parent, []).append(prog)
@@ -78,8 +84,7 @@ def load_bnr(root: Path, files: list[Path], read) -> ir.Program:
                 key = pou.name.upper()
                 if key in _PHASES and pou.kind == "PROGRAM":
                     if key in phases:
-                        raise ProgramError(f"a second PROGRAM {pou.name} in {folder}",
-                                           *_where(pou))
+                        raise at(pou.pos, f"a second PROGRAM {pou.name} in {folder}")
                     phases[key] = pou
                     actions.extend(pou.actions)
                 elif key == _HOLDER:
@@ -109,7 +114,7 @@ def load_bnr(root: Path, files: list[Path], read) -> ir.Program:
         pou.actions = actions
         programs.append(pou)
     if not programs:
-        return out.merge(shared)
+        return out
     out.pous.extend(programs)
     # the folder's bare VAR blocks (its .var files) are the programs' variables: kept as
     # global lists, which every program of the folder reads
@@ -123,8 +128,3 @@ def load_bnr(root: Path, files: list[Path], read) -> ir.Program:
                 ir.ProgramInstance(p.name, p.name, task.name) for p in programs])]))
     # what was put together here passes the same gate as what was parsed
     return validate_names(out)
-
-
-def _where(pou) -> tuple[str, int, int]:
-    pos = pou.pos
-    return (pos.file, pos.line, pos.col) if pos else ("", 0, 0)

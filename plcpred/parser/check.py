@@ -166,16 +166,15 @@ class Checker:
                         f"{', '.join(missing)}; give their declarations with --lib, or check "
                         "with --allow-external)")
         from .libraries import missing_project_files, unread_library_files
-        absent = missing_project_files(self.g.programs)
-        if absent:
-            more = f" and {len(absent) - 1} more" if len(absent) > 1 else ""
-            message += (f" (the .plcproj lists a file that is not there, which may declare "
-                        f"it: {absent[0]}{more})")
-        unread = unread_library_files(self.g.programs)
-        if unread:
-            more = f" and {len(unread) - 1} more" if len(unread) > 1 else ""
-            message += (f" (a library file plcpred could not read may declare it: "
-                        f"{unread[0]}{more})")
+        absent = [f"{p.file}:{p.line}:{p.col}: {include}"
+                  for include, p in missing_project_files(self.g.programs)]
+        for found, why in ((absent, "the .plcproj lists a file that is not there, which "
+                                    "may declare it"),
+                           (unread_library_files(self.g.programs),
+                            "a library file plcpred could not read may declare it")):
+            if found:
+                more = f" and {len(found) - 1} more" if len(found) > 1 else ""
+                message += f" ({why}: {found[0]}{more})"
         self.error(pos, message)
 
     def _libraries_not_at_hand(self) -> list[str]:
@@ -191,11 +190,9 @@ class Checker:
     # ------------------------------------------------------------------ entry
     def run(self):
         from .libraries import missing_project_files
-        for where in missing_project_files([self.program]):
-            file, line, col, include = _split_where(where)
-            self.warnings.append(ProgramWarning(
-                f"the .plcproj lists {include}, which is not there: the project is read "
-                "without it", file, line, col))
+        for include, pos in missing_project_files([self.program]):
+            self.warn(pos, f"the .plcproj lists {include}, which is not there: the project "
+                           "is read without it")
         self._check_duplicates()
         for t in self.program.types:
             self._check_type(t.type, {})
@@ -669,13 +666,6 @@ def _sub_bodies(s):
 
 class ExternalWarning(ProgramWarning):
     """A name taken as declared by a library that is not at hand (``allow_external``)."""
-
-
-def _split_where(where: str) -> tuple[str, int, int, str]:
-    """``file:line:col: text`` -> its parts (the file may hold colons)."""
-    head, _, text = where.partition(": ")
-    file, line, col = head.rsplit(":", 2)
-    return file, int(line), int(col), text
 
 
 def check_program(program: ir.Program, context: list[ir.Program] = (),

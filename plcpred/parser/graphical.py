@@ -72,8 +72,9 @@ def _true(el, name: str) -> bool:
 class Network:
     """One FBD or LD body (or the graphical part of an SFC) converted to statements.
 
-    ``expr(text, el)`` parses an ST expression written in element ``el`` (a variable name,
-    a literal) at its position in the file; ``pos(el)`` gives an element's position;
+    ``expr(node)`` parses the ST expression an element's ``<expression>`` or
+    ``<variable>`` child holds (a variable name, a literal) at its position in the file;
+    ``pos(el)`` gives an element's position;
     ``hidden(type_name)`` declares an edge-detecting instance in the owning POU and
     returns its name."""
 
@@ -122,7 +123,7 @@ class Network:
         self._running.add(lid)
         pos = self._pos(el)
         if el.tag in ("outVariable", "inOutVariable"):
-            value = self._input(el)
+            value = self.value_into(el)
             if _true(el, "negated") or _true(el, "negatedIn"):
                 value = ir.Unary("NOT", value, pos=pos)
             self.stmts.append(ir.Assign(self._variable(el, "expression"), value, pos=pos))
@@ -144,10 +145,10 @@ class Network:
     def _when(self, el, body, pos):
         if not self._connections(el, required=False):
             return body[0]
-        return ir.If([(self._input(el), body)], pos=pos)
+        return ir.If([(self.value_into(el), body)], pos=pos)
 
     def _coil(self, el, pos) -> None:
-        power = self._input(el)
+        power = self.value_into(el)
         target = self._variable(el, "variable")
         edge = el.attrib.get("edge", "none")
         if edge in ("rising", "falling"):
@@ -181,8 +182,11 @@ class Network:
             raise GraphError(el, f"{el.tag} is not connected")
         return conns
 
-    def _input(self, el):
-        """The value flowing into ``el``: its connections, ORed (a wired OR)."""
+    def value_into(self, el):
+        """The value flowing into ``el`` (any element with a ``connectionPointIn``, a
+        transition's ``<condition>`` drawn in a chart too): its connections, ORed (a
+        wired OR). What it needs to run first (an instance, an edge) is added to
+        :attr:`stmts`."""
         value = None
         for conn in self._connections(el):
             v = self._source(conn)
@@ -226,16 +230,16 @@ class Network:
                 var = self._trig(el, edge, var, pos)
             elif _true(el, "negated"):
                 var = ir.Unary("NOT", var, pos=pos)
-            return ir.Binary("AND", self._input(el), var, pos=pos)
+            return ir.Binary("AND", self.value_into(el), var, pos=pos)
         if tag == "coil":
             self._emit(el)
-            return self._input(el)   # power flows on through a coil
+            return self.value_into(el)   # power flows on through a coil
         if tag == "continuation":
             connector = self.connectors.get(el.attrib.get("name"))
             if connector is None:
                 raise GraphError(el, f"continuation {el.attrib.get('name')!r} has no "
                                      "connector of that name")
-            return self._input(connector)
+            return self.value_into(connector)
         if tag == "block":
             return self._block_value(el, pin, pos)
         raise GraphError(el, f"a {tag} element does not give a value")
@@ -249,7 +253,7 @@ class Network:
             en = next((v for v in self._pins(el, "inputVariables")
                        if v.attrib.get("formalParameter", "").upper() == "EN"
                        and self._connections(v, required=False)), None)
-            return self._input(en) if en is not None else ir.Literal(True, "BOOL", pos=pos)
+            return self.value_into(en) if en is not None else ir.Literal(True, "BOOL", pos=pos)
         outputs = self._pins(el, "outputVariables")
         if not outputs:
             raise GraphError(el, f"block {el.attrib.get('typeName')!r} has no output")
@@ -312,7 +316,7 @@ class Network:
                 continue           # left open: the pin keeps its default
             formal = var.attrib.get("formalParameter", "")
             pos = self._pos(var)
-            value = self._input(var)
+            value = self.value_into(var)
             edge = var.attrib.get("edge", "none")
             if edge in ("rising", "falling"):
                 value = self._trig(var, edge, value, pos)

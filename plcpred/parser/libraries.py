@@ -3,8 +3,8 @@ what real programs use from libraries that are not in their source.
 
 plcpred ships ST stubs of the common ones under ``plcpred/libraries/`` (Beckhoff
 Tc2_System, Tc2_Utilities and Tc2_Math basics, Tc3_EventLogger's severities, CODESYS
-Util, PLCopen motion as Tc2_MC2 and SM3_Basic name it); the IEC standard blocks (Tc2_Standard, CODESYS Standard) are built
-in. A user adds their own library declarations as ST, TwinCAT or PLCopen files or
+Util, PLCopen motion as Tc2_MC2 and SM3_Basic name it); the IEC standard blocks
+(Tc2_Standard, CODESYS Standard) are built in. A user adds their own library declarations as ST, TwinCAT or PLCopen files or
 folders (``plcpred check --lib DIR``, ``libraries = [...]`` in the machine file).
 
 * Only what a program refers to is taken from a library (and what that needs in turn),
@@ -106,39 +106,49 @@ def _user_library(path: Path, _stamp: tuple) -> Library:
 
 # ------------------------------------------------------------------------- references
 
-_REFERENCE = "{library-reference "
-_UNREAD = "{library-unread "
+# What a project or a library leaves for the check to name, kept in Program.pragmas as
+# ``{TAG text}`` with the position it concerns.
+_REFERENCE = "library-reference"   # a library the project references
+_UNREAD = "library-unread"         # a library file that could not be read, and why
+_MISSING = "project-missing"       # a file the .plcproj lists that is not there
 
 
-_MISSING = "{project-missing "
+def _note(tag: str, text: str) -> str:
+    return f"{{{tag} {text}}}"
 
 
-def missing_pragma(where: str) -> str:
-    """How a project records a file its .plcproj lists that is not there."""
-    return f"{_MISSING}{where}}}"
-
-
-def missing_project_files(programs) -> list[str]:
-    """The files the projects among ``programs`` list but do not have."""
-    return [p[len(_MISSING):-1] for prog in programs for p, _ in prog.pragmas
-            if p.startswith(_MISSING)]
-
-
-def unread_library_files(programs) -> list[str]:
-    """Why files of the user's libraries were left out (see :func:`_user_library`)."""
-    return [p[len(_UNREAD):-1] for prog in programs for p, _ in prog.pragmas
-            if p.startswith(_UNREAD)]
+def _noted(tag: str, programs) -> list[tuple[str, ir.Pos]]:
+    """(text, position) of every note ``tag`` among ``programs``' pragmas."""
+    head = "{" + tag + " "
+    return [(p[len(head):-1], pos) for prog in programs for p, pos in prog.pragmas
+            if p.startswith(head)]
 
 
 def reference_pragma(namespace: str) -> str:
-    """How a project records a library it references (kept in Program.pragmas)."""
-    return f"{_REFERENCE}{namespace}}}"
+    """How a project records a library it references."""
+    return _note(_REFERENCE, namespace)
 
 
 def referenced_libraries(programs) -> list[str]:
     """The libraries the projects among ``programs`` reference."""
-    return [p[len(_REFERENCE):-1] for prog in programs for p, _ in prog.pragmas
-            if p.startswith(_REFERENCE)]
+    return [text for text, _ in _noted(_REFERENCE, programs)]
+
+
+def missing_pragma(include: str) -> str:
+    """How a project records a file its .plcproj lists that is not there (the pragma's
+    position is the .plcproj's Compile item)."""
+    return _note(_MISSING, include)
+
+
+def missing_project_files(programs) -> list[tuple[str, ir.Pos]]:
+    """(file, where the .plcproj lists it) of what the projects among ``programs`` list
+    but do not have."""
+    return _noted(_MISSING, programs)
+
+
+def unread_library_files(programs) -> list[str]:
+    """Why files of the user's libraries were left out (see :func:`_user_library`)."""
+    return [text for text, _ in _noted(_UNREAD, programs)]
 
 
 # ------------------------------------------------------------------------- namespaces
@@ -250,7 +260,7 @@ def library_program(programs: list[ir.Program], paths=()) -> ir.Program:
     for p in programs:
         strip_namespaces(p, namespaces)
     out = ir.Program(source="<libraries>")
-    out.pragmas += [(f"{_UNREAD}{why}}}", ir.Pos("<libraries>", 0, 0))
+    out.pragmas += [(_note(_UNREAD, why), ir.Pos("<libraries>", 0, 0))
                     for lib in libs for why in lib.unread]
     have = _defined(programs)
     wanted = set().union(*(referenced_names(p) for p in programs)) - have

@@ -530,7 +530,7 @@ class _Importer:
                 # chart, before the condition is read (see sfc())
                 net = self.chart_network(sfc_el)
                 try:
-                    return net._input(cond)
+                    return net.value_into(cond)
                 except GraphError as e:
                     raise self.error(e.el, f"transition condition: {e.message}") from None
         raise self.error(cond, "transition condition in a form plcpred does not read "

@@ -251,8 +251,9 @@ def project_files(path: Path, missing: list | None = None) -> list[Path]:
     """The program files of a TwinCAT project: those a ``.plcproj`` compiles (in its
     order), or for a folder, those of the one ``.plcproj`` under it, else every TwinCAT
     object and ST file under it (sorted). A file the ``.plcproj`` lists that is not there
-    (left out of source control) is left out and named in ``missing`` (the project still
-    loads; a name it would have declared is then reported with it)."""
+    (left out of source control) is left out and added to ``missing`` as (file, where the
+    .plcproj lists it): the project still loads, and a name it would have declared is
+    then reported with it."""
     if path.is_dir():
         projects = sorted(p for p in path.rglob("*") if p.suffix.lower() == ".plcproj")
         if len(projects) > 1:
@@ -281,7 +282,7 @@ def project_files(path: Path, missing: list | None = None) -> list[Path]:
                 if missing is None:
                     raise ProgramError(f"<Compile Include={include!r}>: file not found",
                                        str(path), item.line, item.col)
-                missing.append(f"{path}:{item.line}:{item.col}: {include}")
+                missing.append((include, ir.Pos(str(path), item.line, item.col)))
                 continue
             files.append(target)
     return files
