@@ -23,6 +23,7 @@ import builtins
 import re
 import time as _time
 from array import array
+from heapq import heappop, heappush
 
 import numpy as np
 
@@ -503,8 +504,21 @@ class Cylinder:
         self._from = 0
         self._values = (True, False)
         self.driven = None              # the values last written to the program
+        self._rest_key = None           # state_key while at rest, until the next command
+
+    def state_key(self, t_ns: int) -> tuple:
+        """The motion from ``t_ns`` on and the valve's last outputs (for tiling); a
+        cylinder at rest keeps its key until it is commanded again."""
+        if self._rest_key is not None:
+            return self._rest_key
+        motion = self.plant.key(t_ns)
+        key = (motion, tuple(self.prev))
+        if len(motion) == 3 and motion[2] == 0:   # at rest, nothing planned
+            self._rest_key = key
+        return key
 
     def command(self, t_ns: int) -> None:
+        self._rest_key = None
         if not self.bistable:
             o, a = self.valves[0]
             ext = bool(getattr(o, a))
@@ -709,25 +723,65 @@ class Sequencer:
         # initial inputs: schedules and switches (others keep their declared values)
         for sch, obj, attr in schedules:
             setattr(obj, attr, sch.initial)
-        drive = []  # (obj, attr, value) written at the start of every scan
+        # the input image written at the start of every scan: schedules first, then each
+        # cylinder's switches, at fixed places of one list written by one generated setter
+        drive_slots = [(obj, attr) for _, obj, attr in schedules]
+        switch_at = []              # per cylinder: (retracted, extended) place or -1
+        for cyl in cylinders:
+            at = []
+            for role in ("retracted", "extended"):
+                at.append(len(drive_slots) if role in cyl.switches else -1)
+                if role in cyl.switches:
+                    drive_slots.append(cyl.switches[role])
+            switch_at.append(tuple(at))
+        drive = [False] * len(drive_slots)
+        write_inputs = _value_setter(drive_slots)
+        # when each cylinder's switches change next (a heap of (time, cylinder), stale
+        # entries left in it until they surface: ``due`` holds the live time of each),
+        # and the cylinders whose switches must be read again at the next input update
+        switch_queue: list = []
+        due = [NEVER] * len(cylinders)
+        stale = set(range(len(cylinders)))
 
         def drive_inputs(t):
-            """Input values at ``t`` and the first time any of them can change."""
-            drive.clear()
+            """Input values at ``t`` and the first time any of them can change: only the
+            cylinders whose switches are due (or were commanded) are read again."""
             nxt = NEVER
-            for sch, obj, attr in schedules:
-                drive.append((obj, attr, sch.advance(t)))
+            for j, (sch, _, _) in enumerate(schedules):
+                drive[j] = sch.advance(t)
                 e = sch.next_ns()
                 if e is not None and e < nxt:
                     nxt = e
-            for cyl in cylinders:
+            while switch_queue and switch_queue[0][0] <= t:
+                u, k = heappop(switch_queue)
+                if u == due[k]:
+                    stale.add(k)
+            for k in stale:
+                cyl = cylinders[k]
                 r, e = cyl.driven = cyl.read(t)
-                if "retracted" in cyl.switches:
-                    drive.append((*cyl.switches["retracted"], r))
-                if "extended" in cyl.switches:
-                    drive.append((*cyl.switches["extended"], e))
-                nxt = min(nxt, cyl._until)
+                i_r, i_e = switch_at[k]
+                if i_r >= 0:
+                    drive[i_r] = r
+                if i_e >= 0:
+                    drive[i_e] = e
+                due[k] = cyl._until
+                if cyl._until < NEVER:
+                    heappush(switch_queue, (cyl._until, k))
+            stale.clear()
+            while switch_queue and switch_queue[0][0] != due[switch_queue[0][1]]:
+                heappop(switch_queue)
+            if switch_queue and switch_queue[0][0] < nxt:
+                nxt = switch_queue[0][0]
             return nxt
+
+        # every cylinder's valve outputs read in one go after a scan: only cylinders
+        # whose outputs changed are commanded (all of them after the first scan)
+        valve_slots, valve_owner = [], []
+        for k, cyl in enumerate(cylinders):
+            valve_slots += cyl.valves
+            valve_owner += [k] * len(cyl.valves)
+        valves_now = _value_getter(valve_slots)
+        prev_valves = None
 
         signals = ([Signal(n, "input", t.cat) for n, _, _, t in ins]
                    + [Signal(n, "step", "bool") for n, _, _ in steps]
@@ -740,11 +794,13 @@ class Sequencer:
 
         def record(t, values, before):
             """The signals that changed since ``before`` (all of them at the first scan)."""
-            for k, v in enumerate(values):
-                if before is None or v != before[k]:
-                    tt.append(t)
-                    ss.append(k)
-                    vv.append(float(v))
+            if before is None:
+                changed = range(len(values))
+            else:
+                changed = _changed(values, before)
+            tt.extend([t] * len(changed))
+            ss.extend(changed)
+            vv.extend([float(values[k]) for k in changed])
             if len(tt) > max_events:
                 raise SequencerError(_too_many_changes(signals, ss, t, scan, max_events))
 
@@ -778,18 +834,27 @@ class Sequencer:
             while t <= horizon_ns:
                 if t >= next_input:
                     next_input = drive_inputs(t)
-                for o, a, v in drive:
-                    setattr(o, a, v)
+                write_inputs(drive)
                 scan_fn(t)
                 scans += 1
-                for cyl in cylinders:
-                    if cyl.command(t):
-                        # the switches change now (no switching delay) or at their next
-                        # edge; until then the inputs driven now stay valid
-                        if cyl.read(t) != cyl.driven:
-                            next_input = t
-                        elif cyl._until < next_input:
-                            next_input = cyl._until
+                valves = valves_now()
+                if valves != prev_valves:
+                    if prev_valves is None:
+                        commanded = range(len(cylinders))
+                    else:
+                        commanded = sorted({valve_owner[i] for i in
+                                            _changed(valves, prev_valves)})
+                    prev_valves = valves
+                    for k in commanded:
+                        cyl = cylinders[k]
+                        if cyl.command(t):
+                            # the switches change now (no switching delay) or at their
+                            # next edge; until then the inputs driven now stay valid
+                            stale.add(k)
+                            if cyl.read(t) != cyl.driven:
+                                next_input = t
+                            elif cyl._until < next_input:
+                                next_input = cyl._until
                 values = values_now()
                 if values != prev_values:
                     record(t, values, prev_values)
@@ -945,10 +1010,8 @@ class Sequencer:
             if k is None:
                 return None
             parts.append(k)
-        for cyl in cylinders:
-            parts.append(cyl.plant.key(t))
-            parts.append(tuple(cyl.prev))
-        return (inst.snap(t), tuple(parts), inst.phase(t))
+        return (inst.snap(t), tuple(parts), tuple([cyl.state_key(t) for cyl in cylinders]),
+                inst.phase(t))
 
 
 _ATTR = re.compile(r"[A-Za-z_][A-Za-z0-9_]*", re.ASCII)
@@ -970,15 +1033,45 @@ def _too_many_changes(signals, sig_idx, t_ns, scan_ns, limit) -> str:
             "shorten --horizon or raise --max-events")
 
 
-def _value_getter(slots):
-    """A function returning the current values of ``(object, attribute)`` slots (an SFC
-    runtime with a step index reads that step's flag) as one tuple, built in one go."""
+def _changed(values: tuple, before: tuple, chunk: int = 32) -> list[int]:
+    """Indices where two equally long tuples differ. A scan changes a few of a wide
+    machine's signals: slices compared in C find the chunks that hold them."""
+    out = []
+    for a in range(0, len(values), chunk):
+        if values[a:a + chunk] != before[a:a + chunk]:
+            out += [k for k in range(a, min(a + chunk, len(values)))
+                    if values[k] != before[k]]
+    return out
+
+
+def _slot_expressions(slots) -> tuple[dict, list[str]]:
+    """The one way slots reach generated code: each ``(object, attribute)`` becomes
+    ``o<k>.<attribute>`` (``o<k>.x[<index>]`` for an SFC runtime's step flag), the
+    attribute checked to be a generated (mangled) name, the object passed by name."""
     names, parts = {}, []
     for k, (obj, attr) in enumerate(slots):
         if not (isinstance(attr, int) or _ATTR.fullmatch(attr)):
             raise ValueError(f"internal: slot {attr!r} is not a generated attribute name")
         names[f"o{k}"] = obj
         parts.append(f"o{k}.x[{attr}]" if isinstance(obj, SfcRuntime) else f"o{k}.{attr}")
+    return names, parts
+
+
+def _value_getter(slots):
+    """A function returning the current values of ``(object, attribute)`` slots (an SFC
+    runtime with a step index reads that step's flag) as one tuple, built in one go."""
+    names, parts = _slot_expressions(slots)
     src = "def values():\n    return (" + "".join(p + ", " for p in parts) + ")\n"
     exec(src, names)
     return names["values"]
+
+
+def _value_setter(slots):
+    """A function writing a sequence of values to ``(object, attribute)`` slots in one
+    statement (the input image of a scan)."""
+    names, parts = _slot_expressions(slots)
+    if not parts:
+        return lambda values: None
+    src = "def write(v):\n    " + "".join(p + ", " for p in parts) + "= v\n"
+    exec(src, names)
+    return names["write"]

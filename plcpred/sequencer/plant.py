@@ -92,6 +92,13 @@ class CylinderPlant:
     def key(self, t_ns: int) -> tuple:
         """The motion from ``t_ns`` on, with times relative to it (for noticing that the
         machine is back in an earlier state)."""
+        last = self._segments[-1]
+        if last.t_ns <= t_ns:           # nothing planned after now
+            if last.direction == 0:
+                return (self.extend_cmd, last.x, 0)
+            if t_ns >= self._end_time(last):
+                # at the end of its last stroke: the same state as resting there
+                return (self.extend_cmd, 1.0 if last.direction > 0 else 0.0, 0)
         seg = self._segment_at(t_ns)
         future = tuple((s.t_ns - t_ns, s.x, s.direction) for s in self._segments
                        if s.t_ns > t_ns)
