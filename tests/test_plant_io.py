@@ -75,3 +75,15 @@ def test_valve_command(solenoids, rising, previous, expected):
 def test_bad_parameters():
     with pytest.raises(ValueError):
         CylinderPlant(extend_ns=0, retract_ns=100)
+
+
+def test_state_key_of_a_finished_stroke_is_that_of_resting_at_its_end():
+    moved = CylinderPlant(extend_ns=100 * MS, retract_ns=100 * MS, delay_ns=10 * MS)
+    moved.command(0, True)
+    resting = CylinderPlant(extend_ns=100 * MS, retract_ns=100 * MS, delay_ns=10 * MS,
+                            initial_extended=True)
+    # while it moves the key follows the position; once there it is the resting one
+    keys = [moved.key(t * MS) for t in (5, 40, 80)]
+    assert len(set(keys)) == 3
+    assert moved.key(110 * MS) == resting.key(110 * MS) == (True, 1.0, 0)
+    assert moved.key(500 * MS) == moved.key(110 * MS)

@@ -434,3 +434,47 @@ END_CONFIGURATION""", "t.st")
     assert fast == Sequencer(prog, m).run(parse_horizon("3s"), scan_stepping=True)
     assert fast.edges("pf.fast")["time_s"].tolist() == [0, 0.23, 0.73]
     assert fast.edges("ps.slow")["time_s"].tolist() == [0, 0.3, 0.8]     # every 100 ms
+
+
+def _wave_line(stations: int, jitter_s: float = 0.0):
+    """Stations of three cylinders, each started by the one before it finishing (a wave
+    down the line), the middle cylinder on a bistable valve pulsed for one scan: most
+    drives rest while a few move, the case the executor commands and reads lazily."""
+    decl, body, consumers = [], [], []
+    for s in range(stations):
+        start = "part" if s == 0 else f"done{s - 1}"
+        decl += [f"st{s} : INT; done{s} : BOOL; trig{s} : R_TRIG;",
+                 *(f"a{s}_{c}, a{s}_{c}_off, o{s}_{c}, i{s}_{c} : BOOL;" for c in range(3))]
+        body += [f"trig{s}(CLK := {start}); done{s} := FALSE;",
+                 f"a{s}_1_off := FALSE;",
+                 f"CASE st{s} OF",
+                 f"0: IF trig{s}.Q THEN st{s} := 1; END_IF",
+                 f"1: a{s}_0 := TRUE; IF o{s}_0 THEN st{s} := 2; END_IF",
+                 f"2: a{s}_1 := NOT o{s}_1; IF o{s}_1 THEN st{s} := 3; END_IF",
+                 f"3: a{s}_2 := TRUE; IF o{s}_2 THEN st{s} := 4; END_IF",
+                 f"4: a{s}_2 := FALSE; a{s}_1_off := NOT i{s}_1; a{s}_0 := FALSE;",
+                 f"   IF i{s}_0 AND i{s}_1 AND i{s}_2 THEN st{s} := 0; done{s} := TRUE; END_IF",
+                 "END_CASE"]
+        for c in range(3):
+            valve = [f"a{s}_{c}", f"a{s}_{c}_off"] if c == 1 else [f"a{s}_{c}"]
+            consumers.append(cylinder(f"S{s}C{c}", valve, f"i{s}_{c}", f"o{s}_{c}",
+                                      (0.08 + 0.03 * c, 0.07 + 0.02 * c), 0.012))
+    program = ("PROGRAM Line\nVAR_INPUT part : BOOL; END_VAR\nVAR\n" + "\n".join(decl)
+               + "\nEND_VAR\n" + "\n".join(body) + "\nEND_PROGRAM\n")
+    schedule = InputSchedule("part", period_s=0.5, offset_s=0.1, pulse_ms=60,
+                             jitter_s=jitter_s, seed=3)
+    return machine_for(program, consumers, [schedule], scan_ms=4)
+
+
+@pytest.mark.parametrize("jitter_s", [0.0, 0.05])
+def test_a_wave_down_a_wide_line_equals_scan_stepping(jitter_s):
+    # parts every 0.5 s into six stations that each take longer than that: several
+    # parts in flight, and each station waits for the one before it
+    prog, m = _wave_line(6, jitter_s)
+    fast = Sequencer(prog, m).run(parse_horizon("12s"), tiling=False)
+    ref = Sequencer(prog, m).run(parse_horizon("12s"), scan_stepping=True)
+    assert fast == ref
+    assert fast.count_rising("o5_2") >= 5            # the wave reaches the last station
+    assert fast.count_rising("i5_1") >= 5            # and its bistable valve returns
+    if not jitter_s:
+        assert Sequencer(prog, m).run(parse_horizon("12s")) == fast      # tiled
