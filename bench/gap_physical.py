@@ -36,7 +36,7 @@ from plcpred.machine import read_machine_data
 from plcpred.plant import emulate
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from gap_blind import Verdicts  # noqa: E402  (the tally only, not the generator)
+from gap_blind import Verdicts, observable_size  # noqa: E402  (the tally, not the generator)
 
 ROOT = Path(__file__).resolve().parent.parent
 MACHINES = ["samples/prototype_rig/rig.toml", "samples/pick_place.toml",
@@ -138,7 +138,8 @@ def make_case(case_id, rng, effects, workdir):
     base_truth.write_text(dump_machine_toml({"meter": base_meter}))
     base = emulate(path, horizon, truth=base_truth)
     clean = real.measured_flow_l_min
-    size = float(np.sqrt(np.mean((clean - base.measured_flow_l_min) ** 2)))
+    raw_size = float(np.sqrt(np.mean((clean - base.measured_flow_l_min) ** 2)))
+    size = observable_size(real.measured_time_s, clean, base.measured_flow_l_min)
     noise = max(0.5, float(np.mean(clean)) * rng.uniform(0.01, 0.03))
     runs = []
     for r in range(2):
@@ -146,7 +147,7 @@ def make_case(case_id, rng, effects, workdir):
         q = clean + rng.normal(0.0, noise, len(clean))
         runs.append(MeasuredRun(f"case{case_id}_run{r}.csv", real.measured_time_s + offset, q))
     return {"id": case_id, "machine": path.name, "path": path, "effect": effect,
-            "desc": desc, "runs": runs, "noise": noise, "size": size,
+            "desc": desc, "runs": runs, "noise": noise, "size": size, "raw_size": raw_size,
             "io": [real.timeline, real.timeline]}
 
 
@@ -174,7 +175,8 @@ def main(argv=None) -> int:
             except DiagnosisError as e:
                 verdict = "error"
                 print(f"case {i}: {e}")
-            verdicts.add(truth, verdict, case["size"] > 3 * case["noise"])
+            verdicts.add(truth, verdict, case["size"] > 3 * case["noise"],
+                         case["raw_size"] > 3 * case["noise"])
             if args.verbose:
                 print(f"{i:4d} {case['machine']:<16} {truth:<16} -> {verdict:<18} size/noise "
                       f"{case['size'] / case['noise']:5.1f} {case['desc']}", flush=True)
