@@ -360,3 +360,30 @@ def test_var_access_paths_are_read():
     assert problems(src) == []
     with pytest.raises(Exception, match="READ_WRITE or READ_ONLY"):
         parse_st(src.replace("READ_ONLY", "READ_SOMETIMES"), "t.st")
+
+
+def test_new_gives_a_pointer_to_a_fresh_value_and_delete_clears_it():
+    # CODESYS/TwinCAT dynamic memory: __NEW(T) once, used through the pointer, then
+    # __DELETE; the null test is the vendors' comparison with 0
+    src = """TYPE ST_Data : STRUCT a : INT := 7; END_STRUCT END_TYPE
+PROGRAM P
+VAR p : POINTER TO INT; s : POINTER TO ST_Data; n : INT; END_VAR
+VAR_OUTPUT v : INT; fresh, gone : BOOL; END_VAR
+fresh := p = 0;
+IF p = 0 THEN p := __NEW(INT); s := __NEW(ST_Data); END_IF
+p^ := p^ + 1;
+IF s <> 0 THEN v := s^.a + p^; END_IF
+n := n + 1;
+IF n = 3 THEN __DELETE(s); END_IF
+gone := s = 0;
+END_PROGRAM
+"""
+    assert problems(src) == []
+    got = trace(src, ["V", "FRESH", "GONE"], lambda k: {}, scans=4)
+    assert got == [(8, True, False), (9, False, False), (10, False, True), (10, False, True)]
+
+
+def test_new_of_several_elements_is_refused_where_it_is_written():
+    src = body("p : POINTER TO INT;", "p := __NEW(INT, 10);")
+    with pytest.raises(CompileError, match=r"t.st:5:6: __NEW with a count"):
+        ProgramInstance(parse_st(src, "t.st"))

@@ -22,7 +22,7 @@ Direct addresses in code (``%QX0.0 := TRUE``) stand for the variable declared AT
 for a hidden global of the address's size. JMP works within one statement list.
 
 Not supported (a positioned error at compile time): jumps into or out of blocks, pointer
-arithmetic, ``__NEW``, variable-length arrays. A UNION is treated as a
+arithmetic (and so ``__NEW`` of several elements), variable-length arrays. A UNION is treated as a
 struct (its members do not overlap).
 """
 from __future__ import annotations
@@ -980,6 +980,20 @@ class Compiler:
         elif kind == "deref":
             e(ind, f"{a}.set({value})", pos)
 
+    def _write_code(self, target, value: str, scope: Scope) -> str:
+        """An expression that stores ``value`` (code of the target's type) in ``target``
+        (for the standard functions that write an argument)."""
+        kind, a, b, _ = self._lvalue(target, scope)
+        if kind == "name":
+            return f"({a} := {value})"
+        if kind == "attr":
+            return f"_Ref({a}, {b!r}).set({value})"
+        if kind == "item":
+            return f"_ItemRef({a}, {b}).set({value})"
+        if kind == "deref":
+            return f"{a}.set({value})"
+        raise _err(target, "this cannot be assigned to")
+
     def _lvalue(self, target, scope: Scope):
         """('name', code) | ('attr', obj, ATTR) | ('item', list, index) | ('prop', obj, NAME)
         | ('deref', ref), with the target's type."""
@@ -1318,6 +1332,10 @@ class Compiler:
         if (lt.cat == "string") != (rt.cat == "string") and "void" not in (lt.cat, rt.cat):
             raise _err(x, f"'{op}' between {getattr(lt, 'name', lt.cat)} and "
                           f"{getattr(rt, 'name', rt.cat)}: convert one of them first")
+        if op in ("=", "<>") and _is_null_test(lt, rt, x):
+            # a pointer, reference or interface against 0: CODESYS' test for NULL
+            side = lc if lt.cat in ("ptr", "itf") else rc
+            return f"({side} {'is' if op == '=' else 'is not'} None)", BOOL
         if op in _CMP:
             return f"({lc} {_CMP[op]} {rc})", BOOL
         if op in ("AND", "AND_THEN", "OR", "OR_ELSE", "XOR", "&"):
@@ -1506,6 +1524,16 @@ class Compiler:
 
     def _std_function(self, key: str, call: ir.Call, scope: Scope):
         args = [a for a in call.args if not a.output]
+        if key == "__NEW":
+            return self._new(call, args, scope)
+        if key == "__DELETE":
+            # the memory goes with the last pointer to it; the pointer itself reads 0
+            if len(args) != 1:
+                raise _err(call, "__DELETE needs one argument: the pointer __NEW gave")
+            code, t = self._expr(args[0].value, scope)
+            if t.cat != "ptr":
+                raise _err(call, "__DELETE needs a pointer (what __NEW gave)")
+            return f"{self._write_code(args[0].value, 'None', scope)}", ty.VOID
         vals = [self._expr(a.value, scope) for a in args]
         codes = [c for c, _ in vals]
         ts = [t for _, t in vals]
@@ -1610,6 +1638,22 @@ class Compiler:
             return f"{fn}({', '.join(codes[:3])}, {where})", \
                 ty.DINT if key == "MEMCMP" else ty.elementary("UDINT")
         raise _err(call, f"standard function {key} is not supported by the executor")
+
+    def _new(self, call: ir.Call, args, scope: Scope):
+        """CODESYS/TwinCAT ``__NEW(T)``: a pointer to a new, initialised T (a structure
+        or FB instance itself, an elementary value in a cell of its own). ``__NEW(T, n)``
+        (n of them, reached by pointer arithmetic) is not supported."""
+        if not args or not isinstance(args[0].value, ir.Name) or args[0].name is not None:
+            raise _err(call, "__NEW needs a type: __NEW(INT), __NEW(ST_Data)")
+        if len(args) > 1:
+            raise _err(call, "__NEW with a count (an array reached through pointer "
+                             "arithmetic) is not supported by the executor")
+        t = self.types.resolve(ir.NamedType(args[0].value.name, pos=args[0].value.pos),
+                               args[0].value.pos)
+        one = self._init(t, None, scope, None)
+        if _is_object_t(t):
+            return one, PtrT(t)
+        return f"_Box({one})", PtrT(t)
 
     # ---------------------------------------------------------------- conversions
     def _to(self, code: str, vt, tt, node, copy=False) -> str:
@@ -1831,6 +1875,14 @@ def _base_t(t):
 
 def _is_object_t(t) -> bool:
     return t is not None and t.cat in ty.OBJECT_CATS
+
+
+def _is_null_test(lt, rt, x: ir.Binary) -> bool:
+    """Is ``x`` a pointer/reference/interface compared with the literal 0?"""
+    def zero(e):
+        return isinstance(e, ir.Literal) and e.value == 0 and not isinstance(e.value, bool)
+    return (lt.cat in ("ptr", "itf") and zero(x.right)) or (
+        rt.cat in ("ptr", "itf") and zero(x.left))
 
 
 def _deref_t(t):
