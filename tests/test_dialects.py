@@ -1,9 +1,12 @@
 """Vendor dialects: constructs found in real CODESYS, TwinCAT, B&R and Beremiz code, each
 read as its vendor reads it (one test per construct, not per file)."""
+import re
+
 import pytest
 
 from plcpred.parser import ir, parse_st
 from plcpred.parser.check import check_program
+from plcpred.parser.printer import to_st
 from plcpred.sequencer import CompileError
 from plcpred.sequencer.executor import ProgramInstance
 
@@ -387,3 +390,57 @@ def test_new_of_several_elements_is_refused_where_it_is_written():
     src = body("p : POINTER TO INT;", "p := __NEW(INT, 10);")
     with pytest.raises(CompileError, match=r"t.st:5:6: __NEW with a count"):
         ProgramInstance(parse_st(src, "t.st"))
+
+
+GENERIC_FB = """FUNCTION_BLOCK FB_Buf
+VAR_GENERIC CONSTANT
+    maxlen : UDINT := 10;
+END_VAR
+VAR_INPUT x : INT; END_VAR
+VAR_OUTPUT full : BOOL; size : UDINT; END_VAR
+VAR buf : ARRAY[0..maxlen - 1] OF INT; n : UDINT; END_VAR
+IF n < maxlen THEN buf[n] := x; n := n + 1; END_IF
+full := n = maxlen;
+size := maxlen;
+END_FUNCTION_BLOCK
+"""
+
+
+def test_generic_function_blocks_take_their_constants_per_instance():
+    # CODESYS / TwinCAT 3.1.4026: each instance's values in angle brackets size its array
+    src = GENERIC_FB + """PROGRAM P
+VAR b : FB_Buf<3>; c : FB_Buf<(2 + 3)>; d : ARRAY[1..2] OF FB_Buf<(maxlen := 4)>;
+    e : FB_Buf; END_VAR
+VAR_OUTPUT fb, fc, fd, fe : BOOL; sizes : UDINT; END_VAR
+b(x := 1); c(x := 2); d[1](x := 3); e(x := 4);
+fb := b.full; fc := c.full; fd := d[1].full; fe := e.full;
+sizes := b.size * 1000 + c.size * 100 + d[2].size * 10 + e.size;
+END_PROGRAM
+"""
+    assert problems(src) == []
+    got = trace(src, ["FB", "FC", "FD", "FE"], lambda k: {}, scans=10)
+    fills = [next(k for k, row in enumerate(got) if row[i]) + 1 for i in range(4)]
+    assert fills == [3, 5, 4, 10]          # each instance's own buffer length
+    # printed back as written, and read again to the same program
+    program = parse_st(src, "t.st")
+    text = to_st(program)
+    assert "FB_Buf<3>" in text and "FB_Buf<(2 + 3)>" in text and "(maxlen := 4)" in text
+    assert parse_st(text, "printed.st") == program
+
+
+@pytest.mark.parametrize("decl, message", [
+    ("b : FB_Buf<(size := 3)>;", r"t.st:\d+:5: 'size' is no generic constant of FB_Buf"),
+    ("b : FB_Buf<3, 4>;", r"FB_Buf has 1 generic constant, not 2"),
+    ("b : TON<3>;", r"'TON' has no VAR_GENERIC CONSTANT"),
+])
+def test_generic_values_that_do_not_fit_are_errors_where_they_are_written(decl, message):
+    src = GENERIC_FB + body(decl, "")
+    assert any(re.search(message, p) for p in problems(src)), problems(src)
+
+
+def test_a_generic_block_without_initial_values_exists_through_its_instances():
+    src = GENERIC_FB.replace("maxlen : UDINT := 10;", "maxlen : UDINT;") + body(
+        "b : FB_Buf<2>;", "b(x := 1);")
+    assert problems(src) == []
+    src_bad = src.replace("b(x := 1);", "b(x := 1); b.missing := 1;")
+    assert any("FB_Buf<2>" in p for p in problems(src_bad)), problems(src_bad)

@@ -368,6 +368,20 @@ class IRBuilder:
         target = self._plain(target)
         return ir.PointerType(target, tok.type == "REFERENCE", pos=self._pos(tok))
 
+    def generic_type(self, name, _lt, *rest):
+        args = [a if isinstance(a, ir.Arg) else ir.Arg(None, a, pos=a.pos)
+                for a in rest[:-1]]
+        return ir.NamedType(str(name), pos=name.pos, generic_args=args)
+
+    def generic_int(self, tok):
+        return self.int_lit(tok)
+
+    def generic_name(self, qn):
+        return ir.Name(str(qn), pos=qn.pos)
+
+    def named_generic_arg(self, name, value):
+        return ir.Arg(str(name), value, pos=self._pos(name))
+
     def fb_init_type(self, name, args):
         return _FbInit(ir.NamedType(str(name), pos=name.pos), args or [])
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from . import ir
 from .errors import ProgramError, ProgramWarning, at
 from .build import anonymous_at_name
+from .generics import readable, specialize
 from .stdlib import ELEMENTARY_TYPES, STANDARD_FBS, is_standard_function, std_fb_pins
 
 _LOCAL_KINDS = ("VAR", "VAR_TEMP", "VAR_STAT", "VAR_INST")
@@ -672,6 +673,11 @@ def check_program(program: ir.Program, context: list[ir.Program] = (),
                   allow_external: bool = False):
     """Run the semantic checks. Returns (errors, warnings), each sorted by position. With
     ``allow_external``, names nothing at hand declares are warnings (ExternalWarning)."""
+    try:
+        program = specialize(program, context)
+    except ProgramError as e:
+        return [e], []
     c = Checker(program, context, allow_external).run()
     key = lambda e: (e.file, e.line, e.col)  # noqa: E731
-    return sorted(c.errors, key=key), sorted(c.warnings, key=key)
+    return (sorted(readable(c.errors, program), key=key),
+            sorted(readable(c.warnings, program), key=key))

@@ -16,7 +16,7 @@ TERMINALS = """
 %declare _ASSIGN _OUTASSIGN LE GE NE POW _DOTDOT _ATTEMPT PLUS MINUS STAR SLASH LT GT EQ _LPAR _RPAR _LSQB _RSQB _COMMA _SEMI _COLON _DOT _CARET AMP _ARROW _REFASSIGN _SETASSIGN _RESETASSIGN
 %declare PROGRAM _END_PROGRAM FUNCTION _END_FUNCTION FUNCTION_BLOCK _END_FUNCTION_BLOCK METHOD _END_METHOD
 %declare PROPERTY _END_PROPERTY INTERFACE _END_INTERFACE _EXTENDS _IMPLEMENTS END_GET END_SET
-%declare VAR VAR_INPUT VAR_OUTPUT VAR_IN_OUT VAR_TEMP VAR_GLOBAL VAR_EXTERNAL VAR_STAT VAR_INST VAR_CONFIG VAR_ACCESS _END_VAR
+%declare VAR VAR_INPUT VAR_OUTPUT VAR_IN_OUT VAR_TEMP VAR_GLOBAL VAR_EXTERNAL VAR_STAT VAR_INST VAR_CONFIG VAR_ACCESS VAR_GENERIC _END_VAR
 %declare CONSTANT RETAIN NON_RETAIN PERSISTENT _AT
 %declare TYPE _END_TYPE STRUCT _END_STRUCT UNION _END_UNION _ARRAY _OF POINTER REFERENCE REF_TO _TO STRING WSTRING
 %declare IF _THEN _ELSIF _ELSE _END_IF CASE _END_CASE FOR _BY _DO _END_FOR WHILE _END_WHILE REPEAT _UNTIL _END_REPEAT
@@ -118,10 +118,16 @@ name_list: NAME (_COMMA NAME)*
           | REF_TO type_spec -> pointer_type
           | qual_name _LPAR expr _DOTDOT expr _RPAR -> subrange_type
           | qual_name _LPAR [args] _RPAR -> fb_init_type
+          | qual_name LT generic_arg (_COMMA generic_arg)* GT -> generic_type
           | _LPAR enum_value (_COMMA enum_value)* _RPAR [NAME] -> enum_type
           | STRUCT var_decl* _END_STRUCT -> struct_type
           | UNION var_decl* _END_UNION -> struct_type
 ?string_len: _LPAR expr _RPAR | _LSQB expr _RSQB
+// a generic FB's constants (CODESYS, TwinCAT): FB_Buf<100>, FB_Buf<(N * 2)>, FB_T<(n := 5)>
+?generic_arg: INTEGER -> generic_int
+            | qual_name -> generic_name
+            | _LPAR expr _RPAR
+            | _LPAR NAME _ASSIGN expr _RPAR -> named_generic_arg
 array_dim: expr _DOTDOT expr
          | STAR -> star_dim
 enum_value: NAME [_ASSIGN expr]
@@ -137,7 +143,7 @@ field_init: NAME _ASSIGN initializer
 var_blocks: var_block*
 var_block: var_kind var_qualifier* (var_decl | _SEMI)* _END_VAR
 !var_kind: VAR | VAR_INPUT | VAR_OUTPUT | VAR_IN_OUT | VAR_TEMP | VAR_GLOBAL | VAR_EXTERNAL
-         | VAR_STAT | VAR_INST | VAR_CONFIG | VAR_ACCESS
+         | VAR_STAT | VAR_INST | VAR_CONFIG | VAR_ACCESS | VAR_GENERIC
 !var_qualifier: CONSTANT | RETAIN | NON_RETAIN | PERSISTENT
 var_decl: name_list [_AT ADDRESS] _COLON type_spec [NAME] [_ASSIGN initializer] _SEMI
         | config_path _AT ADDRESS _COLON type_spec [_ASSIGN initializer] _SEMI -> config_decl

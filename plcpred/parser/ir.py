@@ -149,9 +149,12 @@ Initializer = Union[Expr, ArrayInit, StructInit]
 
 @dataclass(slots=True)
 class NamedType:
-    """An elementary type (``INT``) or a user / FB type referenced by name."""
+    """An elementary type (``INT``) or a user / FB type referenced by name.
+    ``generic_args``: the values of a generic FB's VAR_GENERIC CONSTANTs (``FB_Buf<100>``),
+    positional (``Arg.name`` None) or named."""
     name: str
     pos: Pos | None = _pos()
+    generic_args: list["Arg"] | None = None
 
 
 @dataclass(slots=True)
@@ -227,7 +230,7 @@ class VarDecl:
 
 
 VAR_KINDS = ("VAR", "VAR_INPUT", "VAR_OUTPUT", "VAR_IN_OUT", "VAR_TEMP", "VAR_GLOBAL",
-             "VAR_EXTERNAL", "VAR_STAT", "VAR_INST", "VAR_CONFIG", "VAR_ACCESS")
+             "VAR_EXTERNAL", "VAR_STAT", "VAR_INST", "VAR_CONFIG", "VAR_ACCESS", "VAR_GENERIC")
 
 
 @dataclass(slots=True)

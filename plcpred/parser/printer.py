@@ -97,6 +97,10 @@ def initializer(i) -> str:
 
 def type_ref(t, indent: str = "") -> str:
     if isinstance(t, ir.NamedType):
+        if t.generic_args:
+            return t.name + "<" + ", ".join(
+                expr(a.value) if a.name is None and isinstance(a.value, ir.Literal)
+                else f"({arg(a)})" for a in t.generic_args) + ">"
         return t.name
     if isinstance(t, ir.StringType):
         kw = "WSTRING" if t.wide else "STRING"

@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 
 from ..parser import ir
 from ..parser.errors import ProgramError, at
+from ..parser.generics import readable, specialize
 from ..parser.names import ident, validate_names
 from ..parser.stdlib import STANDARD_FBS, is_standard_function, std_fb_pin
 from . import types as ty
@@ -138,7 +139,7 @@ class Compiler:
     def __init__(self, program: ir.Program):
         # the gate to code generation: whatever built this IR (a front end or a library
         # caller), no name reaches the generated source unless it is an identifier
-        self.program = validate_names(program)
+        program = self.program = validate_names(specialize(program))
         self.types = ty.TypeTable(program)
         self.src = Source()
         self.reads_et = False
@@ -1943,4 +1944,8 @@ def _describe(e) -> str:
 def compile_program(program: ir.Program) -> Compiled:
     """Compile a parsed project. Raises :class:`CompileError` (positioned) for constructs
     the executor cannot run."""
-    return Compiler(program).compile()
+    compiler = Compiler(program)
+    try:
+        return compiler.compile()
+    except ProgramError as e:       # a generic FB's copy named as the program writes it
+        raise readable([e], compiler.program)[0] from None
