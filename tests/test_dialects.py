@@ -444,3 +444,31 @@ def test_a_generic_block_without_initial_values_exists_through_its_instances():
     assert problems(src) == []
     src_bad = src.replace("b(x := 1);", "b(x := 1); b.missing := 1;")
     assert any("FB_Buf<2>" in p for p in problems(src_bad)), problems(src_bad)
+
+
+def test_an_assignment_inside_an_expression_stores_and_gives_the_value():
+    # SLAC's LCLSGeneral logger: IF ((nEventIdx := (nEventIdx + 1)) = nMaxEvents) THEN
+    src = """PROGRAM P
+VAR idx : INT; arr : ARRAY[0..2] OF INT; k : INT; END_VAR
+VAR_OUTPUT wraps, last, loops : INT; END_VAR
+IF ((idx := (idx + 1)) = 3) THEN idx := 0; wraps := wraps + 1; END_IF
+last := (arr[idx] := idx * 10) + 1;
+k := 0;
+WHILE (k := k + 1) < 4 DO loops := loops + 1; END_WHILE
+END_PROGRAM
+"""
+    assert problems(src) == []
+    got = trace(src, ["IDX", "WRAPS", "LAST", "LOOPS"], lambda k: {}, scans=4)
+    assert got == [(1, 0, 11, 3), (2, 0, 21, 6), (0, 1, 1, 9), (1, 1, 11, 12)]
+    program = parse_st(src, "t.st")
+    assert parse_st(to_st(program), "printed.st") == program
+
+
+def test_an_assignment_inside_an_expression_is_checked_as_a_write():
+    src = """PROGRAM P
+VAR CONSTANT limit : INT := 3; END_VAR
+VAR n : INT; END_VAR
+IF (limit := n) > 0 THEN n := 0; END_IF
+END_PROGRAM
+"""
+    assert any("cannot assign to constant 'limit'" in p for p in problems(src))

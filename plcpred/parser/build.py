@@ -189,6 +189,9 @@ class IRBuilder:
     def fn_operator(self, tok):
         return tok
 
+    def assign_expr(self, target, value):
+        return ir.AssignExpr(target, value, pos=target.pos)
+
     def operator_call(self, op, args):
         return ir.Call(ir.Name(str(op).upper(), pos=self._pos(op)), args, pos=self._pos(op))
 

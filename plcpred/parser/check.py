@@ -536,6 +536,12 @@ class Checker:
             self._expr(e.right, scope, ctx)
         elif t is ir.Call:
             self._check_call(e, scope, ctx)
+        elif t is ir.AssignExpr:
+            self._expr(e.value, scope, ctx)
+            if ctx is not None:
+                self._write_target(e.target, ctx)
+            else:
+                self._expr(e.target, scope, ctx, writing=True)
         elif t is ir.EnumLiteral:
             td = self.g.types.get(e.type_name.upper())
             if td is None or not isinstance(td.type, ir.EnumType):

@@ -59,6 +59,7 @@ COMMON = r"""
      | FALSE -> bool_lit
      | ENUM_LIT -> enum_lit
      | _LPAR expr _RPAR
+     | _LPAR postfix _ASSIGN expr _RPAR -> assign_expr
      | fn_operator _LPAR args _RPAR -> operator_call
 // the operators IEC also defines as functions, called as such: AND(a, b), MOD(a, b)
 !fn_operator: AND | OR | XOR | MOD

@@ -140,8 +140,17 @@ class StructInit:
     pos: Pos | None = _pos()
 
 
+@dataclass(slots=True)
+class AssignExpr:
+    """``(x := value)`` inside an expression (CODESYS, TwinCAT): stores ``value`` in
+    ``target`` and is that value, as the target's type."""
+    target: "Expr"
+    value: "Expr"
+    pos: Pos | None = _pos()
+
+
 Expr = Union[Literal, EnumLiteral, Name, Member, BitAccess, Index, Deref, DirectAddress,
-             Unary, Binary, Call]
+             Unary, Binary, Call, AssignExpr]
 Initializer = Union[Expr, ArrayInit, StructInit]
 
 

@@ -43,7 +43,7 @@ MAX_LOOP_DEPTH = 12          # FOR / WHILE / REPEAT nested in one body
 _STATEMENTS = (ir.If, ir.Case, ir.For, ir.While, ir.Repeat)
 _LOOPS = (ir.For, ir.While, ir.Repeat)
 _EXPRESSIONS = (ir.Unary, ir.Binary, ir.Call, ir.Index, ir.Member, ir.BitAccess, ir.Deref,
-                ir.Arg)
+                ir.Arg, ir.AssignExpr)
 
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*", re.ASCII)
 _HAS_ALNUM = re.compile(r"[A-Za-z0-9]", re.ASCII)

@@ -981,6 +981,23 @@ class Compiler:
         elif kind == "deref":
             e(ind, f"{a}.set({value})", pos)
 
+    def _assign_expr(self, x: ir.AssignExpr, scope: Scope):
+        """``(target := value)``: the store as an expression that gives the stored value."""
+        if isinstance(x.target, ir.BitAccess):
+            raise _err(x, "an assignment to a bit inside an expression is not supported")
+        kind, a, b, tt = self._lvalue(x.target, scope)
+        code, vt = self._expr(x.value, scope, tt)
+        value = self._to(code, vt, tt, x.target, copy=True)
+        if kind == "name":
+            return f"({a} := {value})", tt
+        if kind == "attr":
+            return f"_Ref({a}, {b!r}).assign({value})", tt
+        if kind == "item":
+            return f"_ItemRef({a}, {b}).assign({value})", tt
+        if kind == "deref":
+            return f"{a}.assign({value})", tt
+        raise _err(x, "this cannot be assigned to inside an expression")
+
     def _write_code(self, target, value: str, scope: Scope) -> str:
         """An expression that stores ``value`` (code of the target's type) in ``target``
         (for the standard functions that write an argument)."""
@@ -1190,6 +1207,8 @@ class Compiler:
         if isinstance(x, ir.BitAccess):
             code, t = self._expr(x.base, scope)
             return f"_getbit({code}, {x.bit})", BOOL
+        if isinstance(x, ir.AssignExpr):
+            return self._assign_expr(x, scope)
         if isinstance(x, ir.Deref):
             if isinstance(x.base, ir.Name) and ident(x.base.name) == "THIS":
                 if scope.fb is None:
@@ -1737,6 +1756,9 @@ class _Flow:
                 self._et = True
             if isinstance(x, ir.Name):
                 out.add(ident(x.name))
+            elif isinstance(x, ir.AssignExpr):
+                self.use(x.target)          # written here: never left out of a state
+                walk(x.value)
             elif isinstance(x, ir.Index):
                 walk(x.base)
                 for i in x.indices:
@@ -1850,6 +1872,8 @@ def _children(e):
         return (e.base, *e.indices)
     if isinstance(e, ir.Call):
         return tuple(a.value for a in e.args if a.value is not None)
+    if isinstance(e, ir.AssignExpr):
+        return (e.target, e.value)
     return ()
 
 

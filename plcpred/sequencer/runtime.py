@@ -48,6 +48,11 @@ class Ref:
     def set(self, value):
         setattr(self.obj, self.attr, value)
 
+    def assign(self, value):
+        """Store ``value`` and give it back (an assignment inside an expression)."""
+        self.set(value)
+        return value
+
 
 class ItemRef(Ref):
     """A reference to an array element."""
@@ -72,6 +77,8 @@ class Box:
 
     def set(self, value):
         self.v = value
+
+    assign = Ref.assign
 
 
 # ---------------------------------------------------------------------- integer arithmetic
