@@ -472,3 +472,27 @@ IF (limit := n) > 0 THEN n := 0; END_IF
 END_PROGRAM
 """
     assert any("cannot assign to constant 'limit'" in p for p in problems(src))
+
+
+def test_pouname_gives_the_pou_a_call_stands_in():
+    # TcUnit tests name themselves: TEST(__POUNAME());
+    src = """FUNCTION_BLOCK FB_Test
+VAR_OUTPUT own, meth : STRING; END_VAR
+own := __POUNAME();
+meth := Name();
+METHOD Name : STRING
+Name := __POUNAME();
+END_METHOD
+END_FUNCTION_BLOCK
+FUNCTION F_Name : STRING
+F_Name := __POUNAME();
+END_FUNCTION
+PROGRAM P
+VAR t : FB_Test; END_VAR
+VAR_OUTPUT a, b, c, d : STRING; END_VAR
+t(); a := t.own; b := t.meth; c := F_Name(); d := __POUNAME();
+END_PROGRAM
+"""
+    assert problems(src) == []
+    got = trace(src, ["A", "B", "C", "D"], lambda k: {}, scans=1)
+    assert got == [("FB_Test", "FB_Test.Name", "F_Name", "P")]

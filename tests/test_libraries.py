@@ -238,7 +238,7 @@ VAR
     f1, f2, c1, m1 : LREAL;
     sev : TcEventSeverity := TcEventSeverity.Warning;
 END_VAR
-pwr(Axis := ax, Enable := TRUE);
+pwr(Axis := ax, Enable := TRUE, BufferMode := MC_BufferMode.MC_Aborting);
 setPos(Axis := ax, Execute := set, Position := 40.0);
 mv(Axis := ax, Execute := go, Position := 50.0, Velocity := 10.0);
 moving := ax.Status.Moving;
@@ -307,3 +307,23 @@ END_PROGRAM
 """)
     (_, p), = run_file(f, 1)
     assert (p.S, p.B, p.C, int(p.T), int(p.U)) == ("abc-z9", 65, "B", 15, 7)
+
+
+def test_twincat_system_info_list_is_there_for_every_project(tmp_path):
+    # TcUnit reads the task's cycle count and the project name from it
+    f = write(tmp_path, "si.st", """PROGRAM P
+VAR
+    GetCurrentTaskIndex : GETCURTASKINDEX;
+    n : UDINT;
+    s : STRING;
+END_VAR
+GetCurrentTaskIndex();
+n := TwinCAT_SystemInfoVarList._TaskInfo[GetCurrentTaskIndex.index].CycleCount;
+s := CONCAT(STR1 := TwinCAT_SystemInfoVarList._AppInfo.ProjectName, STR2 := '.');
+END_PROGRAM
+""")
+    assert main(["check", str(f)]) == 0
+    inst = ProgramInstance(load_program(f))
+    inst.guard(inst.scan, 0)
+    prog = inst.programs[0]
+    assert (prog.N, prog.S) == (0, "PLC.")

@@ -50,7 +50,7 @@ def shipped() -> tuple[Library, ...]:
     """The stubs plcpred ships (parsed once per process)."""
     from . import load_program
     libs = []
-    for f in sorted(SHIPPED_DIR.glob("*.st")):
+    for f in sorted([*SHIPPED_DIR.glob("*.st"), *SHIPPED_DIR.glob("*.TcGVL")]):
         prog = load_program(f, libraries=False)
         namespaces = [p[0] for p in prog.pragmas if p[0].lower().startswith("{library ")]
         for pragma in namespaces or ["{library " + f.stem + "}"]:

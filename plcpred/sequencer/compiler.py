@@ -27,12 +27,13 @@ struct (its members do not overlap).
 """
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass, field
 
 from ..parser import ir
 from ..parser.errors import ProgramError, at
-from ..parser.generics import readable, specialize
+from ..parser.generics import GENERIC_PRAGMA, readable, specialize
 from ..parser.names import ident, validate_names
 from ..parser.stdlib import STANDARD_FBS, is_standard_function, std_fb_pin
 from . import types as ty
@@ -100,6 +101,7 @@ class Scope:
     ret: str = "return"            # what RETURN compiles to
     steps: dict = field(default_factory=dict)  # SFC step name -> index
     cls: str = ""                  # Python class of self
+    pou: str = ""                  # the POU as __POUNAME() gives it (``FB.Method``)
 
 
 class Source:
@@ -362,7 +364,7 @@ class Compiler:
                             raise _err(d, f"VAR_EXTERNAL {d.name} has no VAR_GLOBAL")
                         continue
                     names[key] = (f"self.{key}", self.types.resolve(d.type, d.pos))
-        sc = Scope(names=names, fb=fb, cls=fb.cls_name)
+        sc = Scope(names=names, fb=fb, cls=fb.cls_name, pou=_shown_name(fb.pou))
         if fb.pou.is_sfc:
             sc.steps = {ident(s.name): i for i, s in enumerate(fb.pou.body.steps)}
         return sc
@@ -615,7 +617,8 @@ class Compiler:
 
     # ---------------------------------------------------------------- methods & functions
     def _local_scope(self, outer: Scope, var_blocks, extra=()) -> tuple[Scope, list]:
-        sc = Scope(names=dict(outer.names), fb=outer.fb, cls=outer.cls, steps=outer.steps)
+        sc = Scope(names=dict(outer.names), fb=outer.fb, cls=outer.cls, steps=outer.steps,
+                   pou=outer.pou)
         params = []
         for b in var_blocks:
             for d in b.decls:
@@ -675,13 +678,15 @@ class Compiler:
 
     def _function(self, f: ir.Pou):
         ret_t = self.types.resolve(f.return_type, f.pos) if f.return_type else None
-        scope = Scope(names={k: (f"_g.{k}", t) for k, (n, t, d) in self.globals.items()})
+        scope = Scope(names={k: (f"_g.{k}", t) for k, (n, t, d) in self.globals.items()},
+                      pou=f.name)
         blocks = [b for b in f.var_blocks if b.kind != "VAR_EXTERNAL"]
         self._callable(f"def _fn_{ident(f.name)}(ARGS):", scope, blocks, f.body,
                        ident(f.name), ret_t, 0, f.pos)
 
     def _method(self, m: ir.Method, fb: FbT, scope: Scope):
         ret_t = self.types.resolve(m.return_type, m.pos) if m.return_type else None
+        scope = dataclasses.replace(scope, pou=f"{_shown_name(fb.pou)}.{m.name}")
         self._callable(f"def m_{ident(m.name)}(self, ARGS):", scope, m.var_blocks, m.body,
                        ident(m.name), ret_t, 1, m.pos)
 
@@ -1645,6 +1650,8 @@ class Compiler:
         if key in ("ADR", "REF"):
             need(1)
             return self._ref_of(args[0].value, scope)
+        if key == "__POUNAME":
+            return repr(scope.pou), STRING
         if key in ("TIME", "NOW") and not args:
             self.reads_clock = True
             return "_now", TIME
@@ -1900,6 +1907,12 @@ def _base_t(t):
 
 def _is_object_t(t) -> bool:
     return t is not None and t.cat in ty.OBJECT_CATS
+
+
+def _shown_name(pou: ir.Pou) -> str:
+    """A POU's name as the program wrote it (a generic FB's copy as ``FB_Buf<100>``)."""
+    return next((p[len(GENERIC_PRAGMA):] for p in pou.pragmas
+                 if p.startswith(GENERIC_PRAGMA)), pou.name)
 
 
 def _is_null_test(lt, rt, x: ir.Binary) -> bool:
