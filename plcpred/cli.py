@@ -613,7 +613,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "A.stroke_time_s with 0.2/0.3 for extend/retract), "
                                    "input.SIGNAL.FIELD, program.VAR for a variable's "
                                    "initial value as an ST literal (program.BLOW_TIME=T#2s), "
-                                   "or measure.leaks / measure.pressure (saving measures, "
+                                   "or measure.leaks / measure.pressure / measure.blowoff "
+                                   "(saving measures, "
                                    "also as --measure). Energy and cost count a year as "
                                    "size does (--hours, the machine file's [calendar]). "
                                    "Scenarios run in parallel local processes, or on a Dask "
@@ -624,7 +625,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--measure", action="append", default=[], metavar="NAME=VALUE",
                    help="an energy-saving measure, swept as without and with it: "
                         "leaks=-30%% (repair that share of every leak), pressure=-0.5bar "
-                        "(lower the supply); the same as --set measure.NAME=0,VALUE")
+                        "(lower the supply), blowoff=cycle (nozzles blow only while a "
+                        "cycle runs, not while the machine waits); the same as --set "
+                        "measure.NAME=AS_IS,VALUE")
     p.add_argument("--engine", choices=("local", "dask"), default="local")
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler (tcp://host:8786)")
     p.add_argument("--workers", type=int, help="local processes (default: one per core)")

@@ -12,7 +12,9 @@ A setting is ``KEY=V1,V2,...``:
 * ``measure.NAME`` - an energy-saving measure as audits (MEASUR, AIRMaster+) list them:
   ``measure.leaks=0%,-30%`` repairs that share of every leak (its conductance: a leak's
   flow is proportional to it, ISO 6358), ``measure.pressure=0,-0.5`` lowers the supply by
-  that many bar (regulators set above the new supply then give the supply).
+  that many bar (regulators set above the new supply then give the supply),
+  ``measure.blowoff=always,cycle`` lets the nozzles blow only while a cycle is in progress
+  (their valves closed while the machine waits, :func:`~plcpred.air.cycles.rest_spells_ns`).
 
 Each scenario is a plain function call (:func:`run_scenario`) on picklable arguments, so
 the local process pool and Dask give identical results.
@@ -124,7 +126,10 @@ def apply_settings(data: dict, path, program, scenario: dict):
     return machine, prog
 
 
-MEASURES = ("leaks", "pressure")
+MEASURES = ("leaks", "pressure", "blowoff")
+# measure.blowoff: the nozzles blow "always" (as the program says) or only "cycle" (not
+# while the machine waits), applied to the run's timeline
+BLOWOFF = ("always", "cycle")
 
 
 def _apply_measure(d: dict, key: str, value: str) -> None:
@@ -158,6 +163,13 @@ def _apply_measure(d: dict, key: str, value: str) -> None:
             if "pressure_bar_g" in t and _number(key, t["pressure_bar_g"]) > supply:
                 t["pressure_bar_g"] = max(supply, 0.0)
         return
+    if name == "blowoff":
+        if text not in BLOWOFF:
+            raise SweepError(f"{key}: {value!r}: blow-off is 'always' (as the program "
+                             "switches it) or 'cycle' (not while the machine waits)")
+        if not any(t.get("kind") == "nozzle" for t in _tables(d, "consumer")):
+            raise SweepError(f"{key}: the machine file has no nozzle")
+        return              # applied to the run (run_scenario)
     raise SweepError(f"{key}: no measure '{name}' (measures: {', '.join(MEASURES)})")
 
 
@@ -165,13 +177,21 @@ def measure_setting(text: str) -> Setting:
     """``--measure NAME=VALUE``: the machine as it is and with the measure."""
     if "=" not in text:
         raise SweepError(f"--measure {text!r}: write NAME=VALUE (leaks=-30%, "
-                         "pressure=-0.5bar)")
+                         "pressure=-0.5bar, blowoff=cycle)")
     name, _, value = text.partition("=")
     name, value = name.strip().lower(), value.strip()
     if name not in MEASURES or not value:
         raise SweepError(f"--measure {text!r}: measures are {', '.join(MEASURES)} "
-                         "(leaks=-30%, pressure=-0.5bar)")
-    return Setting(f"measure.{name}", ["0%" if name == "leaks" else "0bar", value])
+                         "(leaks=-30%, pressure=-0.5bar, blowoff=cycle)")
+    as_is = {"leaks": "0%", "pressure": "0bar", "blowoff": "always"}[name]
+    return Setting(f"measure.{name}", [as_is, value])
+
+
+def _blowoff(scenario: dict) -> str:
+    for key, value in scenario.items():
+        if key.lower() == "measure.blowoff":
+            return str(value).strip().lower()
+    return "always"
 
 
 def _tables(data: dict, key: str) -> list:
@@ -216,6 +236,10 @@ def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
     program = base.read_program(program_path)
     machine, program = apply_settings(data, machine_path, program, scenario)
     result = predict(machine, horizon_s, dt=dt_s, program=program)
+    if _blowoff(scenario) == "cycle":
+        from .air.cycles import blowing_only_in_cycle
+        result = predict(machine, horizon_s, dt=dt_s, program=program,
+                         timeline=blowing_only_in_cycle(machine, result.timeline))
     s = size(result.profile, hours_per_year=production_hours(machine, hours),
              sec_kwh_per_nm3=sec, price_per_kwh=DEFAULT_PRICE if price is None else price,
              supply=(machine.supply_bar_g, machine.atmosphere_kpa),

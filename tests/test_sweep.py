@@ -146,7 +146,73 @@ def test_saving_measures_repair_leaks_and_lower_the_supply():
     (same,) = sweep(RIG, [parse_setting(f"supply_bar_g={load_machine(RIG).supply_bar_g - 1}")],
                     20.0, 0.05, workers=1)
     assert lower["total_nl"] == pytest.approx(same["total_nl"], rel=1e-12)
-    with pytest.raises(SweepError, match="measures are leaks, pressure"):
+    with pytest.raises(SweepError, match="measures are leaks, pressure, blowoff"):
         measure_setting("valves=-1")
     with pytest.raises(SweepError, match="from 0% to -100%"):
         apply_settings(data, RIG, program, {"measure.leaks": "+20%"})
+
+
+BLOWER_LEFT_ON = """PROGRAM Station
+VAR_INPUT part, cyl_out : BOOL; END_VAR
+VAR_OUTPUT valve, blower : BOOL; END_VAR
+VAR trig : R_TRIG; hold : TON; END_VAR
+blower := TRUE;                       (* nobody switches it off *)
+trig(CLK := part);
+IF trig.Q THEN valve := TRUE; END_IF
+hold(IN := cyl_out, PT := T#300ms);
+IF hold.Q THEN valve := FALSE; END_IF
+END_PROGRAM
+"""
+
+
+def test_blowing_only_in_cycle_closes_the_nozzles_while_the_machine_waits(tmp_path):
+    (tmp_path / "station.st").write_text(BLOWER_LEFT_ON)
+    (tmp_path / "station.toml").write_text("""[machine]
+name = "blower left on"
+program = "station.st"
+scan_ms = 10
+supply_bar_g = 6.0
+
+[[input]]
+signal = "part"
+period_s = 2.0
+offset_s = 0.5
+pulse_ms = 100
+
+[[consumer]]
+name = "cyl"
+kind = "double_acting"
+bore_mm = 32
+rod_mm = 12
+stroke_mm = 100
+valve = "valve"
+stroke_time_s = [0.2, 0.2]
+switches = { extended = "cyl_out" }
+
+[[consumer]]
+name = "blower"
+kind = "nozzle"
+valve = "blower"
+orifice_mm = 1.5
+Cd = 0.8
+""")
+    from plcpred.sweep import measure_setting
+    path = tmp_path / "station.toml"
+    rows = sweep(path, [measure_setting("blowoff=cycle")], 20.0, 0.01, workers=1)
+    by = {r["measure.blowoff"]: r for r in rows}
+    # as the program says the blower is on for the whole 20 s; as the measure says only
+    # while a cycle runs: while the valve is on (the waiting state is valve off, blower
+    # on), worked out here from the timeline's valve intervals
+    tl = predict(load_machine(path), 20.0, dt=0.01).timeline
+    on = tl.intervals("valve")
+    on_s = float((on["end_s"].clip(upper=20.0) - on["start_s"]).sum())
+    q_l_min = by["always"]["blower_nl"] / 20.0 * 60.0      # on throughout
+    assert by["cycle"]["blower_nl"] == pytest.approx(q_l_min * on_s / 60.0, rel=1e-6)
+    assert 4.0 < on_s < 6.0                       # ten parts, about half a second each
+    assert by["cycle"]["cyl_nl"] == pytest.approx(by["always"]["cyl_nl"], rel=1e-12)
+    data = read_machine_data(path)
+    with pytest.raises(SweepError, match="'always'"):
+        apply_settings(data, path, None, {"measure.blowoff": "never"})
+    data["consumer"] = [c for c in data["consumer"] if c["kind"] != "nozzle"]
+    with pytest.raises(SweepError, match="no nozzle"):
+        apply_settings(data, path, None, {"measure.blowoff": "cycle"})

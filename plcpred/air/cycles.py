@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..sequencer.timeline import NS
+from ..sequencer.timeline import NS, Timeline
 from .demand import DemandSteps
 
 
@@ -135,12 +135,26 @@ def last_switch_s(machine, timeline) -> float | None:
 
 
 def rest_mask(machine, timeline, profile) -> np.ndarray | None:
-    """Grid cells in which the machine's valve outputs are in its *waiting state*: every
-    output off but those that are on throughout (over one repeating period of a tiled
-    run, else over the run). A machine waits with everything off, or with what its
-    program never switches off (a blower left on is then idle air while it waits, and
-    productive blow-off in a cycle is not); a machine that never rests (a blow-off line
-    with parts always in it) never waits. None when no consumer has a valve."""
+    """Grid cells in which the machine's valve outputs are in its *waiting state*
+    (:func:`rest_spells_ns`). None when no consumer has a valve."""
+    spells = rest_spells_ns(machine, timeline)
+    if spells is None:
+        return None
+    a, b = spells[0] / NS, spells[1] / NS
+    # the time spent waiting up to any instant: the spells as a rate of 1 s per s
+    waited = DemandSteps.of([(a, b - a, b - a)], profile.horizon_s)
+    e = profile.edges_s
+    return np.diff(waited.cumulative_nl(e)) >= np.diff(e) * (1.0 - 1e-9)
+
+
+def rest_spells_ns(machine, timeline) -> tuple[np.ndarray, np.ndarray] | None:
+    """(starts, ends) in ns, in order, of the spells in which the machine's valve outputs
+    are in its *waiting state*: every output off but those that are on throughout (over
+    one repeating period of a tiled run, else over the run). A machine waits with
+    everything off, or with what its program never switches off (a blower left on is
+    then idle air while it waits, and productive blow-off in a cycle is not); a machine
+    that never rests (a blow-off line with parts always in it) never waits. None when no
+    consumer has a valve."""
     signals = list(dict.fromkeys(v for c in machine.consumers for v in c.valve))
     if not signals:
         return None
@@ -162,12 +176,46 @@ def rest_mask(machine, timeline, profile) -> np.ndarray | None:
             rest0 = (states0 == waiting[None, :]).all(axis=1)
             a = np.concatenate([times0[:-1][rest0], a])
             b = np.concatenate([times0[1:][rest0], b])
-    a = np.clip(a, 0, timeline.horizon_ns) / NS
-    b = np.clip(b, 0, timeline.horizon_ns) / NS
-    # the time spent waiting up to any instant: the spells as a rate of 1 s per s
-    waited = DemandSteps.of([(a, b - a, b - a)], profile.horizon_s)
-    e = profile.edges_s
-    return np.diff(waited.cumulative_nl(e)) >= np.diff(e) * (1.0 - 1e-9)
+    a = np.clip(a, 0, timeline.horizon_ns)
+    b = np.clip(b, 0, timeline.horizon_ns)
+    order = np.argsort(a, kind="stable")
+    return a[order], b[order]
+
+
+def blowing_only_in_cycle(machine, timeline) -> Timeline:
+    """``timeline`` with every nozzle's valve closed while the machine waits
+    (:func:`rest_spells_ns`): the saving measure "blow-off only in cycle" of compressed-air
+    audits (a blower's valve interlocked with the cycle). The program is not run again:
+    what it reads of those outputs is as before."""
+    spells = rest_spells_ns(machine, timeline)
+    if spells is None:
+        return timeline
+    a, b = spells
+    names = timeline.info.get("machine_signals", {})
+    index = {n.upper(): i for i, n in enumerate(timeline.names)}
+    nozzles = {index[names.get(v, v).upper()] for c in machine.consumers
+               if c.kind == "nozzle" for v in c.valve if names.get(v, v).upper() in index}
+    t, s, v = timeline.time_ns, timeline.signal_idx, timeline.values
+    keep = ~np.isin(s, list(nozzles))
+    parts_t, parts_s, parts_v = [t[keep]], [s[keep]], [v[keep]]
+    for i in sorted(nozzles):
+        ti, vi = t[s == i], v[s == i]
+        at = np.unique(np.concatenate([ti, a, b, [0]]))
+        at = at[at <= timeline.horizon_ns]
+        k = np.searchsorted(ti, at, side="right") - 1
+        on = np.where(k >= 0, vi[np.clip(k, 0, None)], 0.0) != 0
+        j = np.searchsorted(a, at, side="right") - 1
+        waiting = (j >= 0) & (at < b[np.clip(j, 0, None)])
+        value = (on & ~waiting).astype(float)
+        changed = np.concatenate([[True], value[1:] != value[:-1]])
+        parts_t.append(at[changed])
+        parts_s.append(np.full(int(changed.sum()), i, dtype=np.int32))
+        parts_v.append(value[changed])
+    t2, s2, v2 = (np.concatenate(x) for x in (parts_t, parts_s, parts_v))
+    order = np.argsort(t2, kind="stable")
+    info = dict(timeline.info, measure="blow-off only in cycle")
+    return Timeline(timeline.signals, t2[order], s2[order], v2[order], timeline.horizon_ns,
+                    info, max_changes=timeline.max_changes)
 
 
 def _output_states(edges, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
