@@ -496,3 +496,43 @@ END_PROGRAM
     assert problems(src) == []
     got = trace(src, ["A", "B", "C", "D"], lambda k: {}, scans=1)
     assert got == [("FB_Test", "FB_Test.Name", "F_Name", "P")]
+
+
+def test_fb_init_runs_once_each_instance_is_initialised():
+    # CODESYS/TwinCAT: FB_init(bInitRetains, bInCopyCode, ...) with the declaration's
+    # arguments, positional after the two flags or by name; a base's FB_init first
+    src = """FUNCTION_BLOCK FB_Base
+VAR_OUTPUT trace : INT; END_VAR
+METHOD FB_init : BOOL
+VAR_INPUT bInitRetains : BOOL; bInCopyCode : BOOL; END_VAR
+trace := trace * 10 + 1;
+END_METHOD
+END_FUNCTION_BLOCK
+FUNCTION_BLOCK FB_Valve EXTENDS FB_Base
+VAR_OUTPUT on_ms : INT; name : STRING; flags : BOOL := TRUE; END_VAR
+VAR preset : INT := 7; END_VAR
+METHOD FB_init : BOOL
+VAR_INPUT bInitRetains : BOOL; bInCopyCode : BOOL; nMs : INT; sName : STRING; END_VAR
+on_ms := nMs + preset;      (* the instance's own initial values are already there *)
+name := sName;
+trace := trace * 10 + 2;
+flags := bInitRetains OR bInCopyCode;
+END_METHOD
+END_FUNCTION_BLOCK
+PROGRAM P
+VAR
+    a : FB_Valve(250, 'A');
+    b : FB_Valve(sName := 'B', nMs := 40);
+    arr : ARRAY[1..2, 1..2] OF FB_Valve(5, 'X');
+    c : FB_Valve;
+END_VAR
+VAR_OUTPUT ta, tb, tarr, tc, tr : INT; na, nb : STRING; fl : BOOL; END_VAR
+ta := a.on_ms; tb := b.on_ms; tarr := arr[2, 1].on_ms; tc := c.on_ms; tr := a.trace;
+na := a.name; nb := b.name; fl := a.flags;
+END_PROGRAM
+"""
+    errors, warnings = check_program(parse_st(src, "t.st"))
+    assert errors == [] and not [w for w in warnings if "FB_init" in w.message]
+    got = trace(src, ["TA", "TB", "TARR", "TC", "TR", "NA", "NB", "FL"], lambda k: {},
+                scans=1)
+    assert got == [(257, 47, 12, 7, 12, "A", "B", False)]

@@ -285,8 +285,9 @@ class Checker:
             if d.init_args:
                 for a in d.init_args:
                     self._expr(a.value, scope, None)
-                self.warn(d.pos, f"FB_init arguments of '{d.name}' are not applied: "
-                                 "plcpred does not run FB_init methods")
+                if not self._has_fb_init(d.type):
+                    self.warn(d.pos, f"FB_init arguments of '{d.name}' are not applied: "
+                                     "its type has no FB_init method")
         extra = self.g.callables(pou)   # by bare name, inherited ones too
         if pou.kind == "FUNCTION":
             extra.add(pou.name.upper())
@@ -595,6 +596,20 @@ class Checker:
             up = t.name.upper()
             return up in ELEMENTARY_TYPES or up in self.g.types
         return not isinstance(t, ir.PointerType)
+
+    def _has_fb_init(self, t) -> bool:
+        """Does type ``t`` (an FB, or an array of them) have an FB_init method, its own or
+        a base's?"""
+        while isinstance(t, ir.ArrayType):
+            t = t.element
+        pou = self.g.pous.get(t.name.upper()) if isinstance(t, ir.NamedType) else None
+        seen = set()
+        while pou is not None and pou.name.upper() not in seen:
+            seen.add(pou.name.upper())
+            if any(m.name.upper() == "FB_INIT" for m in pou.methods):
+                return True
+            pou = self.g.pous.get(pou.extends.upper()) if pou.extends else None
+        return False
 
     def _check_call(self, call: ir.Call, scope, ctx):
         func = call.func

@@ -334,6 +334,9 @@ class Compiler:
         for d in decls:
             t = self.globals[ident(d.name)][1]
             e(2, f"self.{ident(d.name)} = {self._init(t, d.init, scope, d)}", d.pos)
+        for d in decls:
+            self._fb_init_calls(f"self.{ident(d.name)}", self.globals[ident(d.name)][1], d,
+                                scope, 2)
         e(1, "def _snap(self, rel):")
         e(2, "return (" + "".join(f"{self._snap_code('self.' + ident(d.name), self.globals[ident(d.name)][1])}, " for d in decls) + ")")
 
@@ -392,6 +395,9 @@ class Compiler:
         for d in own:
             t = scope.names[ident(d.name)][1]
             e(2, f"self.{ident(d.name)} = {self._init(t, d.init, scope, d)}", d.pos)
+        for d in own:
+            self._fb_init_calls(f"self.{ident(d.name)}", scope.names[ident(d.name)][1], d,
+                                scope, 2)
         for d in edges:
             e(2, f"self._e_{ident(d.name)} = False", d.pos)
         if pou.is_sfc:
@@ -433,6 +439,34 @@ class Compiler:
         if fb.base:
             parts.append(f"{fb.base.cls_name}._snap(self, rel)")
         e(2, "return (" + "".join(p + ", " for p in parts) + ")")
+
+    def _fb_init_calls(self, code: str, t, d: ir.VarDecl, scope: Scope, ind: int) -> None:
+        """CODESYS/TwinCAT FB_init: once every variable of the instance holding ``d`` has
+        its initial value, each FB instance ``d`` declares (every element of an array of
+        them) runs its FB_init with bInitRetains and bInCopyCode FALSE and the
+        declaration's arguments (``fb : FB_T(5)``); a derived FB runs its bases' FB_init
+        first, each with the arguments its own parameters take."""
+        inner = t
+        while isinstance(inner, ArrayT):
+            inner = inner.elem
+        if not isinstance(inner, FbT):
+            return
+        inits = [(ft, m) for ft in reversed(list(inner.chain())) for m in ft.pou.methods
+                 if ident(m.name) == "FB_INIT"]
+        if not inits:
+            return
+        e = self.src.emit
+        while isinstance(t, ArrayT):
+            for _ in t.dims:
+                var = self.src.temp("fbi")
+                e(ind, f"for {var} in {code}:", d.pos)
+                code, ind = var, ind + 1
+            t = t.elem
+        for ft, m in inits:
+            call = ir.Call(ir.Name("FB_init", pos=d.pos), _fb_init_args(m, d), pos=d.pos)
+            e(ind, f"{ft.cls_name}.m_FB_INIT({code}, "
+                   f"{self._named_args(m.var_blocks, call, scope, ft.name + '.FB_init')})",
+              d.pos)
 
     def _sinks(self, fb: FbT, scope: Scope) -> set:
         """Local variables whose values never reach an output, a condition, a call or an
@@ -1907,6 +1941,27 @@ def _base_t(t):
 
 def _is_object_t(t) -> bool:
     return t is not None and t.cat in ty.OBJECT_CATS
+
+
+_FB_INIT_FLAGS = ("BINITRETAINS", "BINCOPYCODE")
+
+
+def _fb_init_args(m: ir.Method, d: ir.VarDecl) -> list[ir.Arg]:
+    """The arguments of FB_init method ``m`` for declaration ``d``: its two flags FALSE
+    (a first download: no retains kept, no online change) and the declaration's own, by
+    name, positional ones in the order of the parameters after the flags; arguments
+    ``m`` has no parameter for are left out (a base FB's FB_init with fewer)."""
+    params = [x for b in m.var_blocks if b.kind in ("VAR_INPUT", "VAR_IN_OUT")
+              for x in b.decls]
+    names = {ident(x.name) for x in params}
+    args = [ir.Arg(x.name, ir.Literal(False, "BOOL", pos=d.pos), pos=d.pos)
+            for x in params if ident(x.name) in _FB_INIT_FLAGS]
+    rest = [x for x in params if ident(x.name) not in _FB_INIT_FLAGS]
+    for k, a in enumerate(d.init_args or []):
+        name = a.name if a.name is not None else (rest[k].name if k < len(rest) else None)
+        if name is not None and ident(name) in names:
+            args.append(ir.Arg(name, a.value, pos=a.pos))
+    return args
 
 
 def _shown_name(pou: ir.Pou) -> str:
