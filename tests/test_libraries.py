@@ -327,3 +327,18 @@ END_PROGRAM
     inst.guard(inst.scan, 0)
     prog = inst.programs[0]
     assert (prog.N, prog.S) == (0, "PLC.")
+
+
+def test_oscat_multime_from_a_module_the_project_does_not_have(tmp_path):
+    # OpenPLC copies of single OSCAT modules call MULTIME from the time module
+    f = write(tmp_path, "m.st", """PROGRAM P
+VAR_OUTPUT a, b : TIME; END_VAR
+a := MULTIME(T#2s, 1.5);
+b := multime(t := T#100ms, M := 0.25);
+END_PROGRAM
+""")
+    assert main(["check", str(f)]) == 0
+    inst = ProgramInstance(load_program(f))
+    inst.guard(inst.scan, 0)
+    prog = inst.programs[0]
+    assert (prog.A, prog.B) == (3_000_000_000, 25_000_000)      # ns
