@@ -10,7 +10,9 @@ import numpy as np
 
 from .output import SHOWN_CONSUMERS
 
-MAX_POINTS = 3000
+# a plotted point per pixel column of the 11-inch, 110 dpi figures (more are not seen,
+# and drawing a stacked layer costs per point)
+MAX_POINTS = 1200
 MAX_CYCLES_DRAWN = 150    # more cycles than this on a time axis are drawn per bin
 
 
@@ -67,16 +69,18 @@ def _cell(text: str) -> str:
     return str(text).replace("|", r"\|").replace("\n", " ")
 
 
-def plot_demand(profile, path, title="Air demand", shown: int | None = SHOWN_CONSUMERS
-                ) -> None:
+def plot_demand(profile, path, title="Air demand", shown: int | None = SHOWN_CONSUMERS,
+                cycle_s: float | None = None) -> None:
     """Stacked flow per consumer (the ``shown`` largest and "other" on a wide machine,
     see :meth:`DemandProfile.groups`) against time with the cumulative normal litres on
-    a second axis; written through a temporary file."""
+    a second axis; written through a temporary file. Over many cycles the bins are
+    whole cycles: the run's period, or ``cycle_s`` for a run that does not repeat."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    k = _whole_periods(_bin_width(profile.n_cells), getattr(profile, "period_s", None),
+    k = _whole_periods(_bin_width(profile.n_cells),
+                       getattr(profile, "period_s", None) or cycle_s,
                        profile.dt_s, profile.n_cells)
     # each layer's air integrated straight onto the plot's bins (exact, as the grid is)
     bin_edges = profile.edges_s[::k]

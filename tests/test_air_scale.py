@@ -187,3 +187,28 @@ def test_ten_years_of_a_cycling_machine_cost_what_two_periods_do():
     assert b.mean_l_min == pytest.approx(a.mean_l_min, rel=1e-4)
     assert b.peak_l_min() == pytest.approx(a.peak_l_min(), rel=1e-12)
     assert b.total_cell_nl.sum() == pytest.approx(b.total_nl, rel=1e-9)
+
+
+def test_a_run_that_does_not_repeat_is_plotted_in_whole_arrival_periods(tmp_path,
+                                                                        monkeypatch):
+    # jittered arrivals never tile; bins of a fixed length over a 4 s cycle would draw
+    # a moire, bins of the arrival period average one part each
+    from plcpred import report
+    from plcpred.machine import machine_from_data, read_machine_data
+    path = SAMPLES / "pick_place.toml"
+    data = read_machine_data(path)
+    for t in data["input"]:
+        if "period_s" in t:
+            t["jitter_s"] = 0.1
+    jittered = predict(machine_from_data(data, path), "2h")
+    tiled = predict(machine_from_data(read_machine_data(path), path), "2h")
+    assert jittered.timeline.tiled is None and tiled.timeline.tiled is not None
+    period = max(t["period_s"] for t in data["input"] if "period_s" in t)
+    assert jittered._arrival_period_s() == period and tiled._arrival_period_s() is None
+    widths = []
+    real = report._whole_periods
+    monkeypatch.setattr(report, "_whole_periods",
+                        lambda *a: widths.append(real(*a)) or widths[-1])
+    jittered.write(tmp_path, plot=True)
+    cells = round(period / jittered.profile.dt_s)
+    assert widths and widths[0] % cells == 0
