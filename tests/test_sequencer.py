@@ -478,3 +478,23 @@ def test_a_wave_down_a_wide_line_equals_scan_stepping(jitter_s):
     assert fast.count_rising("i5_1") >= 5            # and its bistable valve returns
     if not jitter_s:
         assert Sequencer(prog, m).run(parse_horizon("12s")) == fast      # tiled
+
+
+@pytest.mark.parametrize("write", ["go := FALSE;", "r := REF(go); r^ := FALSE;",
+                                   "clear(x := go);"])
+def test_inputs_are_written_every_scan_when_the_program_may_change_them(write):
+    # a PLC writes its input image before every scan: a program that overwrites an
+    # input (directly, through a reference, or through a VAR_IN_OUT) sees it again
+    prog, m = machine_for(f"""FUNCTION_BLOCK FB_Clear
+VAR_IN_OUT x : BOOL; END_VAR
+x := FALSE;
+END_FUNCTION_BLOCK
+PROGRAM P
+VAR_INPUT go : BOOL; END_VAR
+VAR_OUTPUT seen : INT; END_VAR
+VAR r : POINTER TO BOOL; clear : FB_Clear; END_VAR
+IF go THEN seen := seen + 1; END_IF
+{write}
+END_PROGRAM""", [], [InputSchedule("go", pulses_s=[0.1], pulse_ms=50)], scan_ms=10)
+    tl = Sequencer(prog, m).run(parse_horizon("0.3s"), scan_stepping=True)
+    assert tl.value_at("seen", 0.3) == 5                # 50 ms of scans every 10 ms

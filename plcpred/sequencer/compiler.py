@@ -135,6 +135,7 @@ class Compiled:
     address_slots: dict = None                 # undeclared direct address -> global attr
     intervals: dict = None                     # program instance -> task INTERVAL (ns)
     et_thresholds: tuple = ()                  # constants ET is compared with (ns)
+    written: frozenset | None = None           # names the program may write (None: any)
 
 
 class Compiler:
@@ -160,6 +161,7 @@ class Compiler:
         self.et_thresholds: set = set()  # constants timers' ET is compared with (ns)
         self._et_const = False
         self._member_names = names_in(program)
+        self.referenced: set | None = set()   # names handed out by reference (_ref_of)
 
     # ================================================================== project
     def compile(self) -> Compiled:
@@ -200,7 +202,13 @@ class Compiler:
         return Compiled("\n".join(self.src.lines) + "\n", self.src.pos, programs, prog_types,
                         self.globals, self.reads_et, self.reads_clock, self.types,
                         dict(self.address_slots), dict(self.intervals),
-                        tuple(sorted(self.et_thresholds)))
+                        tuple(sorted(self.et_thresholds)), self._written())
+
+    def _written(self) -> frozenset | None:
+        by_name = written_names(self.program)
+        if by_name is None or self.referenced is None:
+            return None
+        return frozenset(by_name | self.referenced)
 
     def _check_memory(self, gdecls, program_types):
         """The whole project's variables within MAX_PROGRAM_CELLS, else an error at the
@@ -1200,6 +1208,7 @@ class Compiler:
                     post.append((arg.value, value, BOOL if arg.negated else mtype(name)))
                 continue
             if name in inouts:
+                self._referenced(arg.value)         # copied back after the call
                 vcode, vt = self._expr(arg.value, scope)
                 e(ind, f"{f}.{name} = {vcode}", arg.pos or pos)
                 if not _is_object_t(vt):
@@ -1554,6 +1563,7 @@ class Compiler:
 
     def _ref_of(self, x, scope: Scope, for_call=False):
         """Code for a reference to ``x`` (ADR, REF=, VAR_IN_OUT and outputs of calls)."""
+        self._referenced(x)
         if isinstance(x, ir.Name) and ident(x.name) in scope.pylocals:
             key = ident(x.name)
             t = scope.names[key][1]
@@ -1581,6 +1591,19 @@ class Compiler:
             return f"_Ref({obj}, {attr!r})", PtrT(t)
         raise _err(x, "a reference needs a variable here")
 
+    def _referenced(self, x) -> None:
+        """Record that ``x`` may be written through a reference to it."""
+        if self.referenced is None:
+            return
+        while isinstance(x, (ir.Member, ir.Index, ir.BitAccess)):
+            if isinstance(x, ir.Member):
+                self.referenced.add(x.member.upper())
+            x = x.base
+        if isinstance(x, ir.Name):
+            self.referenced.add(x.name.upper())
+        else:
+            self.referenced = None
+
     def _std_function(self, key: str, call: ir.Call, scope: Scope):
         args = [a for a in call.args if not a.output]
         if key == "__NEW":
@@ -1592,6 +1615,7 @@ class Compiler:
             code, t = self._expr(args[0].value, scope)
             if t.cat != "ptr":
                 raise _err(call, "__DELETE needs a pointer (what __NEW gave)")
+            self._referenced(args[0].value)
             return f"{self._write_code(args[0].value, 'None', scope)}", ty.VOID
         vals = [self._expr(a.value, scope) for a in args]
         codes = [c for c, _ in vals]
@@ -1763,6 +1787,50 @@ def names_in(program, cls=ir.Member, attr="member") -> set:
         elif hasattr(x, "__dataclass_fields__"):
             stack.extend(getattr(x, f) for f in x.__dataclass_fields__ if f != "pos")
     return names
+
+
+def written_names(program: ir.Program) -> set | None:
+    """Every name the program may write by name, upper case: the variables and members
+    along each assignment target (``a.b[i].c := x`` writes A, B and C), output bindings,
+    FOR variables. None when a write goes where names cannot tell (through a pointer, to
+    an address). What a call writes through VAR_IN_OUT and what ADR/REF hand out the
+    compiler adds as it compiles them (``Compiled.written``). Conservative: for deciding
+    what the program can never change (the inputs the executor writes need not be
+    written again each scan)."""
+    out: set = set()
+
+    def target(e) -> bool:
+        while isinstance(e, (ir.Member, ir.Index, ir.BitAccess)):
+            if isinstance(e, ir.Member):
+                out.add(e.member.upper())
+            e = e.base
+        if isinstance(e, ir.Name):
+            out.add(e.name.upper())
+            return True
+        return False            # a pointer, or an address (%IX0.0 may be an input)
+
+    stack = [program.pous, program.configurations, program.globals]
+    while stack:
+        x = stack.pop()
+        if isinstance(x, (list, tuple)):
+            stack.extend(x)
+            continue
+        if not hasattr(x, "__dataclass_fields__"):
+            continue
+        if isinstance(x, (ir.Assign, ir.AssignExpr)) and not target(x.target):
+            return None
+        if isinstance(x, ir.Assign) and x.op == "REF=" and not target(x.value):
+            return None         # a reference to it: written through the reference
+        if isinstance(x, ir.For):
+            out.add(x.var.upper())
+            if x.target is not None and not target(x.target):
+                return None
+        if isinstance(x, ir.Call):
+            for a in x.args:
+                if a.output and a.value is not None and not target(a.value):
+                    return None
+        stack.extend(getattr(x, f) for f in x.__dataclass_fields__ if f != "pos")
+    return out
 
 
 def _root(e):

@@ -736,6 +736,11 @@ class Sequencer:
             switch_at.append(tuple(at))
         drive = [False] * len(drive_slots)
         write_inputs = _value_setter(drive_slots)
+        # inputs the program never writes keep what was written: the image is written
+        # again only when it changed (else every scan, as a PLC does)
+        written = self.compiled.written
+        rewrite = written is None or any(attr.upper() in written for _, attr in drive_slots)
+        image = {"stale": True}
         # when each cylinder's switches change next (a heap of (time, cylinder), stale
         # entries left in it until they surface: ``due`` holds the live time of each),
         # and the cylinders whose switches must be read again at the next input update
@@ -747,6 +752,7 @@ class Sequencer:
             """Input values at ``t`` and the first time any of them can change: only the
             cylinders whose switches are due (or were commanded) are read again."""
             nxt = NEVER
+            image["stale"] = True
             for j, (sch, _, _) in enumerate(schedules):
                 drive[j] = sch.advance(t)
                 e = sch.next_ns()
@@ -834,7 +840,9 @@ class Sequencer:
             while t <= horizon_ns:
                 if t >= next_input:
                     next_input = drive_inputs(t)
-                write_inputs(drive)
+                if rewrite or image["stale"]:
+                    write_inputs(drive)
+                    image["stale"] = False
                 scan_fn(t)
                 scans += 1
                 valves = valves_now()
