@@ -536,3 +536,17 @@ END_PROGRAM
     got = trace(src, ["TA", "TB", "TARR", "TC", "TR", "NA", "NB", "FL"], lambda k: {},
                 scans=1)
     assert got == [(257, 47, 12, 7, 12, "A", "B", False)]
+
+
+def test_implicit_en_of_a_call_inside_an_expression():
+    # OSCAT: tx := UDINT_TO_TIME(T_PLC_MS(en := TRUE));
+    src = ("FUNCTION F_Twice : INT\nVAR_INPUT\n  a : INT;\nEND_VAR\nF_Twice := 2 * a;\n"
+           "END_FUNCTION\n"
+           + body("go : BOOL; n, m : INT;",
+                  "n := 1 + F_Twice(en := TRUE, a := 3);\n"
+                  "m := 1 + F_Twice(EN := go, a := 5);"))
+    assert problems(src) == []
+    got = trace(src, ("N", "M"), lambda k: {"GO": k == 1}, scans=2)
+    assert got == [(7, 1), (7, 11)]        # not run: the result type's initial value, 0
+    with pytest.raises(CompileError, match="ENO of a call inside an expression"):
+        ProgramInstance(parse_st(src.replace("a := 5)", "a := 5, ENO => go)"), "t.st"))

@@ -1458,6 +1458,25 @@ class Compiler:
 
     # ---------------------------------------------------------------- calls (expressions)
     def _call_expr(self, call: ir.Call, scope: Scope):
+        en = [a for a in call.args if (a.name or "").upper() == "EN" and not a.output]
+        eno = [a for a in call.args if (a.name or "").upper() == "ENO" and a.output]
+        if (en or eno) and not self._declares_en(call.func, scope):
+            # the implicit EN of a call inside an expression (OSCAT: T_PLC_MS(en := TRUE))
+            if eno:
+                raise _err(eno[0], "ENO of a call inside an expression is not supported: "
+                                   "call it as a statement, or assign its result")
+            code, t = self._call_expr(ir.Call(call.func, [a for a in call.args
+                                                          if a not in en], pos=call.pos),
+                                      scope)
+            cond = en[0].value
+            if isinstance(cond, ir.Literal) and cond.value is True:
+                return code, t
+            if _is_object_t(t) or t.cat == "void":
+                raise _err(en[0], "EN of this call inside an expression is not supported: "
+                                  "call it as a statement")
+            ccode, _ = self._expr(cond, scope)
+            # not run: the value the result type starts with
+            return f"({code} if {ccode} else {t.default()!r})", t
         f = call.func
         if isinstance(f, ir.Name):
             key = ident(f.name)
