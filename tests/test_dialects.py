@@ -7,7 +7,7 @@ import pytest
 from plcpred.parser import ir, parse_st
 from plcpred.parser.check import check_program
 from plcpred.parser.printer import to_st
-from plcpred.sequencer import CompileError
+from plcpred.sequencer import CompileError, ExecutionError
 from plcpred.sequencer.executor import ProgramInstance
 
 MS = 1_000_000
@@ -386,10 +386,43 @@ END_PROGRAM
     assert got == [(8, True, False), (9, False, False), (10, False, True), (10, False, True)]
 
 
-def test_new_of_several_elements_is_refused_where_it_is_written():
-    src = body("p : POINTER TO INT;", "p := __NEW(INT, 10);")
-    with pytest.raises(CompileError, match=r"t.st:5:6: __NEW with a count"):
-        ProgramInstance(parse_st(src, "t.st"))
+def test_new_of_pointers_with_fb_init_arguments_and_of_several_elements():
+    # TwinCAT Dynamic Collections: __NEW(POINTER TO T, n) for bucket arrays and
+    # __NEW(FB_Array_List(Initial_Capacity := 0)) with the FB's FB_init arguments
+    src = """TYPE ST_Node : STRUCT v : INT; next : POINTER TO ST_Node; END_STRUCT END_TYPE
+FUNCTION_BLOCK FB_List
+VAR_OUTPUT cap : INT; END_VAR
+METHOD FB_init : BOOL
+VAR_INPUT bInitRetains : BOOL; bInCopyCode : BOOL; Initial_Capacity : INT; END_VAR
+cap := Initial_Capacity + 1;
+END_METHOD
+END_FUNCTION_BLOCK
+PROGRAM P
+VAR
+    buckets : POINTER TO POINTER TO ST_Node;
+    lst : POINTER TO FB_List;
+    one : POINTER TO POINTER TO ST_Node;
+    n : UDINT := 4;
+    many : BOOL;
+END_VAR
+VAR_OUTPUT c : INT; nothing : BOOL; END_VAR
+IF lst = 0 THEN lst := __NEW(FB_List(Initial_Capacity := 5)); END_IF
+IF one = 0 THEN one := __NEW(POINTER TO ST_Node); END_IF
+c := lst^.cap;
+nothing := one^ = 0;
+IF many THEN buckets := __NEW(POINTER TO ST_Node, n); END_IF
+END_PROGRAM
+"""
+    program = parse_st(src, "t.st")
+    assert parse_st(to_st(program), "printed.st") == program
+    errors, warnings = check_program(program)
+    assert errors == []
+    assert [w.line for w in warnings if "__NEW with a count" in w.message] == [22]
+    assert trace(src, ["C", "NOTHING"], lambda k: {}, scans=1) == [(6, True)]
+    # only running the count is an error, at its place
+    with pytest.raises(ExecutionError, match=r"t.st:22:\d+: cannot execute __NEW with a "
+                                             r"count.*no pointer arithmetic"):
+        trace(src, ["C"], lambda k: {"MANY": True}, scans=1)
 
 
 GENERIC_FB = """FUNCTION_BLOCK FB_Buf

@@ -189,6 +189,18 @@ class IRBuilder:
     def fn_operator(self, tok):
         return tok
 
+    def new_pointers(self, func, tok, target, count):
+        """``__NEW(POINTER TO T, n)``: the only call that takes a pointer type."""
+        if not (isinstance(func, ir.Name) and func.name.upper() == "__NEW"):
+            raise self._err("only __NEW takes a type: __NEW(POINTER TO T, n)",
+                            self._pos(tok))
+        pos = self._pos(tok)
+        args = [ir.Arg(None, ir.TypeExpr(ir.PointerType(self._plain(target), pos=pos),
+                                         pos=pos), pos=pos)]
+        if count is not None:
+            args.append(ir.Arg(None, count, pos=count.pos))
+        return ir.Call(func, args, pos=func.pos)
+
     def assign_expr(self, target, value):
         return ir.AssignExpr(target, value, pos=target.pos)
 
@@ -569,7 +581,7 @@ class IRBuilder:
         return ir.Property(str(name), type_, list(accessors), access, modifiers,
                            pos=self._pos(tok))
 
-    def accessor(self, mods, name, var_blocks, body, end):
+    def accessor(self, mods, name, mods_after, var_blocks, body, end):
         kind = str(name).upper()
         if kind not in ("GET", "SET"):
             raise self._err(f"expected GET or SET in a PROPERTY, found '{name}'",

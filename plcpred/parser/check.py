@@ -537,6 +537,8 @@ class Checker:
             self._expr(e.right, scope, ctx)
         elif t is ir.Call:
             self._check_call(e, scope, ctx)
+        elif t is ir.TypeExpr:
+            self._check_type(e.type, scope)
         elif t is ir.AssignExpr:
             self._expr(e.value, scope, ctx)
             if ctx is not None:
@@ -614,6 +616,20 @@ class Checker:
     def _check_call(self, call: ir.Call, scope, ctx):
         func = call.func
         params = None
+        first = call.args[0].value if call.args else None
+        if isinstance(func, ir.Name) and func.name.upper() == "__NEW" and len(call.args) > 1:
+            self.warn(call.pos, "__NEW with a count (an array reached through pointer "
+                                "arithmetic) is not run by plcpred: the program checks, but "
+                                "running it stops with an error")
+        if isinstance(func, ir.Name) and func.name.upper() == "__NEW" \
+                and isinstance(first, ir.Call) and isinstance(first.func, ir.Name):
+            # __NEW(FB_T(a := 1)): a type with its FB_init arguments, not a call
+            if first.func.name.upper() not in self.g.pous:
+                self.missing(first.pos, f"unknown type '{first.func.name}'")
+            for a in first.args + call.args[1:]:
+                if a.value is not None:
+                    self._expr(a.value, scope, ctx)
+            return
         if isinstance(func, ir.Name):
             key = func.name.upper()
             var = scope.get(key) or self.g.vars.get(key)

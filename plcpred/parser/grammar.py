@@ -43,6 +43,7 @@ COMMON = r"""
         | postfix _LSQB expr (_COMMA expr)* _RSQB -> index
         | postfix _CARET -> deref
         | postfix _LPAR [args] _RPAR -> call
+        | postfix _LPAR POINTER _TO type_spec [_COMMA expr] _RPAR -> new_pointers
 
 ?atom: NAME -> name
      | ADDRESS -> address
@@ -175,7 +176,8 @@ _body_item: stmt | step | transition | action | method | property
 
 method: METHOD modifiers NAME [_COLON type_spec] _SEMI? var_blocks stmt_list _END_METHOD
 property: PROPERTY modifiers NAME _COLON type_spec _SEMI? accessor* _END_PROPERTY
-accessor: modifiers NAME var_blocks stmt_list accessor_end
+// TwinCAT writes an accessor's access specifier in its declaration, after GET/SET
+accessor: modifiers NAME modifiers var_blocks stmt_list accessor_end
 !accessor_end: END_GET | END_SET
 action: ACTION NAME _COLON? stmt_list _END_ACTION
 

@@ -149,8 +149,15 @@ class AssignExpr:
     pos: Pos | None = _pos()
 
 
+@dataclass(slots=True)
+class TypeExpr:
+    """A type where a call takes one: ``__NEW(POINTER TO T, n)`` (CODESYS, TwinCAT)."""
+    type: "TypeRef"
+    pos: Pos | None = _pos()
+
+
 Expr = Union[Literal, EnumLiteral, Name, Member, BitAccess, Index, Deref, DirectAddress,
-             Unary, Binary, Call, AssignExpr]
+             Unary, Binary, Call, AssignExpr, TypeExpr]
 Initializer = Union[Expr, ArrayInit, StructInit]
 
 

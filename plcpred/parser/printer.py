@@ -39,6 +39,8 @@ def expr(e, parent_prec: int = 0) -> str:
         return e.name
     if t is ir.Literal:
         return format_literal(e)
+    if t is ir.TypeExpr:
+        return type_ref(e.type)
     if t is ir.AssignExpr:
         return f"({expr(e.target)} := {expr(e.value)})"
     if t is ir.Binary:

@@ -22,7 +22,8 @@ Direct addresses in code (``%QX0.0 := TRUE``) stand for the variable declared AT
 for a hidden global of the address's size. JMP works within one statement list.
 
 Not supported (a positioned error at compile time): jumps into or out of blocks, pointer
-arithmetic (and so ``__NEW`` of several elements), variable-length arrays. A UNION is treated as a
+arithmetic, variable-length arrays. ``__NEW`` of several elements (an array reached by
+pointer arithmetic) compiles, and stops a run where it is executed. A UNION is treated as a
 struct (its members do not overlap).
 """
 from __future__ import annotations
@@ -1745,16 +1746,41 @@ class Compiler:
 
     def _new(self, call: ir.Call, args, scope: Scope):
         """CODESYS/TwinCAT ``__NEW(T)``: a pointer to a new, initialised T (a structure
-        or FB instance itself, an elementary value in a cell of its own). ``__NEW(T, n)``
-        (n of them, reached by pointer arithmetic) is not supported."""
-        if not args or not isinstance(args[0].value, ir.Name) or args[0].name is not None:
-            raise _err(call, "__NEW needs a type: __NEW(INT), __NEW(ST_Data)")
+        or FB instance itself, an elementary value in a cell of its own); an FB runs its
+        FB_init, with the arguments of ``__NEW(FB_T(a := 1))``. ``__NEW(T, n)`` (n of
+        them, reached by pointer arithmetic) is not supported."""
+        first = args[0].value if args and args[0].name is None else None
+        init_args = []
+        if isinstance(first, ir.Name):
+            t = self.types.resolve(ir.NamedType(first.name, pos=first.pos), first.pos)
+        elif isinstance(first, ir.Call) and isinstance(first.func, ir.Name):
+            t = self.types.resolve(ir.NamedType(first.func.name, pos=first.pos), first.pos)
+            init_args = first.args
+        elif isinstance(first, ir.TypeExpr):
+            t = self.types.resolve(first.type, first.pos)
+        else:
+            raise _err(call, "__NEW needs a type: __NEW(INT), __NEW(ST_Data), "
+                             "__NEW(FB_T(a := 1))")
         if len(args) > 1:
-            raise _err(call, "__NEW with a count (an array reached through pointer "
-                             "arithmetic) is not supported by the executor")
-        t = self.types.resolve(ir.NamedType(args[0].value.name, pos=args[0].value.pos),
-                               args[0].value.pos)
+            # kept: only running it is an error, at its place (check warns)
+            what = "__NEW with a count (an array reached through pointer arithmetic)"
+            why = "plcpred has no pointer arithmetic"
+            return f"_opaque({what!r}, {_pos_args(call.pos)}, {why!r})", PtrT(t)
         one = self._init(t, None, scope, None)
+        if isinstance(t, FbT):
+            inits = [(ft, m) for ft in reversed(list(t.chain())) for m in ft.pou.methods
+                     if ident(m.name) == "FB_INIT"]
+            if init_args and not inits:
+                raise _err(first, f"{t.name} has no FB_init method for these arguments")
+            if inits:
+                tmp = self.src.temp("new")
+                decl = ir.VarDecl("new", ir.NamedType(t.name), init_args=init_args,
+                                  pos=call.pos)
+                calls = [f"{ft.cls_name}.m_FB_INIT({tmp}, " + self._named_args(
+                    m.var_blocks, ir.Call(ir.Name("FB_init"), _fb_init_args(m, decl),
+                                          pos=call.pos), scope, ft.name + ".FB_init") + ")"
+                    for ft, m in inits]
+                return f"({tmp} := {one}, {', '.join(calls)}, {tmp})[-1]", PtrT(t)
         if _is_object_t(t):
             return one, PtrT(t)
         return f"_Box({one})", PtrT(t)

@@ -127,9 +127,8 @@ def _watchdog(kind, file, line, col):
                        f"(more than {1_000_000} iterations)", file, line, col)
 
 
-def _opaque(what, file, line, col):
-    raise rtm.ExecutionError(f"cannot execute {what}: plcpred reads only ST and SFC "
-                             "bodies", file, line, col)
+def _opaque(what, file, line, col, why="plcpred reads only ST and SFC bodies"):
+    raise rtm.ExecutionError(f"cannot execute {what}: {why}", file, line, col)
 
 
 def _fields(obj) -> list[str]:
