@@ -583,3 +583,37 @@ def test_implicit_en_of_a_call_inside_an_expression():
     assert got == [(7, 1), (7, 11)]        # not run: the result type's initial value, 0
     with pytest.raises(CompileError, match="ENO of a call inside an expression"):
         ProgramInstance(parse_st(src.replace("a := 5)", "a := 5, ENO => go)"), "t.st"))
+
+
+def test_a_program_called_by_its_name_is_its_one_instance():
+    # TwinCAT/CODESYS: MAIN calls its sub-programs by name and reads their variables;
+    # the task runs MAIN only
+    src = """PROGRAM P_Sub
+VAR_INPUT go : BOOL; END_VAR
+VAR_OUTPUT count : INT; END_VAR
+IF go THEN count := count + 1; END_IF
+END_PROGRAM
+PROGRAM MAIN
+VAR_OUTPUT c, d : INT; END_VAR
+P_Sub(go := TRUE);
+P_Sub(go := TRUE, count => c);
+d := P_Sub.count;
+END_PROGRAM
+CONFIGURATION Cfg
+RESOURCE R ON PLC
+TASK T(INTERVAL := T#10ms, PRIORITY := 1);
+PROGRAM Main WITH T : MAIN;
+END_RESOURCE
+END_CONFIGURATION
+"""
+    assert problems(src) == []
+    assert trace(src, ["C", "D"], lambda k: {}, scans=3) == [(2, 2), (4, 4), (6, 6)]
+    # a program the task also runs is the same instance the others call
+    both = src.replace("PROGRAM Main WITH T : MAIN;",
+                       "PROGRAM Main WITH T : MAIN;\nPROGRAM Sub WITH T : P_Sub;")
+    inst = ProgramInstance(parse_st(both, "t.st"))
+    inst.guard(inst.scan, 0)
+    main, sub = inst.programs
+    # MAIN's two calls, then the task's own, with go still TRUE from MAIN (inputs keep
+    # their value between calls): one instance counted three times
+    assert (main.C, sub.COUNT) == (2, 3)

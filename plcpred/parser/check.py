@@ -645,7 +645,9 @@ class Checker:
                     ctx.usage.read.add(key)
             elif key in self.g.pous:
                 pou = self.g.pous[key]
-                if pou.kind != "FUNCTION":
+                # a PROGRAM is its one instance: other POUs call it by name (CODESYS,
+                # TwinCAT: MAIN calls its sub-programs)
+                if pou.kind not in ("FUNCTION", "PROGRAM"):
                     self.error(func.pos, f"'{func.name}' is a {pou.kind.replace('_', ' ')}: call "
                                          "an instance of it, not the type")
                 ins = {d.name.upper() for d in pou.decls("VAR_INPUT", "VAR_IN_OUT")}

@@ -176,6 +176,15 @@ class Compiler:
                 gblocks += r.var_blocks
         gdecls = [d for b in gblocks if b.kind == "VAR_GLOBAL" for d in b.decls]
         gdecls += self._address_slots(gblocks)
+        # CODESYS/TwinCAT: a PROGRAM is one instance, which other POUs may call by its
+        # name (MAIN calls its sub-programs) or read (Sub.nCount): a global of its own
+        taken = {ident(d.name) for d in gdecls}
+        called = names_in(self.program, ir.Name, "name")
+        singletons = [ir.VarDecl(p.name, ir.NamedType(p.name, pos=p.pos), pos=p.pos)
+                      for p in self.program.pous if p.kind == "PROGRAM"
+                      and p.name.upper() in called and ident(p.name) not in taken]
+        self._singletons = {ident(d.name) for d in singletons}
+        gdecls += singletons
         for d in gdecls:
             self.globals[ident(d.name)] = (d.name, self.types.resolve(d.type, d.pos), d)
         fbs = [self.types.fb(ident(p.name)) for p in self.program.pous
@@ -199,7 +208,15 @@ class Compiler:
         e(0, "def _build():")
         e(1, "global _g")
         e(1, "_g = k_GLOBALS()")
-        e(1, "return [" + ", ".join(f"{cls}()" for _, cls in programs) + "]")
+        made = set()
+        instances = []
+        for _, cls in programs:     # a called program runs as the one instance called
+            key = next((k for k in self._singletons
+                        if self.types.fbs[k].cls_name == cls), None)
+            instances.append(f"_g.{key}" if key is not None and key not in made
+                             else f"{cls}()")
+            made.add(key)
+        e(1, "return [" + ", ".join(instances) + "]")
         return Compiled("\n".join(self.src.lines) + "\n", self.src.pos, programs, prog_types,
                         self.globals, self.reads_et, self.reads_clock, self.types,
                         dict(self.address_slots), dict(self.intervals),
