@@ -469,17 +469,11 @@ class Compiler:
     def _fb_init_calls(self, code: str, t, d: ir.VarDecl, scope: Scope, ind: int) -> None:
         """CODESYS/TwinCAT FB_init: once every variable of the instance holding ``d`` has
         its initial value, each FB instance ``d`` declares (every element of an array of
-        them) runs its FB_init with bInitRetains and bInCopyCode FALSE and the
-        declaration's arguments (``fb : FB_T(5)``); a derived FB runs its bases' FB_init
-        first, each with the arguments its own parameters take."""
+        them) runs its FB_init (:meth:`_fb_init_code`)."""
         inner = t
         while isinstance(inner, ArrayT):
             inner = inner.elem
-        if not isinstance(inner, FbT):
-            return
-        inits = [(ft, m) for ft in reversed(list(inner.chain())) for m in ft.pou.methods
-                 if ident(m.name) == "FB_INIT"]
-        if not inits:
+        if not isinstance(inner, FbT) or not _fb_inits(inner):
             return
         e = self.src.emit
         while isinstance(t, ArrayT):
@@ -488,11 +482,19 @@ class Compiler:
                 e(ind, f"for {var} in {code}:", d.pos)
                 code, ind = var, ind + 1
             t = t.elem
-        for ft, m in inits:
+        for line in self._fb_init_code(code, inner, d, scope):
+            e(ind, line, d.pos)
+
+    def _fb_init_code(self, code: str, t: FbT, d: ir.VarDecl, scope: Scope) -> list[str]:
+        """The FB_init calls of instance ``code`` of ``t`` declared by ``d``: bInitRetains
+        and bInCopyCode FALSE and the declaration's arguments (``fb : FB_T(5)``), a base
+        FB's FB_init first, each with the arguments its own parameters take."""
+        out = []
+        for ft, m in _fb_inits(t):
             call = ir.Call(ir.Name("FB_init", pos=d.pos), _fb_init_args(m, d), pos=d.pos)
-            e(ind, f"{ft.cls_name}.m_FB_INIT({code}, "
-                   f"{self._named_args(m.var_blocks, call, scope, ft.name + '.FB_init')})",
-              d.pos)
+            out.append(f"{ft.cls_name}.m_FB_INIT({code}, "
+                       f"{self._named_args(m.var_blocks, call, scope, ft.name + '.FB_init')})")
+        return out
 
     def _sinks(self, fb: FbT, scope: Scope) -> set:
         """Local variables whose values never reach an output, a condition, a call or an
@@ -1785,18 +1787,13 @@ class Compiler:
             return f"_opaque({what!r}, {_pos_args(call.pos)}, {why!r})", PtrT(t)
         one = self._init(t, None, scope, None)
         if isinstance(t, FbT):
-            inits = [(ft, m) for ft in reversed(list(t.chain())) for m in ft.pou.methods
-                     if ident(m.name) == "FB_INIT"]
-            if init_args and not inits:
+            if init_args and not _fb_inits(t):
                 raise _err(first, f"{t.name} has no FB_init method for these arguments")
-            if inits:
+            if _fb_inits(t):
                 tmp = self.src.temp("new")
                 decl = ir.VarDecl("new", ir.NamedType(t.name), init_args=init_args,
                                   pos=call.pos)
-                calls = [f"{ft.cls_name}.m_FB_INIT({tmp}, " + self._named_args(
-                    m.var_blocks, ir.Call(ir.Name("FB_init"), _fb_init_args(m, decl),
-                                          pos=call.pos), scope, ft.name + ".FB_init") + ")"
-                    for ft, m in inits]
+                calls = self._fb_init_code(tmp, t, decl, scope)
                 return f"({tmp} := {one}, {', '.join(calls)}, {tmp})[-1]", PtrT(t)
         if _is_object_t(t):
             return one, PtrT(t)
@@ -2074,6 +2071,12 @@ def _is_object_t(t) -> bool:
 
 
 _FB_INIT_FLAGS = ("BINITRETAINS", "BINCOPYCODE")
+
+
+def _fb_inits(t: FbT) -> list:
+    """(FB type, FB_init method) along ``t``'s chain, base first."""
+    return [(ft, m) for ft in reversed(list(t.chain())) for m in ft.pou.methods
+            if ident(m.name) == "FB_INIT"]
 
 
 def _fb_init_args(m: ir.Method, d: ir.VarDecl) -> list[ir.Arg]:
