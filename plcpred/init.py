@@ -55,10 +55,8 @@ def task_scan_ms(program: ir.Program) -> float | None:
     for c in program.configurations:
         for r in c.resources:
             for t in r.tasks:
-                interval = t.params.get("INTERVAL")
-                if isinstance(interval, ir.Literal) and isinstance(interval.value, int) \
-                        and interval.value > 0:
-                    return interval.value / 1e6      # TIME literals are in ns
+                if t.interval_ns is not None:
+                    return t.interval_ns / 1e6
     return None
 
 

@@ -202,8 +202,7 @@ def blowing_only_in_cycle(machine, timeline) -> Timeline:
         ti, vi = t[s == i], v[s == i]
         at = np.unique(np.concatenate([ti, a, b, [0]]))
         at = at[at <= timeline.horizon_ns]
-        k = np.searchsorted(ti, at, side="right") - 1
-        on = np.where(k >= 0, vi[np.clip(k, 0, None)], 0.0) != 0
+        on = _on_at(ti, vi, at)
         j = np.searchsorted(a, at, side="right") - 1
         waiting = (j >= 0) & (at < b[np.clip(j, 0, None)])
         value = (on & ~waiting).astype(float)
@@ -226,6 +225,12 @@ def _output_states(edges, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
     starts = times[:-1]
     states = np.empty((len(starts), len(edges)), dtype=bool)
     for j, (t, v) in enumerate(edges):
-        k = np.searchsorted(t, starts, side="right") - 1
-        states[:, j] = np.where(k >= 0, v[np.clip(k, 0, None)] != 0, False)
+        states[:, j] = _on_at(t, v, starts)
     return times, states
+
+
+def _on_at(t_ns: np.ndarray, v: np.ndarray, at_ns: np.ndarray) -> np.ndarray:
+    """Whether a signal with edges (``t_ns``, ``v``) is TRUE (not 0) at each of ``at_ns``
+    (FALSE before its first edge)."""
+    k = np.searchsorted(t_ns, at_ns, side="right") - 1
+    return np.where(k >= 0, v[np.clip(k, 0, None)] != 0, False)

@@ -84,7 +84,6 @@ class Prediction:
         self.write_files = files
         return files
 
-
     def _arrival_period_s(self) -> float | None:
         """A run that does not repeat (jittered arrivals) still cycles with its inputs:
         the longest period of a periodic input schedule, for binning its plot in whole

@@ -3,7 +3,6 @@ ever materialised), and the glue that runs a grammar over a :class:`Tokenizer`."
 from __future__ import annotations
 
 import contextvars
-
 import itertools
 import threading
 

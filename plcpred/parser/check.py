@@ -605,13 +605,8 @@ class Checker:
         while isinstance(t, ir.ArrayType):
             t = t.element
         pou = self.g.pous.get(t.name.upper()) if isinstance(t, ir.NamedType) else None
-        seen = set()
-        while pou is not None and pou.name.upper() not in seen:
-            seen.add(pou.name.upper())
-            if any(m.name.upper() == "FB_INIT" for m in pou.methods):
-                return True
-            pou = self.g.pous.get(pou.extends.upper()) if pou.extends else None
-        return False
+        return pou is not None and any(m.name.upper() == "FB_INIT"
+                                       for p in self.g.fb_chain(pou) for m in p.methods)
 
     def _check_call(self, call: ir.Call, scope, ctx):
         func = call.func

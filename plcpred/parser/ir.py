@@ -507,6 +507,14 @@ class Task:
     params: dict[str, Expr] = field(default_factory=dict)  # INTERVAL, PRIORITY, SINGLE
     pos: Pos | None = _pos()
 
+    @property
+    def interval_ns(self) -> int | None:
+        """The task's INTERVAL when it is a positive TIME literal (TIME is in ns)."""
+        iv = self.params.get("INTERVAL")
+        if isinstance(iv, Literal) and isinstance(iv.value, int) and iv.value > 0:
+            return int(iv.value)
+        return None
+
 
 @dataclass(slots=True)
 class ProgramInstance:

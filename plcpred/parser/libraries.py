@@ -3,9 +3,10 @@ what real programs use from libraries that are not in their source.
 
 plcpred ships ST stubs of the common ones under ``plcpred/libraries/`` (Beckhoff
 Tc2_System, Tc2_Utilities and Tc2_Math basics, Tc3_EventLogger's severities, CODESYS
-Util, OSCAT BASIC's MULTIME, PLCopen motion as Tc2_MC2 and SM3_Basic name it); the IEC standard blocks
-(Tc2_Standard, CODESYS Standard) are built in. A user adds their own library declarations as ST, TwinCAT or PLCopen files or
-folders (``plcpred check --lib DIR``, ``libraries = [...]`` in the machine file).
+Util, OSCAT BASIC's MULTIME, PLCopen motion as Tc2_MC2 and SM3_Basic name it); the IEC
+standard blocks (Tc2_Standard, CODESYS Standard) are built in. A user adds their own
+library declarations as ST, TwinCAT or PLCopen files or folders (``plcpred check --lib
+DIR``, ``libraries = [...]`` in the machine file).
 
 * Only what a program refers to is taken from a library (and what that needs in turn),
   so a library's other POUs cost nothing and cannot clash with the program's own names.

@@ -324,9 +324,8 @@ class Compiler:
                 tasks = {ident(t.name): t for t in r.tasks}
                 for pi in r.programs:
                     task = tasks.get((pi.task or "").upper())
-                    iv = task.params.get("INTERVAL") if task else None
-                    if isinstance(iv, ir.Literal) and isinstance(iv.value, int) and iv.value > 0:
-                        self.intervals[pi.name] = int(iv.value)
+                    if task is not None and task.interval_ns is not None:
+                        self.intervals[pi.name] = task.interval_ns
                     key = ident(pi.type_name)
                     if key not in self.types.fbs or self.types.fbs[key].pou.kind != "PROGRAM":
                         raise _err(pi, f"PROGRAM instance {pi.name} names '{pi.type_name}', "
@@ -1052,32 +1051,24 @@ class Compiler:
         """``(target := value)``: the store as an expression that gives the stored value."""
         if isinstance(x.target, ir.BitAccess):
             raise _err(x, "an assignment to a bit inside an expression is not supported")
-        kind, a, b, tt = self._lvalue(x.target, scope)
+        tt = self._lvalue(x.target, scope)[3]
         code, vt = self._expr(x.value, scope, tt)
-        value = self._to(code, vt, tt, x.target, copy=True)
-        if kind == "name":
-            return f"({a} := {value})", tt
-        if kind == "attr":
-            return f"_Ref({a}, {b!r}).assign({value})", tt
-        if kind == "item":
-            return f"_ItemRef({a}, {b}).assign({value})", tt
-        if kind == "deref":
-            return f"{a}.assign({value})", tt
-        raise _err(x, "this cannot be assigned to inside an expression")
+        return self._store_expr(x.target, self._to(code, vt, tt, x.target, copy=True),
+                                scope), tt
 
-    def _write_code(self, target, value: str, scope: Scope) -> str:
+    def _store_expr(self, target, value: str, scope: Scope) -> str:
         """An expression that stores ``value`` (code of the target's type) in ``target``
-        (for the standard functions that write an argument)."""
+        and gives it (an assignment inside an expression; __DELETE clearing a pointer)."""
         kind, a, b, _ = self._lvalue(target, scope)
         if kind == "name":
             return f"({a} := {value})"
         if kind == "attr":
-            return f"_Ref({a}, {b!r}).set({value})"
+            return f"_Ref({a}, {b!r}).assign({value})"
         if kind == "item":
-            return f"_ItemRef({a}, {b}).set({value})"
+            return f"_ItemRef({a}, {b}).assign({value})"
         if kind == "deref":
-            return f"{a}.set({value})"
-        raise _err(target, "this cannot be assigned to")
+            return f"{a}.assign({value})"
+        raise _err(target, "this cannot be assigned to inside an expression")
 
     def _lvalue(self, target, scope: Scope):
         """('name', code) | ('attr', obj, ATTR) | ('item', list, index) | ('prop', obj, NAME)
@@ -1632,15 +1623,7 @@ class Compiler:
 
     def _referenced(self, x) -> None:
         """Record that ``x`` may be written through a reference to it."""
-        if self.referenced is None:
-            return
-        while isinstance(x, (ir.Member, ir.Index, ir.BitAccess)):
-            if isinstance(x, ir.Member):
-                self.referenced.add(x.member.upper())
-            x = x.base
-        if isinstance(x, ir.Name):
-            self.referenced.add(x.name.upper())
-        else:
+        if self.referenced is not None and not _target_names(x, self.referenced):
             self.referenced = None
 
     def _std_function(self, key: str, call: ir.Call, scope: Scope):
@@ -1655,7 +1638,7 @@ class Compiler:
             if t.cat != "ptr":
                 raise _err(call, "__DELETE needs a pointer (what __NEW gave)")
             self._referenced(args[0].value)
-            return f"{self._write_code(args[0].value, 'None', scope)}", ty.VOID
+            return self._store_expr(args[0].value, "None", scope), ty.VOID
         vals = [self._expr(a.value, scope) for a in args]
         codes = [c for c, _ in vals]
         ts = [t for _, t in vals]
@@ -1848,6 +1831,20 @@ def names_in(program, cls=ir.Member, attr="member") -> set:
     return names
 
 
+def _target_names(e, out: set) -> bool:
+    """Add to ``out`` the names along write target ``e`` (``a.b[i].c``: A, B and C);
+    False when the target is not reached by names (a pointer, an address: %IX0.0 may be
+    an input)."""
+    while isinstance(e, (ir.Member, ir.Index, ir.BitAccess)):
+        if isinstance(e, ir.Member):
+            out.add(e.member.upper())
+        e = e.base
+    if isinstance(e, ir.Name):
+        out.add(e.name.upper())
+        return True
+    return False
+
+
 def written_names(program: ir.Program) -> set | None:
     """Every name the program may write by name, upper case: the variables and members
     along each assignment target (``a.b[i].c := x`` writes A, B and C), output bindings,
@@ -1859,14 +1856,7 @@ def written_names(program: ir.Program) -> set | None:
     out: set = set()
 
     def target(e) -> bool:
-        while isinstance(e, (ir.Member, ir.Index, ir.BitAccess)):
-            if isinstance(e, ir.Member):
-                out.add(e.member.upper())
-            e = e.base
-        if isinstance(e, ir.Name):
-            out.add(e.name.upper())
-            return True
-        return False            # a pointer, or an address (%IX0.0 may be an input)
+        return _target_names(e, out)
 
     stack = [program.pous, program.configurations, program.globals]
     while stack:
