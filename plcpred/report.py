@@ -82,27 +82,19 @@ def plot_demand(profile, path, title="Air demand", shown: int | None = SHOWN_CON
     k = _whole_periods(_bin_width(profile.n_cells),
                        getattr(profile, "period_s", None) or cycle_s,
                        profile.dt_s, profile.n_cells)
-    # each layer's air integrated straight onto the plot's bins (exact, as the grid is)
     bin_edges = profile.edges_s[::k]
     if bin_edges[-1] < profile.edges_s[-1]:
         bin_edges = np.append(bin_edges, profile.edges_s[-1])
-    widths = np.diff(bin_edges)
     t = bin_edges[:-1]
     scale, unit = _time_axis(profile.horizon_s)
     fig, ax = plt.subplots(figsize=(11, 5.5), dpi=110)
-    groups = profile.groups(shown)
-    group_nl = [float(profile.consumer_nl[idx].sum()) for _, idx in groups]
-    # leaks first, as the base layer they are (always on), then the largest users
-    order = sorted(range(len(groups)), key=lambda g: (
-        not all(profile.roles[i] == "leak" for i in groups[g][1]), -group_nl[g]))
-    labels = [f"{_plain(groups[g][0])} ({group_nl[g]:.1f} NL)" for g in order]
-    if len(order):
-        flows = np.array([profile.cells_nl(groups[g][1], bin_edges) / widths * 60.0
-                          for g in order])
+    layers, flows = _layers(profile, shown, bin_edges)
+    labels = [f"{_plain(label)} ({nl:.1f} NL)" for label, idx, nl in layers]
+    if layers:
         cycle = [c["color"] for c in plt.rcParams["axes.prop_cycle"]]
         # the rest of a wide machine in grey, so it does not pass for one consumer
-        colors = [("#a0a0a0" if len(groups[g][1]) > 1 else cycle[n % len(cycle)])
-                  for n, g in enumerate(order)]
+        colors = [("#a0a0a0" if len(idx) > 1 else cycle[n % len(cycle)])
+                  for n, (_, idx, _) in enumerate(layers)]
         ax.stackplot(t * scale, flows, labels=labels, colors=colors, step="post", alpha=0.85)
     else:
         ax.text(0.5, 0.5, "the machine file has no consumers", transform=ax.transAxes,
@@ -126,6 +118,23 @@ def plot_demand(profile, path, title="Air demand", shown: int | None = SHOWN_CON
     ax.legend(h1[::-1] + h2, l1[::-1] + l2, loc="upper left", fontsize=8, framealpha=0.9)
     fig.tight_layout()
     _save_fig(fig, path)
+
+
+def _layers(profile, shown: int | None, edges_s):
+    """The stacked layers of a demand plot on bins ``edges_s``: [(label, consumer
+    indices, NL over the horizon)] (the ``shown`` largest and "other", leaks first, as
+    the base layer they are, then the largest users) and their flows (NL/min), one row
+    per layer, each layer's air integrated straight onto the bins (exact, as the grid
+    is)."""
+    groups = profile.groups(shown)
+    nl = [float(profile.consumer_nl[idx].sum()) for _, idx in groups]
+    order = sorted(range(len(groups)), key=lambda g: (
+        not all(profile.roles[i] == "leak" for i in groups[g][1]), -nl[g]))
+    layers = [(groups[g][0], groups[g][1], nl[g]) for g in order]
+    widths = np.diff(edges_s)
+    flows = np.array([profile.cells_nl(idx, edges_s) / widths * 60.0
+                      for _, idx, _ in layers])
+    return layers, flows
 
 
 def consumer_table(profile, shown: int | None = SHOWN_CONSUMERS) -> str:
@@ -225,16 +234,10 @@ def plot_sizing(profile, sizing, path, title="Sizing") -> None:
     a, b, what = _cycle_window(profile, sizing)
     edges = profile.edges_s[(profile.edges_s >= a - 1e-9) & (profile.edges_s <= b + 1e-9)]
     if len(edges) >= 2:
-        widths = np.diff(edges)
-        groups = profile.groups(SHOWN_CONSUMERS)
-        group_nl = [float(profile.consumer_nl[idx].sum()) for _, idx in groups]
-        order = sorted(range(len(groups)), key=lambda g: (
-            not all(profile.roles[i] == "leak" for i in groups[g][1]), -group_nl[g]))
-        if order:
-            flows = np.array([profile.cells_nl(groups[g][1], edges) / widths * 60.0
-                              for g in order])
+        layers, flows = _layers(profile, SHOWN_CONSUMERS, edges)
+        if layers:
             ax_cycle.stackplot(edges[:-1] - a, flows, step="post", alpha=0.85,
-                               labels=[_plain(groups[g][0]) for g in order])
+                               labels=[_plain(label) for label, _, _ in layers])
     levels(ax_cycle)
     ax_cycle.set_xlim(0, b - a)
     ax_cycle.set_xlabel(f"time in the window (s; it starts at {a:g} s)")
