@@ -256,8 +256,7 @@ def _bar(text: str) -> float:
 
 def cmd_size(args) -> int:
     from .air import predict
-    from .air.cycles import cycles_of, last_switch_s, rest_mask
-    from .air.sizing import size
+    from .air.sizing import size_prediction
     from .output import OutputError, check_out_dir, output_dir
     from .report import write_sizing_report
     from .sequencer import parse_horizon
@@ -272,15 +271,9 @@ def cmd_size(args) -> int:
     try:
         result = predict(args.machine, horizon_s, dt=dt_s, program=args.program,
                          max_events=args.max_events, shown=args.consumers)
-        from .sweep import production_hours
-        s = size(result.profile, allowance=allowance, band_bar=band,
-                 hours_per_year=production_hours(result.machine, args.hours),
-                 calendar=result.machine.calendar,
-                 waiting=rest_mask(result.machine, result.timeline, result.profile),
-                 sec_kwh_per_nm3=args.sec, price_per_kwh=args.price, idle_after_s=idle_after,
-                 cycles=cycles_of(result.machine, result.timeline, result.profile),
-                 last_switch_s=last_switch_s(result.machine, result.timeline),
-                 supply=(result.machine.supply_bar_g, result.machine.atmosphere_kpa))
+        s = size_prediction(result, args.hours, allowance=allowance, band_bar=band,
+                            sec_kwh_per_nm3=args.sec, price_per_kwh=args.price,
+                            idle_after_s=idle_after)
     except PlcpredError as e:
         print(e, file=sys.stderr)
         return 1

@@ -228,7 +228,7 @@ def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
     """One prediction with the scenario applied: a row of totals, and the year's air,
     energy and cost (``hours`` None: the machine file's [calendar], else 4000 h)."""
     from .air import predict
-    from .air.sizing import DEFAULT_PRICE, size
+    from .air.sizing import DEFAULT_PRICE, size_prediction
     from .machine import machine_from_data, read_machine_data
 
     data = read_machine_data(machine_path)
@@ -240,10 +240,8 @@ def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
         from .air.cycles import blowing_only_in_cycle
         result = predict(machine, horizon_s, dt=dt_s, program=program,
                          timeline=blowing_only_in_cycle(machine, result.timeline))
-    s = size(result.profile, hours_per_year=production_hours(machine, hours),
-             sec_kwh_per_nm3=sec, price_per_kwh=DEFAULT_PRICE if price is None else price,
-             supply=(machine.supply_bar_g, machine.atmosphere_kpa),
-             calendar=machine.calendar)
+    s = size_prediction(result, hours, sec_kwh_per_nm3=sec,
+                        price_per_kwh=DEFAULT_PRICE if price is None else price)
     row = dict(scenario)
     row.update({"total_nl": s.total_nl, "mean_l_min": s.mean_l_min,
                 "peak_l_min": s.peak_l_min, "peak_1s_l_min": s.peak_1s_l_min,
@@ -272,15 +270,6 @@ class _Progress:
             if self.done == self.total:
                 sys.stderr.write("\n")
             sys.stderr.flush()
-
-
-def production_hours(machine, hours: float | None) -> float:
-    """The hours a year the machine produces: ``hours`` when given, else its
-    [calendar]'s, else the default 4000 h."""
-    from .air.sizing import DEFAULT_HOURS
-    if hours is not None:
-        return hours
-    return machine.calendar.production_hours if machine.calendar else DEFAULT_HOURS
 
 
 def sweep(machine_path, settings: list[Setting], horizon_s: float, dt_s=None,

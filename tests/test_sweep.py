@@ -165,8 +165,10 @@ END_PROGRAM
 """
 
 
-def test_blowing_only_in_cycle_closes_the_nozzles_while_the_machine_waits(tmp_path):
-    (tmp_path / "station.st").write_text(BLOWER_LEFT_ON)
+def _blower_station(tmp_path, program=BLOWER_LEFT_ON, more=""):
+    """A cylinder cycling on parts every 2 s and a blower its program never switches
+    off; ``more`` adds tables (a [calendar], consumers)."""
+    (tmp_path / "station.st").write_text(program)
     (tmp_path / "station.toml").write_text("""[machine]
 name = "blower left on"
 program = "station.st"
@@ -195,7 +197,11 @@ kind = "nozzle"
 valve = "blower"
 orifice_mm = 1.5
 Cd = 0.8
-""")
+""" + more)
+
+
+def test_blowing_only_in_cycle_closes_the_nozzles_while_the_machine_waits(tmp_path):
+    _blower_station(tmp_path)
     from plcpred.sweep import measure_setting
     path = tmp_path / "station.toml"
     rows = sweep(path, [measure_setting("blowoff=cycle")], 20.0, 0.01, workers=1)
@@ -216,3 +222,30 @@ Cd = 0.8
     data["consumer"] = [c for c in data["consumer"] if c["kind"] != "nozzle"]
     with pytest.raises(SweepError, match="no nozzle"):
         apply_settings(data, path, None, {"measure.blowoff": "cycle"})
+
+
+def test_a_sweep_counts_the_year_as_size_does(tmp_path):
+    # one path from a prediction to a year's air: the calendar, and idle air taken in the
+    # state the machine waits in (the blower left on, not the blow-off while the
+    # cylinder holds out), the same in size and in sweep
+    from plcpred.air.sizing import size_prediction
+    _blower_station(tmp_path, BLOWER_LEFT_ON.replace(
+        "valve, blower : BOOL;", "valve, blower, blow : BOOL;").replace(
+        "END_PROGRAM", "blow := valve AND cyl_out;\nEND_PROGRAM"), more="""
+[calendar]
+shifts_per_day = 2
+idle_state = "program"
+
+[[consumer]]
+name = "blow-off"
+kind = "nozzle"
+valve = "blow"
+orifice_mm = 3.0
+Cd = 0.8
+""")
+    path = tmp_path / "station.toml"
+    (row,) = sweep(path, [parse_setting("supply_bar_g=6")], 20.0, 0.01, workers=1)
+    s = size_prediction(predict(load_machine(path), 20.0, dt=0.01))
+    assert s.idle_hours_per_year > 0 and s.idle_flow_l_min > 0
+    for key in ("air_nm3_per_year", "energy_kwh_per_year", "cost_per_year"):
+        assert row[key] == pytest.approx(getattr(s, key), rel=1e-12), key

@@ -214,3 +214,26 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
             "cycle_source": cycles.source, "cycle_s": cycles.cycle_s,
             "nl_per_cycle": cycles.nl_per_cycle, "cycles_per_hour": cycles.per_hour}),
         warnings=warnings)
+
+
+def production_hours(machine, hours: float | None) -> float:
+    """The hours a year the machine produces: ``hours`` when given, else its
+    [calendar]'s, else DEFAULT_HOURS."""
+    if hours is not None:
+        return hours
+    return machine.calendar.production_hours if machine.calendar else DEFAULT_HOURS
+
+
+def size_prediction(result, hours: float | None = None, **options) -> Sizing:
+    """:func:`size` for a :class:`~plcpred.air.predict.Prediction`, with what its machine
+    and timeline say: the production hours (``hours``, else the [calendar]'s), the
+    calendar, the supply, the waiting state (idle air), the steady cycle and when the
+    valves last switch. ``options`` go to :func:`size` (allowance, band, price, ...).
+    ``plcpred size`` and every ``sweep`` scenario count a year through this one call."""
+    from .cycles import cycles_of, last_switch_s, rest_mask
+
+    m, tl, profile = result.machine, result.timeline, result.profile
+    return size(profile, hours_per_year=production_hours(m, hours), calendar=m.calendar,
+                waiting=rest_mask(m, tl, profile), cycles=cycles_of(m, tl, profile),
+                last_switch_s=last_switch_s(m, tl), supply=(m.supply_bar_g, m.atmosphere_kpa),
+                **options)
