@@ -469,8 +469,9 @@ def write_sizing_report(result, sizing, out_dir) -> list[Path]:
     write_json(out / "sizing.json", data)
     plot_sizing(result.profile, sizing, out / "sizing.png",
                 title=f"{name}: demand and compressor design flow")
+    from .air.cycles import arrival_period_s
     plot_demand(result.profile, out / "demand.png", title=f"{name}: air demand",
-                shown=result.shown)
+                shown=result.shown, cycle_s=arrival_period_s(result.machine, result.timeline))
     md = sizing_markdown(name, sizing, result.profile,
                          assumptions=sizing_assumptions(result.machine, sizing))
     atomic_write_text(out / "sizing.md", md)

@@ -204,7 +204,9 @@ def test_a_run_that_does_not_repeat_is_plotted_in_whole_arrival_periods(tmp_path
     tiled = predict(machine_from_data(read_machine_data(path), path), "2h")
     assert jittered.timeline.tiled is None and tiled.timeline.tiled is not None
     period = max(t["period_s"] for t in data["input"] if "period_s" in t)
-    assert jittered._arrival_period_s() == period and tiled._arrival_period_s() is None
+    from plcpred.air.cycles import arrival_period_s
+    assert arrival_period_s(jittered.machine, jittered.timeline) == period
+    assert arrival_period_s(tiled.machine, tiled.timeline) is None
     widths = []
     real = report._whole_periods
     monkeypatch.setattr(report, "_whole_periods",
@@ -212,3 +214,8 @@ def test_a_run_that_does_not_repeat_is_plotted_in_whole_arrival_periods(tmp_path
     jittered.write(tmp_path, plot=True)
     cells = round(period / jittered.profile.dt_s)
     assert widths and widths[0] % cells == 0
+    # the sizing report's demand plot (drawn last) is binned the same way
+    from plcpred.air.sizing import size_prediction
+    (tmp_path / "size").mkdir()
+    report.write_sizing_report(jittered, size_prediction(jittered), tmp_path / "size")
+    assert widths[-1] == widths[0]

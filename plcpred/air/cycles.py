@@ -134,6 +134,16 @@ def last_switch_s(machine, timeline) -> float | None:
     return last
 
 
+def arrival_period_s(machine, timeline) -> float | None:
+    """A run that does not repeat (jittered arrivals) still cycles with its inputs: the
+    longest period of a periodic input schedule, for binning its plots in whole cycles
+    (None for a repeating run: its own period is known)."""
+    if timeline.tiled is not None:
+        return None
+    periods = [s.period_s for s in machine.inputs if s.period_s]
+    return max(periods) if periods else None
+
+
 def rest_mask(machine, timeline, profile) -> np.ndarray | None:
     """Grid cells in which the machine's valve outputs are in its *waiting state*
     (:func:`rest_spells_ns`). None when no consumer has a valve."""

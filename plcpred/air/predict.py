@@ -74,24 +74,16 @@ class Prediction:
         files = [out / "timeline.csv", out / "demand.csv", out / "summary.json"]
         if plot:
             from ..report import plot_demand
+            from .cycles import arrival_period_s
             t0 = time.perf_counter()
             plot_demand(self.profile, out / "demand.png",
                         title=f"{self.machine.name}: air demand over "
                               f"{_span(self.profile.horizon_s)}", shown=self.shown,
-                        cycle_s=self._arrival_period_s())
+                        cycle_s=arrival_period_s(self.machine, self.timeline))
             self.stage_s["plot"] = time.perf_counter() - t0
             files.append(out / "demand.png")
         self.write_files = files
         return files
-
-    def _arrival_period_s(self) -> float | None:
-        """A run that does not repeat (jittered arrivals) still cycles with its inputs:
-        the longest period of a periodic input schedule, for binning its plot in whole
-        cycles (None for a repeating run: its own period is known)."""
-        if self.timeline.tiled is not None:
-            return None
-        periods = [s.period_s for s in self.machine.inputs if s.period_s]
-        return max(periods) if periods else None
 
 
 def _span(seconds: float) -> str:
