@@ -148,3 +148,27 @@ def test_a_constant_read_only_in_a_declaration_is_used():
     errors, warnings = check_program(prog)
     assert errors == []
     assert [w.message for w in warnings] == ["variable 'unused' is declared but never used"]
+
+
+def test_a_method_bound_may_name_a_constant_of_a_later_block():
+    errors, _ = run("""FUNCTION_BLOCK FB_Fwd
+METHOD Fill : UINT
+VAR
+    a : ARRAY[1..LEN_A] OF UINT;
+END_VAR
+VAR CONSTANT
+    LEN_A : UINT := 2;
+END_VAR
+Fill := a[1];
+END_METHOD
+END_FUNCTION_BLOCK""")
+    assert errors == []
+    errors, _ = run("""FUNCTION_BLOCK FB_Fwd
+METHOD Fill : UINT
+VAR
+    a : ARRAY[1..LEN_B] OF UINT;
+END_VAR
+Fill := a[1];
+END_METHOD
+END_FUNCTION_BLOCK""")
+    assert errors == [(4, "undeclared name 'LEN_B'")]

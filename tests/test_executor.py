@@ -219,3 +219,59 @@ END_PROGRAM"""
         inst.scan(i * 10 * MS)
     assert inst.programs[0].K == 5          # a fresh R_TRIG sees an edge every call
     assert inst.timers == []
+
+
+def test_an_action_called_with_inputs_and_outputs_like_its_instance():
+    # CODESYS and TwinCAT: inst.Act(in := x, out => y) sets the instance's inputs, runs
+    # the action (not the body) and reads the outputs
+    p = run("""FUNCTION_BLOCK FB_Acc
+VAR_INPUT step : INT; END_VAR
+VAR_OUTPUT total, bodies : INT; END_VAR
+bodies := bodies + 1;
+ACTION Add:
+total := total + step;
+END_ACTION
+END_FUNCTION_BLOCK
+PROGRAM P
+VAR acc : FB_Acc; seen : INT; END_VAR
+acc.Add(step := 5);
+acc.Add(step := 2, total => seen);
+END_PROGRAM
+""")
+    assert (p.ACC.TOTAL, p.SEEN, p.ACC.STEP, p.ACC.BODIES) == (7, 7, 2, 0)
+
+
+def test_sizeof_counts_bytes_of_the_declared_type():
+    p = run(body("a : ARRAY[0..9] OF INT; b : ARRAY[1..2, 1..3] OF LREAL; s : ST_Pair; "
+                 "q : POINTER TO INT; x : BOOL; n : ARRAY[1..5] OF DINT;",
+                 "n[1] := SIZEOF(a); n[2] := SIZEOF(b); n[3] := SIZEOF(s); n[4] := SIZEOF(q); "
+                 "n[5] := SIZEOF(x);")
+            .replace("PROGRAM P", "TYPE ST_Pair : STRUCT w : WORD; d : UDINT; END_STRUCT "
+                                  "END_TYPE\nPROGRAM P"))
+    assert list(p.N) == [20, 48, 6, 8, 1]
+
+
+def test_a_method_array_bound_names_a_constant_declared_after_it():
+    # TcUnit's verifier: VAR a : ARRAY[1..N] ... END_VAR VAR CONSTANT N : UINT := 2;
+    p = run("""FUNCTION_BLOCK FB_Fwd
+VAR_OUTPUT total : UINT; END_VAR
+METHOD Fill : UINT
+VAR
+    a : ARRAY[1..LEN_A] OF UINT := [4, 5];
+    i : UINT;
+END_VAR
+VAR CONSTANT
+    LEN_A : UINT := 2;
+END_VAR
+FOR i := 1 TO LEN_A DO
+    Fill := Fill + a[i];
+END_FOR
+END_METHOD
+total := Fill();
+END_FUNCTION_BLOCK
+PROGRAM P
+VAR fb : FB_Fwd; END_VAR
+fb();
+END_PROGRAM
+""")
+    assert p.FB.TOTAL == 9

@@ -337,8 +337,10 @@ class Checker:
         scope = dict(fb_scope)
         for b in m.var_blocks:
             for d in b.decls:
-                self._check_type(d.type, scope)
                 scope[d.name.upper()] = _Var(d, b.kind, "CONSTANT" in b.qualifiers, m.name)
+        # a bound may name a constant of a later block (TwinCAT and CODESYS accept it)
+        for d in (d for b in m.var_blocks for d in b.decls):
+            self._check_type(d.type, scope)
         if m.return_type is not None:
             self._check_type(m.return_type, scope)
         extra = set(fb_extra) | {(own_name or m.name).upper()}

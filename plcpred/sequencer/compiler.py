@@ -278,6 +278,14 @@ class Compiler:
                 if isinstance(d.init, ir.Literal) and isinstance(d.init.value, int) \
                         and not isinstance(d.init.value, bool):
                     self.types.constants[ident(d.name)] = int(d.init.value)
+        # a method's own constants (its array bounds may name them), never in place of a
+        # POU's or a global one of the same name: the table is not scoped
+        for b in (b for p in self.program.pous for m in p.methods for b in m.var_blocks):
+            if "CONSTANT" in [q.upper() for q in b.qualifiers]:
+                for d in b.decls:
+                    if isinstance(d.init, ir.Literal) and isinstance(d.init.value, int) \
+                            and not isinstance(d.init.value, bool):
+                        self.types.constants.setdefault(ident(d.name), int(d.init.value))
 
     def _address_slots(self, gblocks) -> list:
         """Direct addresses used in code (``%IX0.0 := ...``): those declared AT a variable
@@ -1161,8 +1169,35 @@ class Compiler:
             code, t = target
             self._fb_call(code, t, call, scope, ind)
             return
+        action = self._action_of(f, scope) if call.args else None
+        if action is not None:
+            # inst.Act(in := x, out => y): the instance's inputs and outputs, as in a
+            # call of the instance, around the action instead of the body (CODESYS and
+            # TwinCAT; Beckhoff's FB_MemRingBuffer is driven so)
+            code, t, key = action
+            self._fb_call(code, t, call, scope, ind, body=f"a_{key}()")
+            return
         code, t = self._expr(call, scope)
         e(ind, code, pos)
+
+    def _action_of(self, f, scope):
+        """(instance code, FB type, action key) when ``f`` names an action of a function
+        block instance (``inst.Act``, or ``Act`` inside the FB), else None."""
+        if isinstance(f, ir.Name):
+            key = ident(f.name)
+            if scope.fb is not None and key not in scope.names \
+                    and scope.fb.action(key) is not None:
+                return "self", scope.fb, key
+            return None
+        if not isinstance(f, ir.Member):
+            return None
+        target = self._fb_instance(f.base, scope)
+        if target is None or not isinstance(target[1], FbT):
+            return None
+        key = ident(f.member)
+        if target[1].action(key) is None or target[1].method(key) is not None:
+            return None
+        return target[0], target[1], key
 
     def _fb_instance(self, f, scope):
         """(code, type) when ``f`` names a function block instance, else None."""
@@ -1180,7 +1215,8 @@ class Compiler:
             return code, t
         return None
 
-    def _fb_call(self, code: str, t, call: ir.Call, scope: Scope, ind: int):
+    def _fb_call(self, code: str, t, call: ir.Call, scope: Scope, ind: int,
+                 body: str = "_body()"):
         e = self.src.emit
         pos = call.pos
         f = self.src.temp("f")
@@ -1241,7 +1277,7 @@ class Compiler:
         if isinstance(t, StdFbT):
             e(ind, f"{f}.execute(_now)", pos)
         else:
-            e(ind, f"{f}._body()", pos)
+            e(ind, f"{f}.{body}", pos)
         for target, value, vt in post:
             self._store(target, value, vt, scope, ind, pos)
 
@@ -1737,6 +1773,9 @@ class Compiler:
             return "_now", TIME
         if key == "SIZEOF":
             need(1)
+            size = ty.byte_size(ts[0])
+            if size is not None:
+                return str(size), ty.DINT
             return f"_sizeof({codes[0]})", ty.DINT
         if key in ("MEMCPY", "MEMMOVE", "MEMSET", "MEMCMP"):
             need(3)

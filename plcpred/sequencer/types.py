@@ -110,6 +110,38 @@ def cells(t, table: "TypeTable", _active=None) -> int:
     return 1
 
 
+# bytes of the elementary types whose size their name does not give (TwinCAT's, 64-bit)
+_ELEM_BYTES = {"BOOL": 1, "BIT": 1, "REAL": 4, "LREAL": 8, "TIME": 4, "LTIME": 8,
+               "DATE": 4, "TOD": 4, "TIME_OF_DAY": 4, "DT": 4, "DATE_AND_TIME": 4,
+               "LDATE": 8, "LTOD": 8, "LDT": 8, "CHAR": 1, "WCHAR": 2,
+               "STRING": 81, "WSTRING": 162}
+POINTER_BYTES = 8
+
+
+def byte_size(t) -> int | None:
+    """SIZEOF of a value of type ``t`` in bytes, as TwinCAT counts it for elementary
+    types, arrays and pointers; a STRING of the default length (80 characters and the
+    terminator: the executor does not keep a declared length); structures summed without
+    alignment padding. None where the executor cannot tell (a function block)."""
+    if isinstance(t, Elem):
+        if t.cat == "int" and t.bits:
+            return t.bits // 8
+        return _ELEM_BYTES.get(t.name.upper())
+    if isinstance(t, EnumT):
+        return 2                           # an enumeration's default base type is INT
+    if isinstance(t, PtrT):
+        return POINTER_BYTES
+    if isinstance(t, ArrayT):
+        n = byte_size(t.elem)
+        return None if n is None else n * t.size
+    if isinstance(t, StructT):
+        sizes = [byte_size(m) for m in t.members.values()]
+        if any(n is None for n in sizes):
+            return None
+        return max(sizes, default=0) if t.union else sum(sizes)
+    return None
+
+
 @dataclass(eq=False)
 class ArrayT:
     dims: list[tuple[int, int]]
