@@ -342,3 +342,148 @@ END_PROGRAM
     inst.guard(inst.scan, 0)
     prog = inst.programs[0]
     assert (prog.A, prog.B) == (3_000_000_000, 25_000_000)      # ns
+
+
+def _scan(path, scans=1):
+    inst = ProgramInstance(load_program(path))
+    for k in range(scans):
+        inst.guard(inst.scan, k * 10 * MS)
+    return inst.programs[0]
+
+
+def test_sysfile_never_opens_a_host_file_and_nested_namespaces_resolve(tmp_path, capsys):
+    # TcUnit's FB_FileControl, reduced: SysFile.SysTypes.* and SysDir.CmpErrors.Errors.*
+    # are namespaces inside namespaces
+    f = write(tmp_path, "f.st", f"""PROGRAM P
+VAR
+    h : SysFile.SysTypes.RTS_IEC_HANDLE;
+    res, res2 : SysFile.SysTypes.RTS_IEC_RESULT;
+    mode : SysFile.ACCESS_MODE := SysFile.ACCESS_MODE.AM_APPEND_PLUS;
+    n : SysFile.SysTypes.RTS_IEC_SIZE;
+    buf : ARRAY[0..9] OF BYTE;
+    invalid : BOOL;
+END_VAR
+h := SysFile.SysFileOpen(szFile := '{tmp_path / "made.txt"}', am := mode, pResult := ADR(res));
+invalid := h = SysFile.SysTypes.RTS_INVALID_HANDLE;
+IF NOT invalid THEN
+    n := SysFile.SysFileWrite(hFile := h, pbyBuffer := ADR(buf), ulSize := SIZEOF(buf),
+                              pResult := ADR(res2));
+ELSE
+    res2 := SysDir.CmpErrors.Errors.ERR_INVALID_HANDLE;
+END_IF
+END_PROGRAM
+""")
+    assert main(["check", str(f)]) == 0
+    p = _scan(f)
+    assert p.INVALID and p.RES != 0 and p.RES2 == 16
+    assert not (tmp_path / "made.txt").exists()
+
+
+def test_format_string_and_ring_buffer_driven_by_its_actions(tmp_path):
+    f = write(tmp_path, "u.st", """PROGRAM P
+VAR
+    fmt : FB_FormatString;
+    bad : FB_FormatString;
+    ring : FB_MemRingBuffer;
+    buf : ARRAY[0..99] OF BYTE;
+    msg : ARRAY[0..39] OF BYTE;
+    ok : ARRAY[1..6] OF BOOL;
+    count : UDINT;
+END_VAR
+fmt(sFormat := 'axis %d at %.2f mm: %s (100%%)', arg1 := F_DINT(-3), arg2 := F_LREAL(1.5),
+    arg3 := F_STRING('ok'));
+bad(sFormat := '%d and %d', arg1 := F_WORD(7));
+(* an entry costs its bytes and 4: two of 44 fit in 100, a third does not *)
+ring.A_AddTail(pWrite := ADR(msg), cbWrite := SIZEOF(msg), pBuffer := ADR(buf),
+               cbBuffer := SIZEOF(buf), bOk => ok[1]);
+ring.A_AddTail(pWrite := ADR(msg), cbWrite := SIZEOF(msg), pBuffer := ADR(buf),
+               cbBuffer := SIZEOF(buf), bOk => ok[2]);
+ring.A_AddTail(pWrite := ADR(msg), cbWrite := SIZEOF(msg), pBuffer := ADR(buf),
+               cbBuffer := SIZEOF(buf), bOk => ok[3]);
+count := ring.nCount;
+ring.A_RemoveHead(pRead := ADR(msg), cbRead := SIZEOF(msg), pBuffer := ADR(buf),
+                  cbBuffer := SIZEOF(buf));
+ok[4] := ring.bOk;
+ring.A_RemoveHead(pRead := ADR(msg), cbRead := SIZEOF(msg));
+ok[5] := ring.bOk;
+ring.A_RemoveHead(pRead := ADR(msg), cbRead := SIZEOF(msg));
+ok[6] := ring.bOk;
+END_PROGRAM
+""")
+    assert main(["check", str(f)]) == 0
+    p = _scan(f)
+    assert p.FMT.SOUT == "axis -3 at 1.5 mm: ok (100%)" and not p.FMT.BERROR
+    assert p.BAD.BERROR and p.BAD.SOUT == "7 and "
+    assert list(p.OK) == [True, True, False, True, True, False]
+    assert p.COUNT == 2 and p.RING.NCOUNT == 0 and p.RING.CBSIZE == 0
+
+
+def test_coe_read_is_busy_for_one_call_then_fails_and_drive_address(tmp_path):
+    f = write(tmp_path, "e.st", """PROGRAM P
+VAR
+    rd : FB_EcCoESdoRead;
+    code : UDINT := 7;
+    n : INT;
+    busy : ARRAY[1..3] OF BOOL;
+    axis : AXIS_REF;
+    addr : MC_ReadDriveAddress;
+    id : DWORD;
+END_VAR
+n := n + 1;
+rd(sNetId := '', nSlaveAddr := 1001, nIndex := 16#603F, nSubIndex := 0,
+   pDstBuf := ADR(code), cbBufLen := SIZEOF(code), bExecute := n >= 2);
+busy[n] := rd.bBusy;
+axis.DriveAddress.NcDriveId := 5;
+addr(Axis := axis, Execute := TRUE);
+id := addr.DriveAddress.NcDriveId;
+END_PROGRAM
+""")
+    assert main(["check", str(f)]) == 0
+    p = _scan(f, 3)
+    assert list(p.BUSY) == [False, True, False]
+    assert p.RD.BERROR and p.RD.NERRID == 6 and p.CODE == 7
+    assert p.ADDR.DONE and p.ID == 5
+
+
+def test_json_sax_writer_document(tmp_path):
+    f = write(tmp_path, "j.st", """PROGRAM P
+VAR
+    w : FB_JsonSaxWriter;
+    dom : FB_JsonDomParser;
+    root, dev : SJsonValue;
+    doc : STRING(255);
+END_VAR
+w.ResetDocument();
+w.StartObject();
+w.AddKey('name');
+w.AddString('ax "1"');
+w.AddKey('pos');
+w.AddLreal(1.5);
+w.AddKey('list');
+w.StartArray();
+w.AddDint(-2);
+w.AddBool(TRUE);
+w.AddNull();
+w.EndArray();
+w.EndObject();
+doc := w.GetDocument();
+root := dom.NewDocument();
+dev := dom.AddObjectMember(root, 'dev');
+dom.AddIntMember(v := dev, member := 'id', value := 3,);
+END_PROGRAM
+""")
+    assert main(["check", str(f)]) == 0
+    p = _scan(f)
+    assert p.DOC == '{"name":"ax \\"1\\"","pos":1.5,"list":[-2,true,null]}'
+    assert p.DEV != p.ROOT != 0
+
+
+def test_a_library_enum_value_named_through_the_library_namespace(tmp_path, capsys):
+    # TcUnit: IBaseLibrary.TYPE_BIT (the value, its enumeration not named)
+    f = write(tmp_path, "t.st", """PROGRAM P
+VAR c : DINT; END_VAR
+c := IBaseLibrary.TYPE_BIT;
+END_PROGRAM
+""")
+    assert main(["check", str(f)]) == 0
+    assert _scan(f).C == 1

@@ -2,8 +2,9 @@
 what real programs use from libraries that are not in their source.
 
 plcpred ships ST stubs of the common ones under ``plcpred/libraries/`` (Beckhoff
-Tc2_System, Tc2_Utilities and Tc2_Math basics, Tc3_EventLogger's severities, CODESYS
-Util, OSCAT BASIC's MULTIME, PLCopen motion as Tc2_MC2 and SM3_Basic name it); the IEC
+Tc2_System, Tc2_Utilities, Tc2_EtherCAT and Tc2_Math basics, Tc3_JsonXml's writer,
+Tc3_EventLogger's severities, CODESYS Util and SysFile, OSCAT BASIC's MULTIME, PLCopen
+motion as Tc2_MC2 and SM3_Basic name it); the IEC
 standard blocks (Tc2_Standard, CODESYS Standard) are built in. A user adds their own
 library declarations as ST, TwinCAT or PLCopen files or folders (``plcpred check --lib
 DIR``, ``libraries = [...]`` in the machine file).
@@ -162,10 +163,12 @@ def strip_namespaces(program: ir.Program, namespaces: set[str]) -> None:
     ns = {n.upper() for n in namespaces} - own
 
     def strip(name):
-        if isinstance(name, str) and "." in name:
+        # a namespace may sit inside another (SysFile.SysTypes.RTS_IEC_HANDLE)
+        while isinstance(name, str) and "." in name:
             head, rest = name.split(".", 1)
-            if head.upper() in ns:
-                return rest
+            if head.upper() not in ns:
+                break
+            name = rest
         return name
 
     for pou in program.pous:
@@ -188,10 +191,15 @@ def strip_namespaces(program: ir.Program, namespaces: set[str]) -> None:
 
 
 def _unqualified(value, ns):
-    """``NS.x`` (a Member of the Name of a namespace) as the Name ``x``."""
-    if isinstance(value, ir.Member) and isinstance(value.base, ir.Name) \
-            and value.base.name.upper() in ns:
+    """``NS.x`` (a Member of the Name of a namespace) as the Name ``x``, also where the
+    namespace is itself qualified by one (``SysFile.SysTypes.x``)."""
+    if not isinstance(value, ir.Member):
+        return value
+    base = _unqualified(value.base, ns)
+    if isinstance(base, ir.Name) and base.name.upper() in ns:
         return ir.Name(value.member, pos=value.pos)
+    if base is not value.base:
+        value.base = base
     return value
 
 
@@ -265,10 +273,19 @@ def library_program(programs: list[ir.Program], paths=()) -> ir.Program:
                     for lib in libs for why in lib.unread]
     have = _defined(programs)
     wanted = set().union(*(referenced_names(p) for p in programs)) - have
+    added: set[int] = set()
+    own_values = {v.upper() for p in programs for t in p.types
+                  if isinstance(t.type, ir.EnumType) for v, _ in t.type.values}
     while wanted:
         kind, name = wanted.pop()
+        if (kind, name) in have:
+            continue
+        # a value named bare brings its enumeration, unless anything else has the name
+        by_value = kind == "V" and name not in own_values and not any(
+            name in lib.pous or name in lib.types or name in lib.interfaces for lib in libs)
         for lib in libs:
-            found = lib.pous.get(name) or lib.types.get(name) or lib.interfaces.get(name)
+            found = lib.pous.get(name) or lib.types.get(name) or lib.interfaces.get(name) \
+                or (by_value and _enum_of(lib, name)) or None
             gvl = None if found or kind == "T" else next(
                 (g for g in lib.globals if name in {d.name.upper() for d in g.block.decls}
                  or (g.name or "").upper() == name), None)
@@ -277,10 +294,23 @@ def library_program(programs: list[ir.Program], paths=()) -> ir.Program:
             # a named GVL comes whole (all its VAR_GLOBAL blocks: it is one object)
             items = [found] if found else [g for g in lib.globals if g is gvl or (
                 gvl.name and (g.name or "").upper() == gvl.name.upper())]
+            items = [i for i in items if id(i) not in added]
             for item in items:
+                # an enumeration comes once, however many of its values are named bare
+                added.add(id(item))
                 out.add(item)
             new = _defined([out]) | have
             wanted |= referenced_names(items) - new
             have = new
             break
     return out
+
+
+def _enum_of(lib: Library, value: str) -> ir.TypeDecl | None:
+    """The enumerated type of ``lib`` that has the value ``value`` (upper case), where a
+    program names the value bare (``IBaseLibrary.TYPE_BIT``)."""
+    for t in lib.types.values():
+        if isinstance(t.type, ir.EnumType) and any(
+                v.upper() == value for v, _ in t.type.values):
+            return t
+    return None
