@@ -504,3 +504,56 @@ def test_a_timer_drawn_in_the_chart_times_its_transition():
             first_in_b = k
     # the timer runs from scan 0 (A active): Q at 50 ms, B active from the scan after
     assert first_in_b in (5, 6)
+
+
+def test_beremiz_project_string_initials_and_extension_globals(tmp_path, capsys):
+    """A Beremiz project folder: string initial values written bare (value="test", as
+    Beremiz saves them), and globals its extensions declare (py_ext, c_ext variables and
+    svghmi's CURRENT_PAGE_<channel>) reached through VAR_EXTERNAL."""
+    from plcpred.cli import main
+    from plcpred.sequencer.executor import ProgramInstance
+
+    def var(name, type_xml, init=None):
+        value = f'<initialValue><simpleValue value="{init}"/></initialValue>' if init else ""
+        return f'<variable name="{name}"><type>{type_xml}</type>{value}</variable>'
+    body = ("copy := Py_Count + C_In; page := CURRENT_PAGE_0; "
+            "same := (s = 'te''st') AND (h = 'blup') AND (q = 'quoted');")
+    (tmp_path / "plc.xml").write_text(project(
+        types='<dataType name="MY_STR"><baseType><string/></baseType></dataType>',
+        pous='<pou name="main" pouType="program"><interface><localVars>'
+             + var("s", "<string/>", "te&apos;st") + var("h", '<derived name="MY_STR"/>', "blup")
+             + var("q", "<string/>", "&apos;quoted&apos;")
+             + var("copy", "<DINT/>") + var("page", '<derived name="HMI_STRING"/>')
+             + var("same", "<BOOL/>")
+             + '</localVars><externalVars>' + var("Py_Count", "<DINT/>")
+             + var("C_In", "<SINT/>") + var("CURRENT_PAGE_0", '<derived name="HMI_STRING"/>')
+             + f'</externalVars></interface><body><ST><xhtml:p><![CDATA[{body}]]></xhtml:p>'
+             '</ST></body></pou>',
+        instances='<configuration name="c"><resource name="r"><task name="t" interval="T#10ms" '
+                  'priority="0"><pouInstance name="i" typeName="main"/></task></resource>'
+                  '</configuration>'))
+    (tmp_path / "beremiz.xml").write_text('<?xml version="1.0"?><BeremizRoot/>')
+    py = tmp_path / "py_ext_0@py_ext"
+    py.mkdir()
+    (py / "pyfile.xml").write_text(
+        '<?xml version="1.0"?><PyFile><variables>'
+        '<variable name="Py_Count" type="DINT" initial="40"/></variables></PyFile>')
+    c = tmp_path / "c_code@c_ext"
+    c.mkdir()
+    (c / "cfile.xml").write_text(
+        '<?xml version="1.0"?><CFile><variables>'
+        '<variable name="C_In" type="SINT" initial="2"/></variables></CFile>')
+    hmi = tmp_path / "svghmi_0@svghmi"
+    hmi.mkdir()
+    (hmi / "baseconfnode.xml").write_text(
+        '<?xml version="1.0"?><BaseParams IEC_Channel="0" Name="svghmi_0"/>')
+    assert main(["check", str(tmp_path / "plc.xml")]) == 0
+    inst = ProgramInstance(load_program(tmp_path / "plc.xml"))
+    inst.guard(inst.scan, 0)
+    p = inst.programs[0]
+    assert (p.COPY, p.PAGE, p.SAME) == (42, "", True)
+    # without beremiz.xml the folder is not a Beremiz project: the globals are missing
+    (tmp_path / "beremiz.xml").unlink()
+    capsys.readouterr()
+    assert main(["check", str(tmp_path / "plc.xml")]) == 1
+    assert "VAR_EXTERNAL Py_Count has no VAR_GLOBAL" in capsys.readouterr().err

@@ -79,7 +79,13 @@ def _load(path, dialect: str = "auto") -> "ir.Program":
         return parse_seq(text, str(path))
     if kind == ".xml":
         from .plcopen import parse_plcopen
-        return parse_plcopen(text, str(path))
+        program = parse_plcopen(text, str(path))
+        from .beremiz_project import confnode_globals, is_beremiz_project
+        if is_beremiz_project(p.parent):
+            from .names import validate_names
+            program.globals += confnode_globals(p.parent)
+            validate_names(program)
+        return program
     if kind in twincat.OBJECT_SUFFIXES:
         return twincat.parse_twincat(text, str(path))
     if kind == "machine":

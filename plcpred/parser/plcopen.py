@@ -153,6 +153,8 @@ class _Importer:
         self._hidden: list[ir.VarDecl] = []   # edge instances the POU's networks need
         self._taken: set[str] = set()          # names declared in the POU being read
         self._chart_networks: dict[int, Network] = {}   # an SFC's drawn conditions
+        # upper-case names of derived types that are strings ("S": STRING, "W": WSTRING)
+        self._string_types: dict[str, str] = {}
 
     def error(self, el: _El, message: str) -> ProgramError:
         return ProgramError(message, self.file, el.line, el.col)
@@ -263,12 +265,30 @@ class _Importer:
             return ir.StructType(self.variables(t, None))
         raise self.error(t, f"cannot convert data type <{tag}>")
 
-    def init_of(self, el: _El | None):
+    def string_kind(self, t: ir.TypeRef) -> str | None:
+        """"S" (STRING) or "W" (WSTRING) when ``t`` is a string type, directly or as a
+        derived type the project or a shipped library declares so; else None."""
+        if isinstance(t, ir.StringType):
+            return "W" if t.wide else "S"
+        if isinstance(t, ir.NamedType):
+            return self._string_types.get(t.name.upper())
+        return None
+
+    def simple_value(self, el: _El, text: str, string: str | None):
+        """An initial value written as text; ``string``: the variable's string kind."""
+        quote = {"S": "'", "W": '"'}.get(string)
+        if quote and not (text.startswith(quote) or text.endswith(quote)):
+            # Beremiz writes a string's initial value bare (value="test") and quotes it
+            # when it generates ST (PLCGenerator.ComputeValue): so do we
+            text = quote + text.replace("$", "$$").replace(quote, "$" + quote) + quote
+        return self.value_text(el, text)
+
+    def init_of(self, el: _El | None, string: str | None = None):
         if el is None or not el.children:
             return None
         v = el.children[0]
         if v.tag == "simpleValue":
-            return self.value_text(v, v.attrib.get("value", ""))
+            return self.simple_value(v, v.attrib.get("value", ""), string)
         if v.tag == "arrayValue":
             items = []
             for item in v.findall("value"):
@@ -283,8 +303,9 @@ class _Importer:
     def variables(self, el: _El, kind: str | None) -> list[ir.VarDecl]:
         out = []
         for v in el.findall("variable"):
-            out.append(ir.VarDecl(self.req(v, "name"), self.type_of(v.find("type"), v),
-                                  self.init_of(v.find("initialValue")),
+            t = self.type_of(v.find("type"), v)
+            out.append(ir.VarDecl(self.req(v, "name"), t,
+                                  self.init_of(v.find("initialValue"), self.string_kind(t)),
                                   v.attrib.get("address"),
                                   pos=ir.Pos(self.file, v.line, v.col)))
         return out
@@ -582,10 +603,18 @@ class _Importer:
         types = root.find("types")
         if types is not None:
             dts = types.find("dataTypes")
-            for dt in dts.findall("dataType") if dts is not None else []:
-                prog.types.append(ir.TypeDecl(self.req(dt, "name"),
-                                              self.type_of(dt.find("baseType"), dt),
-                                              self.init_of(dt.find("initialValue")),
+            declared = [(self.req(dt, "name"), self.type_of(dt.find("baseType"), dt), dt)
+                        for dt in (dts.findall("dataType") if dts is not None else [])]
+            self._string_types = _shipped_string_types()
+            for _ in range(len(declared)):     # aliases of aliases
+                more = {name.upper(): self.string_kind(t) for name, t, _ in declared
+                        if self.string_kind(t)}
+                if more.keys() <= self._string_types.keys():
+                    break
+                self._string_types.update(more)
+            for name, t, dt in declared:
+                prog.types.append(ir.TypeDecl(name, t, self.init_of(dt.find("initialValue"),
+                                                                    self.string_kind(t)),
                                               pos=ir.Pos(self.file, dt.line, dt.col)))
             pous = types.find("pous")
             for p in pous.findall("pou") if pous is not None else []:
@@ -644,3 +673,14 @@ class _Importer:
 def parse_plcopen(text: str, filename: str = "<input>") -> ir.Program:
     """Import a PLCopen TC6 XML project into the IR."""
     return validate_names(_Importer(filename).project(_parse_xml(text, filename)))
+
+
+def _shipped_string_types() -> dict[str, str]:
+    """The string aliases of plcpred's library stubs (Beremiz SVGHMI's HMI_STRING)."""
+    from .libraries import shipped
+    out = {}
+    for lib in shipped():
+        for name, t in lib.types.items():
+            if isinstance(t.type, ir.StringType):
+                out[name] = "W" if t.type.wide else "S"
+    return out

@@ -1,0 +1,84 @@
+"""The globals a Beremiz project declares outside its ``plc.xml``.
+
+A Beremiz project is a folder: ``beremiz.xml``, the PLCopen ``plc.xml``, and one folder
+per extension ("confnode", ``NAME@KIND``) with a ``baseconfnode.xml`` (its name and IEC
+channel). Extensions add PLC globals that ``plc.xml`` reaches as VAR_EXTERNAL:
+
+* ``@py_ext`` (``pyfile.xml``) and ``@c_ext`` (``cfile.xml``): ``<variables>`` with a name,
+  a type and an initial value;
+* ``@svghmi``: ``CURRENT_PAGE_<channel>`` (an HMI_STRING; Beremiz's svghmi.py
+  ``CTNGlobalInstances``).
+
+Anything else an extension generates (C code, Python) does not run in plcpred.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+from . import ir
+from .errors import ProgramError
+from .plcopen import _El, _Importer, _parse_xml, _shipped_string_types
+
+_VARIABLE_FILES = {"py_ext": ("pyfile.xml", "PyFile"), "c_ext": ("cfile.xml", "CFile")}
+
+
+def is_beremiz_project(folder: Path) -> bool:
+    return (folder / "beremiz.xml").is_file()
+
+
+def confnode_globals(folder: Path) -> list[ir.GlobalVars]:
+    """The globals the extensions of the Beremiz project in ``folder`` declare (one
+    block per extension, in the folder's order)."""
+    blocks = []
+    for node in sorted(p for p in folder.iterdir() if p.is_dir() and "@" in p.name):
+        kind = node.name.rsplit("@", 1)[1]
+        decls: list[ir.VarDecl] = []
+        if kind in _VARIABLE_FILES:
+            name, root = _VARIABLE_FILES[kind]
+            f = node / name
+            if f.is_file():
+                decls = _variables(f, root)
+        elif kind == "svghmi":
+            channel = _channel(node)
+            if channel is not None:
+                pos = ir.Pos(str(node / "baseconfnode.xml"), 1, 1)
+                decls = [ir.VarDecl(f"CURRENT_PAGE_{channel}",
+                                    ir.NamedType("HMI_STRING", pos=pos), pos=pos)]
+        if decls:
+            blocks.append(ir.GlobalVars(None, ir.VarBlock("VAR_GLOBAL", decls),
+                                        pos=decls[0].pos))
+    return blocks
+
+
+def _read(path: Path, root: str) -> tuple[_El, _Importer]:
+    text = path.read_text(encoding="utf-8", errors="replace")
+    imp = _Importer(str(path))
+    imp._string_types = _shipped_string_types()
+    return _parse_xml(text, str(path), root, f"a Beremiz {root} file"), imp
+
+
+def _variables(path: Path, root: str) -> list[ir.VarDecl]:
+    el, imp = _read(path, root)
+    holder = el.find("variables")
+    out = []
+    for v in holder.findall("variable") if holder is not None else []:
+        type_name = imp.req(v, "type")
+        pos = ir.Pos(str(path), v.line, v.col)
+        t = ir.StringType(type_name.upper() == "WSTRING") \
+            if type_name.upper() in ("STRING", "WSTRING") else ir.NamedType(type_name, pos=pos)
+        initial = v.attrib.get("initial")
+        init = imp.simple_value(v, initial, imp.string_kind(t)) if initial else None
+        out.append(ir.VarDecl(imp.req(v, "name"), t, init, pos=pos))
+    return out
+
+
+def _channel(node: Path) -> str | None:
+    f = node / "baseconfnode.xml"
+    if not f.is_file():
+        return None
+    try:
+        el, _ = _read(f, "BaseParams")
+    except ProgramError:
+        return None
+    channel = el.attrib.get("IEC_Channel", "")
+    return channel if channel.isdigit() else None
