@@ -275,3 +275,39 @@ fb();
 END_PROGRAM
 """)
     assert p.FB.TOTAL == 9
+
+
+def test_an_array_of_function_blocks_with_each_elements_fb_init_arguments():
+    # TwinCAT: ARRAY[..] OF FB_T[(args of the first), (args of the second), ...]; an
+    # element the list does not reach gets no arguments
+    src = """FUNCTION_BLOCK FB_Runner
+VAR_OUTPUT id : INT; label : STRING; END_VAR
+METHOD FB_init : BOOL
+VAR_INPUT
+    bInitRetains : BOOL;
+    bInCopyCode : BOOL;
+    nId : INT;
+    sName : STRING;
+END_VAR
+id := nId;
+label := sName;
+END_METHOD
+END_FUNCTION_BLOCK
+PROGRAM P
+VAR
+    runners : ARRAY[1..2, 0..1] OF FB_Runner[(nId := 1, sName := 'a'), (nId := 2), (3, 'c')];
+    ids : ARRAY[1..4] OF INT;
+    last : STRING;
+END_VAR
+ids[1] := runners[1, 0].id; ids[2] := runners[1, 1].id;
+ids[3] := runners[2, 0].id; ids[4] := runners[2, 1].id;
+last := runners[2, 0].label;
+END_PROGRAM
+"""
+    p = run(src)
+    assert list(p.IDS) == [1, 2, 3, 0] and p.LAST == "c" and p.RUNNERS[0][0].LABEL == "a"
+    from plcpred.parser.check import check_program
+    from plcpred.parser.printer import to_st
+    prog = parse_st(src, "t.st")
+    assert check_program(prog)[0] == []
+    assert parse_st(to_st(prog), "t.st") == prog     # printed and read back

@@ -39,12 +39,15 @@ class _QualName(str):
 
 
 class _FbInit:
-    """A type with FB_init arguments (``FB_T(5)``), until var_decl takes the arguments."""
-    __slots__ = ("type", "args")
+    """A type with FB_init arguments (``FB_T(5)``), until var_decl takes the arguments;
+    ``per_element``: an array element type's arguments for each element in turn
+    (``FB_T[(5), (6)]``)."""
+    __slots__ = ("type", "args", "per_element")
 
-    def __init__(self, type_, args):
+    def __init__(self, type_, args, per_element=None):
         self.type = type_
         self.args = args
+        self.per_element = per_element
 
 
 class _Several(list):
@@ -369,7 +372,9 @@ class IRBuilder:
         element = parts[-1]
         if isinstance(element, _FbInit):
             # ``ARRAY[1..3] OF FB_T(5)``: every element gets the FB_init arguments
-            return _FbInit(ir.ArrayType(list(parts[:-1]), element.type), element.args)
+            # (``OF FB_T[(5), (6), (7)]``: each element its own)
+            return _FbInit(ir.ArrayType(list(parts[:-1]), element.type), element.args,
+                           element.per_element)
         return ir.ArrayType(list(parts[:-1]), element)
 
     def array_dim(self, low, high):
@@ -398,6 +403,12 @@ class IRBuilder:
 
     def fb_init_type(self, name, args):
         return _FbInit(ir.NamedType(str(name), pos=name.pos), args or [])
+
+    def fb_init_args(self, args):
+        return list(args or [])
+
+    def fb_init_list_type(self, name, *lists):
+        return _FbInit(ir.NamedType(str(name), pos=name.pos), None, list(lists))
 
     def _plain(self, t):
         """A type where FB_init arguments cannot stand."""
@@ -458,16 +469,19 @@ class IRBuilder:
         if edge is not None and str(edge).upper() not in ("R_EDGE", "F_EDGE"):
             raise self._err(f"expected R_EDGE, F_EDGE, ':=' or ';' after the type, found "
                             f"'{edge}'", self._pos(edge))
-        args = None
+        args = per_element = None
         if isinstance(type_, _FbInit):
-            type_, args = type_.type, type_.args
+            if type_.per_element is not None and not isinstance(type_.type, ir.ArrayType):
+                raise self._err("FB_init arguments in [...] are for the elements of an "
+                                "ARRAY of function blocks", type_.type.pos)
+            type_, args, per_element = type_.type, type_.args, type_.per_element
         addr = str(address).upper() if address is not None else None
         if addr is not None and len(names) > 1:
             raise self._err("an AT address can be given to one variable only",
                             self._pos(names[1]))
         edge = str(edge).upper() if edge is not None else None
         return [ir.VarDecl(str(n), type_, init, addr, pos=self._pos(n), init_args=args,
-                           edge=edge) for n in names]
+                           edge=edge, element_init_args=per_element) for n in names]
 
     def anonymous_at_decl(self, address, type_, init):
         """``AT %IX1.1 : BOOL;``: a located variable without a name (IEC 61131-3 allows

@@ -282,8 +282,10 @@ class Checker:
             self._check_type(d.type, scope)
             if d.init is not None:
                 self._init(d.init, scope)
-            if d.init_args:
-                for a in d.init_args:
+            given = list(d.init_args or []) + [a for args in d.element_init_args or []
+                                               for a in args]
+            if given:
+                for a in given:
                     self._expr(a.value, scope, None)
                 if not self._has_fb_init(d.type):
                     self.warn(d.pos, f"FB_init arguments of '{d.name}' are not applied: "

@@ -120,11 +120,14 @@ name_list: NAME (_COMMA NAME)*
           | REF_TO type_spec -> pointer_type
           | qual_name _LPAR expr _DOTDOT expr _RPAR -> subrange_type
           | qual_name _LPAR [args] _RPAR -> fb_init_type
+          | qual_name _LSQB fb_init_args (_COMMA fb_init_args)* _RSQB -> fb_init_list_type
           | qual_name LT generic_arg (_COMMA generic_arg)* GT -> generic_type
           | _LPAR enum_value (_COMMA enum_value)* _RPAR [NAME] -> enum_type
           | STRUCT var_decl* _END_STRUCT -> struct_type
           | UNION var_decl* _END_UNION -> struct_type
 ?string_len: _LPAR expr _RPAR | _LSQB expr _RSQB
+// one array element's FB_init arguments (TwinCAT: ARRAY[1..2] OF FB_T[(a := 1), (a := 2)])
+fb_init_args: _LPAR [args] _RPAR
 // a generic FB's constants (CODESYS, TwinCAT): FB_Buf<100>, FB_Buf<(N * 2)>, FB_T<(n := 5)>
 ?generic_arg: INTEGER -> generic_int
             | qual_name -> generic_name

@@ -241,6 +241,9 @@ class VarDecl:
     pos: Pos | None = _pos()
     # CODESYS/TwinCAT FB_init arguments: ``fb : FB_T(5)``, ``fb : FB_T(a := 1)``
     init_args: list[Arg] | None = None
+    # an array of FBs with each element's FB_init arguments (TwinCAT:
+    # ``ARRAY[1..2] OF FB_T[(a := 1), (a := 2)]``), in the order of the elements
+    element_init_args: list[list[Arg]] | None = None
     # an input's edge qualifier: "R_EDGE" or "F_EDGE" (``x : BOOL R_EDGE;``)
     edge: str | None = None
 

@@ -132,7 +132,13 @@ def var_decl(d: ir.VarDecl, indent: str = "") -> str:
     text = d.name
     if d.address:
         text += f" AT {d.address}"
-    text += f" : {type_ref(d.type, indent)}"
+    if d.element_init_args is not None and isinstance(d.type, ir.ArrayType):
+        # ARRAY[...] OF FB_T[(...), (...)]: each element's FB_init arguments
+        per = ", ".join(f"({', '.join(arg(a) for a in args)})"
+                        for args in d.element_init_args)
+        text += f" : {type_ref(d.type, indent)}[{per}]"
+    else:
+        text += f" : {type_ref(d.type, indent)}"
     if d.init_args is not None:
         text += f"({', '.join(arg(a) for a in d.init_args)})"
     if d.edge:

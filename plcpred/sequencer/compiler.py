@@ -483,14 +483,28 @@ class Compiler:
         if not isinstance(inner, FbT) or not _fb_inits(inner):
             return
         e = self.src.emit
+        per = d.element_init_args
+        if per is not None:
+            # each element its own arguments, in element order (the last index fastest);
+            # elements the list does not reach get none
+            k = self.src.temp("fbk")
+            e(ind, f"{k} = 0", d.pos)
         while isinstance(t, ArrayT):
             for _ in t.dims:
                 var = self.src.temp("fbi")
                 e(ind, f"for {var} in {code}:", d.pos)
                 code, ind = var, ind + 1
             t = t.elem
-        for line in self._fb_init_code(code, inner, d, scope):
-            e(ind, line, d.pos)
+        if per is None:
+            for line in self._fb_init_code(code, inner, d, scope):
+                e(ind, line, d.pos)
+            return
+        for n, args in enumerate(per + [[]]):
+            e(ind, "else:" if n == len(per) else f"{'el' if n else ''}if {k} == {n}:", d.pos)
+            one = dataclasses.replace(d, init_args=args, element_init_args=None)
+            for line in self._fb_init_code(code, inner, one, scope):
+                e(ind + 1, line, d.pos)
+        e(ind, f"{k} += 1", d.pos)
 
     def _fb_init_code(self, code: str, t: FbT, d: ir.VarDecl, scope: Scope) -> list[str]:
         """The FB_init calls of instance ``code`` of ``t`` declared by ``d``: bInitRetains
