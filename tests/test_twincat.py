@@ -211,3 +211,41 @@ def test_a_file_the_plcproj_lists_but_that_is_not_there(samples_dir, tmp_path, c
     assert "ClampStation.plcproj:11:" in err and "E_Step.TcDUT" in err
     assert "warning: the .plcproj lists DUTs/E_Step.TcDUT, which is not there" in err
     assert "Traceback" not in err
+
+
+def test_an_enumeration_text_list_object_and_interface_members_through_extends(tmp_path):
+    # .TcTLEO: an enumeration with a text list declares its TYPE as a DUT does;
+    # a property of an interface is found through the interfaces it EXTENDS, even where
+    # the chain ends in one plcpred does not know (__SYSTEM.IQueryInterface)
+    (tmp_path / "E_Mode.TcTLEO").write_text(
+        HEAD + '  <EnumerationTextList Name="E_Mode" Id="{2}">\n'
+        "    <Declaration><![CDATA[{attribute 'qualified_only'}\nTYPE E_Mode :\n"
+        "(\n    Idle := 0,\n    Run\n)BYTE;\nEND_TYPE\n]]></Declaration>\n"
+        "    <XmlArchive><Data/></XmlArchive>\n  </EnumerationTextList>\n</TcPlcObject>\n")
+    (tmp_path / "I_Base.TcIO").write_text(
+        HEAD + '  <Itf Name="I_Base" Id="{3}">\n'
+        "    <Declaration><![CDATA[INTERFACE I_Base EXTENDS __SYSTEM.IQueryInterface]]>"
+        "</Declaration>\n"
+        '    <Property Name="Count" Id="{4}">\n'
+        "      <Declaration><![CDATA[PROPERTY Count : INT]]></Declaration>\n"
+        '      <Get Name="Get" Id="{5}"><Declaration><![CDATA[]]></Declaration></Get>\n'
+        "    </Property>\n  </Itf>\n</TcPlcObject>\n")
+    (tmp_path / "I_Derived.TcIO").write_text(
+        HEAD + '  <Itf Name="I_Derived" Id="{6}">\n'
+        "    <Declaration><![CDATA[INTERFACE I_Derived EXTENDS I_Base]]></Declaration>\n"
+        "  </Itf>\n</TcPlcObject>\n")
+    (tmp_path / "FB_Bag.TcPOU").write_text(tcpou(
+        "FB_Bag", "FUNCTION_BLOCK FB_Bag IMPLEMENTS I_Derived\nVAR n : INT := 3; END_VAR", "",
+        members='    <Property Name="Count" Id="{7}">\n'
+                "      <Declaration><![CDATA[PROPERTY Count : INT]]></Declaration>\n"
+                '      <Get Name="Get" Id="{8}"><Declaration><![CDATA[VAR END_VAR]]>'
+                "</Declaration>\n        <Implementation><ST><![CDATA[Count := n;]]></ST>"
+                "</Implementation>\n      </Get>\n    </Property>\n"))
+    (tmp_path / "MAIN.TcPOU").write_text(tcpou(
+        "MAIN", "PROGRAM MAIN\nVAR bag : FB_Bag; it : I_Derived; c : INT; m : E_Mode; END_VAR",
+        "it := bag;\nc := it.Count;\nm := E_Mode.Run;"))
+    assert main(["check", str(tmp_path)]) == 0
+    inst = ProgramInstance(load_program(tmp_path))
+    inst.guard(inst.scan, 0)
+    p = inst.programs[0]
+    assert (p.C, int(p.M)) == (3, 1)

@@ -28,7 +28,7 @@ from .names import is_identifier, validate_names
 from .plcopen import _El, _parse_xml
 from .st import parse_st
 
-OBJECT_SUFFIXES = (".tcpou", ".tcgvl", ".tcdut", ".tcio", ".tctto")
+OBJECT_SUFFIXES = (".tcpou", ".tcgvl", ".tcdut", ".tcio", ".tctto", ".tctleo")
 # files a project folder is read from, besides TwinCAT objects
 _ST_SUFFIXES = (".st", ".iecst")
 _POU_KIND = re.compile(r"\b(PROGRAM|FUNCTION_BLOCK|FUNCTION|INTERFACE)\b", re.I)
@@ -198,7 +198,8 @@ class _Importer:
                 self.name_of(el)
                 self.section(out, el.find("Declaration"))
                 self.interface(out, el, el.attrib["Name"])
-            elif el.tag == "DUT":
+            elif el.tag in ("DUT", "EnumerationTextList"):
+                # an enumeration with a text list (.TcTLEO) declares its TYPE as a DUT
                 self.name_of(el)
                 self.section(out, el.find("Declaration"))
             elif el.tag == "GVL":

@@ -219,17 +219,31 @@ class ItfT:
     name: str
     itf: ir.Interface
     cat = "itf"
+    bases: list = field(default_factory=list)   # the interfaces it EXTENDS (known ones)
+
+    def _chain(self):
+        """This interface, then those it extends (depth first, each once)."""
+        seen, stack = set(), [self]
+        while stack:
+            t = stack.pop(0)
+            if id(t.itf) in seen:
+                continue
+            seen.add(id(t.itf))
+            yield t
+            stack.extend(t.bases)
 
     def method(self, key):
-        for m in self.itf.methods:
-            if ident(m.name) == key:
-                return m, None
+        for t in self._chain():
+            for m in t.itf.methods:
+                if ident(m.name) == key:
+                    return m, None
         return None
 
     def prop(self, key):
-        for p in self.itf.properties:
-            if ident(p.name) == key:
-                return p, None
+        for t in self._chain():
+            for p in t.itf.properties:
+                if ident(p.name) == key:
+                    return p, None
         return None
 
 
@@ -261,6 +275,7 @@ class TypeTable:
         self.resolved: dict[str, object] = {}
         self.structs: list[StructT] = []
         self.fbs: dict[str, FbT] = {}
+        self.itfs: dict[str, ItfT] = {}
         self.enum_values: dict[str, list[tuple[EnumT, int]]] = {}
         self.constants: dict[str, int] = {}  # integer constants for array bounds
         self._every_enum = False
@@ -309,8 +324,18 @@ class TypeTable:
         if up in self.pous and self.pous[up].kind in ("FUNCTION_BLOCK", "PROGRAM"):
             return self.fb(up)
         if up in self.interfaces:
-            return ItfT(self.interfaces[up].name, self.interfaces[up])
+            return self._interface(up)
         raise at(pos, f"unknown type '{name}'")
+
+    def _interface(self, up: str) -> ItfT:
+        t = self.itfs.get(up)
+        if t is None:
+            itf = self.interfaces[up]
+            t = self.itfs[up] = ItfT(itf.name, itf)
+            # a base plcpred does not know (__SYSTEM.IQueryInterface) adds nothing here
+            t.bases = [self._interface(ident(b)) for b in itf.extends
+                       if ident(b) in self.interfaces]
+        return t
 
     def fb(self, up: str) -> FbT:
         if up not in self.fbs:
