@@ -375,7 +375,7 @@ END_PROGRAM
 """)
     assert main(["check", str(f)]) == 0
     p = _scan(f)
-    assert p.INVALID and p.RES != 0 and p.RES2 == 16
+    assert p.INVALID and p.RES == 0xC and p.RES2 == 0x14     # CmpErrors.h numbers
     assert not (tmp_path / "made.txt").exists()
 
 
@@ -487,3 +487,73 @@ END_PROGRAM
 """)
     assert main(["check", str(f)]) == 0
     assert _scan(f).C == 1
+
+
+def test_file_blocks_never_reach_a_file_and_strings_behind_pointers(tmp_path, capsys):
+    f = write(tmp_path, "fl.st", f"""PROGRAM P
+VAR
+    fo : FB_FileOpen;
+    busy : ARRAY[1..3] OF BOOL;
+    n : INT;
+    a : STRING := 'hello world';
+    b : STRING;
+    c : STRING := 'ab';
+    len_a : DINT;
+    area : E_TcMemoryArea;
+END_VAR
+n := n + 1;
+fo(sNetId := '', sPathName := '{tmp_path / "made.csv"}',
+   nMode := FOPEN_MODEWRITE OR FOPEN_MODETEXT, ePath := PATH_GENERIC, bExecute := TRUE);
+busy[n] := fo.bBusy;
+len_a := LEN2(ADR(a));
+STRNCPY(ADR(b), ADR(a), 6);
+STRNCAT(ADR(c), ADR(a), 5);
+area := F_CheckMemoryArea(ADR(a), 1);
+END_PROGRAM
+""")
+    assert main(["check", str(f)]) == 0
+    p = _scan(f, 3)
+    assert list(p.BUSY) == [True, False, False] and p.FO.BERROR and p.FO.NERRID == 0x70C
+    assert not (tmp_path / "made.csv").exists()
+    assert (p.LEN_A, p.B, p.C) == (11, "hello", "abhe")
+    assert int(p.AREA) == 0     # Unknown: plcpred cannot tell where memory lies
+
+
+def test_csv_fields_and_the_buffer_writer(tmp_path, capsys):
+    f = write(tmp_path, "csv.st", """PROGRAM P
+VAR
+    w : FB_CSVMemBufferWriter;
+    line : STRING;
+    q, back, plain : STRING;
+    ok : ARRAY[1..3] OF BOOL;
+END_VAR
+q := STRING_TO_CSVFIELD('say "hi"', TRUE);
+back := CSVFIELD_TO_STRING(q, TRUE);
+plain := STRING_TO_CSVFIELD('a;b', FALSE);
+DEFAULT_CSV_FIELD_SEP := 16#2C;
+w(eCmd := eEnumCmd_First, pBuffer := ADR(line), cbBuffer := 8, putValue := 'abc');
+ok[1] := w.bOk;
+w(eCmd := eEnumCmd_Next, pBuffer := ADR(line), cbBuffer := 8, putValue := 'de', bCRLF := TRUE);
+ok[2] := w.bOk;
+w(eCmd := eEnumCmd_Next, pBuffer := ADR(line), cbBuffer := 8, putValue := 'x');
+ok[3] := w.bOk;
+END_PROGRAM
+""")
+    assert main(["check", str(f)]) == 0
+    p = _scan(f)
+    assert (p.Q, p.BACK, p.PLAIN) == ('"say ""hi"""', 'say "hi"', "a;b")
+    # 'abc' and its separator (4), 'de' with separator and CR LF (4): 8 bytes; then full
+    assert list(p.OK) == [True, True, False] and p.W.CBSIZE == 8 and p.W.NFIELDS == 2
+
+
+def test_wide_string_functions_are_the_string_functions(tmp_path):
+    f = write(tmp_path, "w.st", """PROGRAM P
+VAR w : WSTRING := "motion"; n, k : INT; l : WSTRING; END_VAR
+n := WLEN(w);
+l := WCONCAT(WLEFT(w, 3), WRIGHT(w, 2));
+k := WFIND(w, "ion");
+END_PROGRAM
+""")
+    assert main(["check", str(f)]) == 0
+    p = _scan(f)
+    assert (p.N, p.L, p.K) == (6, "moton", 4)

@@ -76,6 +76,10 @@ SIZEOF ADR BITADR REF INDEXOF LOWER_BOUND UPPER_BOUND __NEW __DELETE __ISVALIDRE
 __QUERYINTERFACE __QUERYPOINTER __POUNAME TIME LTIME NOW
 """.split())
 
+# TwinCAT's WSTRING functions (Tc2_Standard): the string functions under another name
+WIDE_STRING_FUNCTIONS = {"W" + f: f for f in
+                         "LEN LEFT RIGHT MID CONCAT INSERT DELETE REPLACE FIND".split()}
+
 # vendor functions built in (Tc2_System and CODESYS SysMem): whole values, see the runtime
 VENDOR_FUNCTIONS = frozenset("MEMCPY MEMMOVE MEMSET MEMCMP".split())
 
@@ -87,4 +91,5 @@ _CONVERSION = re.compile(
 
 def is_standard_function(name: str) -> bool:
     up = name.upper()
-    return up in STANDARD_FUNCTIONS or up in VENDOR_FUNCTIONS or bool(_CONVERSION.match(up))
+    return up in STANDARD_FUNCTIONS or up in VENDOR_FUNCTIONS \
+        or up in WIDE_STRING_FUNCTIONS or bool(_CONVERSION.match(up))

@@ -36,7 +36,8 @@ from ..parser import ir
 from ..parser.errors import ProgramError, at
 from ..parser.generics import GENERIC_PRAGMA, readable, specialize
 from ..parser.names import ident, validate_names
-from ..parser.stdlib import STANDARD_FBS, is_standard_function, std_fb_pin
+from ..parser.stdlib import (STANDARD_FBS, WIDE_STRING_FUNCTIONS, is_standard_function,
+                              std_fb_pin)
 from . import types as ty
 from .types import BOOL, STRING, TIME, ArrayT, Elem, EnumT, FbT, ItfT, PtrT, StdFbT, StructT
 
@@ -1677,6 +1678,7 @@ class Compiler:
             self.referenced = None
 
     def _std_function(self, key: str, call: ir.Call, scope: Scope):
+        key = WIDE_STRING_FUNCTIONS.get(key, key)     # WLEN is LEN on a WSTRING
         args = [a for a in call.args if not a.output]
         if key == "__NEW":
             return self._new(call, args, scope)
