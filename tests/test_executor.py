@@ -311,3 +311,55 @@ END_PROGRAM
     prog = parse_st(src, "t.st")
     assert check_program(prog)[0] == []
     assert parse_st(to_st(prog), "t.st") == prog     # printed and read back
+
+
+def test_ref_assign_rebinds_a_reference_to_an_elementary_value_and_isvalidref():
+    # REF= sets what a REFERENCE TO INT refers to (it wrote through the unset reference
+    # and stopped), and a reference given to REF= passes on what it refers to;
+    # __ISVALIDREF tells a set reference from an unset one
+    p = run("""FUNCTION_BLOCK FB_X
+VAR_OUTPUT n : INT := 4; END_VAR
+END_FUNCTION_BLOCK
+PROGRAM P
+VAR
+    x : FB_X;
+    i, j : INT := 7;
+    rx : REFERENCE TO FB_X;
+    ri, rj : REFERENCE TO INT;
+    before, after : ARRAY[1..2] OF BOOL;
+    v : INT;
+END_VAR
+before[1] := __ISVALIDREF(rx);
+before[2] := __ISVALIDREF(ri);
+rx REF= x;
+ri REF= i;
+after[1] := __ISVALIDREF(rx);
+after[2] := __ISVALIDREF(ri);
+ri := 10;
+ri REF= j;
+ri := ri + 1;
+v := ri + rx.n;
+rj REF= ri;         (* a reference refers on to what the other refers to *)
+rj := rj + 100;
+END_PROGRAM
+""")
+    assert list(p.BEFORE) == [False, False] and list(p.AFTER) == [True, True]
+    assert (p.I, p.J, p.V) == (10, 108, 12)
+
+
+def test_an_instance_deleting_itself_is_left_to_its_last_pointer():
+    p = run("""FUNCTION_BLOCK FB_Node
+VAR_OUTPUT alive : BOOL := TRUE; END_VAR
+METHOD Dispose : BOOL
+alive := FALSE;
+__DELETE(THIS);
+Dispose := TRUE;
+END_METHOD
+END_FUNCTION_BLOCK
+PROGRAM P
+VAR p : POINTER TO FB_Node; ok : BOOL; END_VAR
+p := __NEW(FB_Node);
+ok := p^.Dispose();
+END_PROGRAM
+""")
+    assert p.OK and not p.P.ALIVE

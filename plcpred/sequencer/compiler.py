@@ -925,7 +925,7 @@ class Compiler:
         if isinstance(s, ir.Assign):
             if s.op == "REF=":
                 code, t = self._ref_of(s.value, scope)
-                self._store(s.target, code, None, scope, ind, pos, raw=True)
+                self._store(s.target, code, None, scope, ind, pos, raw=True, rebind=True)
             elif s.op in (":=", "S=", "R="):
                 expect = None
                 if isinstance(s.value, ir.Name) and s.op == ":=":
@@ -1049,8 +1049,10 @@ class Compiler:
             raise _err(s, f"unsupported statement {type(s).__name__}")
 
     # ---------------------------------------------------------------- stores
-    def _store(self, target, code: str, vt, scope: Scope, ind: int, pos, raw=False):
-        """Emit ``target := code`` (converted from ``vt`` unless ``raw``)."""
+    def _store(self, target, code: str, vt, scope: Scope, ind: int, pos, raw=False,
+               rebind=False):
+        """Emit ``target := code`` (converted from ``vt`` unless ``raw``); ``rebind``
+        (REF=): a reference target is set to refer elsewhere, not written through."""
         e = self.src.emit
         if isinstance(target, ir.BitAccess):
             bcode, bt = self._expr(target.base, scope)
@@ -1067,6 +1069,8 @@ class Compiler:
             e(ind, f"{a}[{b}] = {value}", pos)
         elif kind == "prop":
             e(ind, f"{a}.p_set_{b}({value})", pos)
+        elif kind == "deref" and rebind:
+            e(ind, f"{a} = {value}", pos)
         elif kind == "deref":
             e(ind, f"{a}.set({value})", pos)
 
@@ -1645,6 +1649,11 @@ class Compiler:
     def _ref_of(self, x, scope: Scope, for_call=False):
         """Code for a reference to ``x`` (ADR, REF=, VAR_IN_OUT and outputs of calls)."""
         self._referenced(x)
+        if isinstance(x, ir.Name) and ident(x.name) in scope.names:
+            code, t = scope.names[ident(x.name)]
+            if isinstance(t, PtrT) and t.reference:
+                # a reference variable refers on to what it refers to (r2 REF= r1)
+                return code, t
         if isinstance(x, ir.Name) and ident(x.name) in scope.pylocals:
             key = ident(x.name)
             t = scope.names[key][1]
@@ -1682,10 +1691,26 @@ class Compiler:
         args = [a for a in call.args if not a.output]
         if key == "__NEW":
             return self._new(call, args, scope)
+        if key == "__ISVALIDREF":
+            # a reference (or pointer, interface) that refers to something: not NULL
+            if len(args) != 1:
+                raise _err(call, "__ISVALIDREF needs one argument: a reference")
+            x = args[0].value
+            if isinstance(x, ir.Name) and ident(x.name) in scope.names:
+                code, t = scope.names[ident(x.name)]
+                if t.cat in ("ptr", "itf"):     # the reference itself, not what it refers to
+                    return f"({code} is not None)", BOOL
+            return self._expr(ir.Binary("<>", args[0].value,
+                                        ir.Literal(0, "ANY_INT", pos=call.pos),
+                                        pos=call.pos), scope)
         if key == "__DELETE":
             # the memory goes with the last pointer to it; the pointer itself reads 0
             if len(args) != 1:
                 raise _err(call, "__DELETE needs one argument: the pointer __NEW gave")
+            if isinstance(args[0].value, ir.Name) and ident(args[0].value.name) == "THIS" \
+                    and scope.fb is not None:
+                # an instance deleting itself: it goes with the last pointer to it
+                return "None", ty.VOID
             code, t = self._expr(args[0].value, scope)
             if t.cat != "ptr":
                 raise _err(call, "__DELETE needs a pointer (what __NEW gave)")
