@@ -498,3 +498,24 @@ IF go THEN seen := seen + 1; END_IF
 END_PROGRAM""", [], [InputSchedule("go", pulses_s=[0.1], pulse_ms=50)], scan_ms=10)
     tl = Sequencer(prog, m).run(parse_horizon("0.3s"), scan_stepping=True)
     assert tl.value_at("seen", 0.3) == 5                # 50 ms of scans every 10 ms
+
+
+def test_a_program_writing_a_located_input_sees_it_until_the_next_input_scan():
+    # CODESYS, TwinCAT and Beremiz compile a write to an input; the next scan's input
+    # image puts the signal's value back (so `seen` is TRUE every scan, and the input
+    # follows its schedule)
+    prog, m = machine_for("""PROGRAM P
+VAR
+    s AT %IX0.0 : BOOL;
+    seen AT %QX0.0 : BOOL;
+    copy AT %QX0.1 : BOOL;
+END_VAR
+copy := s;
+s := TRUE;
+seen := s;
+END_PROGRAM""", [], [InputSchedule("s", pulses_s=[0.5], pulse_ms=200)], scan_ms=10)
+    tl = Sequencer(prog, m).run(parse_horizon("1s"))
+    assert tl == Sequencer(prog, m).run(parse_horizon("1s"), scan_stepping=True)
+    assert tl.edges("copy")["time_s"].tolist() == pytest.approx([0.0, 0.5, 0.7])
+    assert tl.value_at("seen", 0.3) and tl.value_at("seen", 0.9)
+    assert not tl.value_at("copy", 0.3) and tl.value_at("copy", 0.6)

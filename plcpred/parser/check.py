@@ -21,6 +21,11 @@ from .stdlib import ELEMENTARY_TYPES, STANDARD_FBS, is_standard_function, std_fb
 
 _LOCAL_KINDS = ("VAR", "VAR_TEMP", "VAR_STAT", "VAR_INST")
 
+# writing a located input: CODESYS, TwinCAT and Beremiz (matiec) compile it; the value
+# holds until the next scan writes the input image again
+_INPUT_WRITE = (" (accepted as CODESYS, TwinCAT and Beremiz do: the next scan's input "
+                "image overwrites it; IEC 61131-3 forbids it)")
+
 
 @dataclass
 class _Var:
@@ -458,7 +463,7 @@ class Checker:
             base = self._gvl_qualified(base.base, ctx.scope) or base.base
         if isinstance(base, ir.DirectAddress):
             if base.address.startswith("%I"):
-                self.error(base.pos, f"cannot assign to input {base.address}")
+                self.warn(base.pos, f"assignment to input {base.address}{_INPUT_WRITE}")
             return
         if not isinstance(base, ir.Name):
             return
@@ -476,8 +481,8 @@ class Checker:
                 self.warn(target.pos, f"assignment to input '{base.name}' (accepted as "
                                       "CODESYS and TwinCAT do; IEC 61131-3 forbids it)")
             elif (var.decl.address or "").startswith("%I"):
-                self.error(target.pos, f"cannot assign to input '{base.name}' "
-                                       f"(located at {var.decl.address})")
+                self.warn(target.pos, f"assignment to input '{base.name}' located at "
+                                      f"{var.decl.address}{_INPUT_WRITE}")
         elif isinstance(target, ir.Member) and target.base is base:
             type_name = _type_name(var.decl.type)
             members = self.g.fb_members(type_name) if type_name else None
