@@ -272,21 +272,13 @@ class Compiler:
                         self.time_constants[ident(d.name)] = int(d.init.value)
         blocks = [g.block for g in self.program.globals]
         blocks += [b for p in self.program.pous for b in p.var_blocks]
-        for b in blocks:
-            if "CONSTANT" not in [q.upper() for q in b.qualifiers]:
-                continue
-            for d in b.decls:
-                if isinstance(d.init, ir.Literal) and isinstance(d.init.value, int) \
-                        and not isinstance(d.init.value, bool):
-                    self.types.constants[ident(d.name)] = int(d.init.value)
+        for key, value in _int_constants(blocks):
+            self.types.constants[key] = value
         # a method's own constants (its array bounds may name them), never in place of a
         # POU's or a global one of the same name: the table is not scoped
-        for b in (b for p in self.program.pous for m in p.methods for b in m.var_blocks):
-            if "CONSTANT" in [q.upper() for q in b.qualifiers]:
-                for d in b.decls:
-                    if isinstance(d.init, ir.Literal) and isinstance(d.init.value, int) \
-                            and not isinstance(d.init.value, bool):
-                        self.types.constants.setdefault(ident(d.name), int(d.init.value))
+        for key, value in _int_constants(b for p in self.program.pous for m in p.methods
+                                         for b in m.var_blocks):
+            self.types.constants.setdefault(key, value)
 
     def _address_slots(self, gblocks) -> list:
         """Direct addresses used in code (``%IX0.0 := ...``): those declared AT a variable
@@ -2141,6 +2133,16 @@ def _is_object_t(t) -> bool:
 
 
 _FB_INIT_FLAGS = ("BINITRETAINS", "BINCOPYCODE")
+
+
+def _int_constants(blocks):
+    """(name key, value) of each integer literal constant the CONSTANT ``blocks`` declare."""
+    for b in blocks:
+        if "CONSTANT" in [q.upper() for q in b.qualifiers]:
+            for d in b.decls:
+                if isinstance(d.init, ir.Literal) and isinstance(d.init.value, int) \
+                        and not isinstance(d.init.value, bool):
+                    yield ident(d.name), int(d.init.value)
 
 
 def _fb_inits(t: FbT) -> list:
