@@ -557,3 +557,20 @@ def test_beremiz_project_string_initials_and_extension_globals(tmp_path, capsys)
     capsys.readouterr()
     assert main(["check", str(tmp_path / "plc.xml")]) == 1
     assert "VAR_EXTERNAL Py_Count has no VAR_GLOBAL" in capsys.readouterr().err
+
+
+def test_a_codesys_export_keeps_a_bare_string_initial_value_as_a_constant_name():
+    # CODESYS quotes string literals in its exports: value="C_NAME" names a constant
+    text = project(
+        pous='<pou name="P" pouType="program"><interface><localVars>'
+             '<variable name="s"><type><string/></type><initialValue>'
+             '<simpleValue value="C_NAME"/></initialValue></variable></localVars>'
+             '</interface><body><ST><xhtml:p><![CDATA[s := s;]]></xhtml:p></ST></body></pou>')
+    codesys = text.replace("<types>", '<fileHeader companyName="" productName="CODESYS" '
+                                      'productVersion="3.5" creationDateTime="2026-01-01T00:00:00"/>'
+                                      "<types>")
+    init = parse_plcopen(codesys, "c.xml").pous[0].var_blocks[0].decls[0].init
+    assert isinstance(init, ir.Name) and init.name == "C_NAME"
+    # the same file as Beremiz writes it: the bare value is the string
+    init = parse_plcopen(text, "b.xml").pous[0].var_blocks[0].decls[0].init
+    assert init == ir.Literal("C_NAME", "STRING")

@@ -155,6 +155,9 @@ class _Importer:
         self._chart_networks: dict[int, Network] = {}   # an SFC's drawn conditions
         # upper-case names of derived types that are strings ("S": STRING, "W": WSTRING)
         self._string_types: dict[str, str] = {}
+        # Beremiz and OpenPLC write a string's initial value without quotes; CODESYS and
+        # TwinCAT quote it, so a bare name there is a constant's
+        self._bare_strings = True
 
     def error(self, el: _El, message: str) -> ProgramError:
         return ProgramError(message, self.file, el.line, el.col)
@@ -276,7 +279,7 @@ class _Importer:
 
     def simple_value(self, el: _El, text: str, string: str | None):
         """An initial value written as text; ``string``: the variable's string kind."""
-        quote = {"S": "'", "W": '"'}.get(string)
+        quote = {"S": "'", "W": '"'}.get(string) if self._bare_strings else None
         if quote and not (text.startswith(quote) or text.endswith(quote)):
             # Beremiz writes a string's initial value bare (value="test") and quotes it
             # when it generates ST (PLCGenerator.ComputeValue): so do we
@@ -600,6 +603,9 @@ class _Importer:
     # ------------------------------------------------------------------ project
     def project(self, root: _El) -> ir.Program:
         prog = ir.Program()
+        header = root.find("fileHeader")
+        product = (header.attrib.get("productName", "") if header is not None else "").lower()
+        self._bare_strings = not any(v in product for v in ("codesys", "twincat"))
         types = root.find("types")
         if types is not None:
             dts = types.find("dataTypes")
