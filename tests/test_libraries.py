@@ -557,3 +557,19 @@ END_PROGRAM
     assert main(["check", str(f)]) == 0
     p = _scan(f)
     assert (p.N, p.L, p.K) == (6, "moton", 4)
+
+
+def test_numbers_as_hex_decimal_octal_and_binary_strings(tmp_path):
+    f = write(tmp_path, "hx.st", """PROGRAM P
+VAR s : ARRAY[1..7] OF STRING; END_VAR
+s[1] := DWORD_TO_HEXSTR(16#1F, 4, FALSE);
+s[2] := BYTE_TO_HEXSTR(255, 1, TRUE);
+s[3] := DWORD_TO_DECSTR(1234, 6);
+s[4] := DWORD_TO_BINSTR(5, 0);
+s[5] := DWORD_TO_HEXSTR(0, 0, FALSE);
+s[6] := DWORD_TO_OCTSTR(8, 1);
+s[7] := Tc2_Utilities.WORD_TO_HEXSTR(16#ABCD, 2, TRUE);
+END_PROGRAM
+""")
+    assert main(["check", str(f)]) == 0
+    assert list(_scan(f).S) == ["001F", "ff", "001234", "101", "", "10", "abcd"]
