@@ -37,6 +37,8 @@ class Library:
     interfaces: dict[str, ir.Interface]
     globals: list[ir.GlobalVars]
     unread: list[str] = dataclasses.field(default_factory=list)  # files left out, why
+    # upper-case enumeration value -> its TYPE (built on first use)
+    enum_values: dict | None = None
 
 
 def _library(program: ir.Program, namespace: str) -> Library:
@@ -309,8 +311,10 @@ def library_program(programs: list[ir.Program], paths=()) -> ir.Program:
 def _enum_of(lib: Library, value: str) -> ir.TypeDecl | None:
     """The enumerated type of ``lib`` that has the value ``value`` (upper case), where a
     program names the value bare (``IBaseLibrary.TYPE_BIT``)."""
-    for t in lib.types.values():
-        if isinstance(t.type, ir.EnumType) and any(
-                v.upper() == value for v, _ in t.type.values):
-            return t
-    return None
+    if lib.enum_values is None:
+        lib.enum_values = {}
+        for t in lib.types.values():
+            if isinstance(t.type, ir.EnumType):
+                for v, _ in t.type.values:
+                    lib.enum_values.setdefault(v.upper(), t)
+    return lib.enum_values.get(value)
