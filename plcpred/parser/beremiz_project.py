@@ -17,7 +17,7 @@ from pathlib import Path
 
 from . import ir
 from .errors import ProgramError
-from .plcopen import _El, _Importer, _parse_xml, _shipped_string_types
+from .plcopen import _El, _Importer, _parse_xml
 
 _VARIABLE_FILES = {"py_ext": ("pyfile.xml", "PyFile"), "c_ext": ("cfile.xml", "CFile")}
 
@@ -52,9 +52,7 @@ def confnode_globals(folder: Path) -> list[ir.GlobalVars]:
 
 def _read(path: Path, root: str) -> tuple[_El, _Importer]:
     text = path.read_text(encoding="utf-8", errors="replace")
-    imp = _Importer(str(path))
-    imp._string_types = _shipped_string_types()
-    return _parse_xml(text, str(path), root, f"a Beremiz {root} file"), imp
+    return _parse_xml(text, str(path), root, f"a Beremiz {root} file"), _Importer(str(path))
 
 
 def _variables(path: Path, root: str) -> list[ir.VarDecl]:
@@ -67,7 +65,7 @@ def _variables(path: Path, root: str) -> list[ir.VarDecl]:
         t = ir.StringType(type_name.upper() == "WSTRING") \
             if type_name.upper() in ("STRING", "WSTRING") else ir.NamedType(type_name, pos=pos)
         initial = v.attrib.get("initial")
-        init = imp.simple_value(v, initial, imp.string_kind(t)) if initial else None
+        init = imp.simple_value(v, initial, t) if initial else None
         out.append(ir.VarDecl(imp.req(v, "name"), t, init, pos=pos))
     return out
 

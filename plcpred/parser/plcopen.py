@@ -11,6 +11,7 @@ line and column.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import re
 
 from xml.parsers import expat
@@ -153,8 +154,10 @@ class _Importer:
         self._hidden: list[ir.VarDecl] = []   # edge instances the POU's networks need
         self._taken: set[str] = set()          # names declared in the POU being read
         self._chart_networks: dict[int, Network] = {}   # an SFC's drawn conditions
-        # upper-case names of derived types that are strings ("S": STRING, "W": WSTRING)
+        # upper-case names of the project's derived types that are strings ("S": STRING,
+        # "W": WSTRING), and of all the types it declares
         self._string_types: dict[str, str] = {}
+        self._declared: set[str] = set()
         # Beremiz and OpenPLC write a string's initial value without quotes; CODESYS and
         # TwinCAT quote it, so a bare name there is a constant's
         self._bare_strings = True
@@ -273,25 +276,29 @@ class _Importer:
         derived type the project or a shipped library declares so; else None."""
         if isinstance(t, ir.StringType):
             return "W" if t.wide else "S"
-        if isinstance(t, ir.NamedType):
-            return self._string_types.get(t.name.upper())
-        return None
+        if not isinstance(t, ir.NamedType):
+            return None
+        up = t.name.upper()
+        if up in self._string_types or up in self._declared or up in ELEMENTARY:
+            return self._string_types.get(up)
+        return _shipped_string_types().get(up)    # parses the stubs once, when needed
 
-    def simple_value(self, el: _El, text: str, string: str | None):
-        """An initial value written as text; ``string``: the variable's string kind."""
-        quote = {"S": "'", "W": '"'}.get(string) if self._bare_strings else None
+    def simple_value(self, el: _El, text: str, t: ir.TypeRef | None):
+        """An initial value written as text, for a variable of type ``t``."""
+        quote = {"S": "'", "W": '"'}.get(self.string_kind(t)) \
+            if self._bare_strings and t is not None else None
         if quote and not (text.startswith(quote) or text.endswith(quote)):
             # Beremiz writes a string's initial value bare (value="test") and quotes it
             # when it generates ST (PLCGenerator.ComputeValue): so do we
             text = quote + text.replace("$", "$$").replace(quote, "$" + quote) + quote
         return self.value_text(el, text)
 
-    def init_of(self, el: _El | None, string: str | None = None):
+    def init_of(self, el: _El | None, t: ir.TypeRef | None = None):
         if el is None or not el.children:
             return None
         v = el.children[0]
         if v.tag == "simpleValue":
-            return self.simple_value(v, v.attrib.get("value", ""), string)
+            return self.simple_value(v, v.attrib.get("value", ""), t)
         if v.tag == "arrayValue":
             items = []
             for item in v.findall("value"):
@@ -308,7 +315,7 @@ class _Importer:
         for v in el.findall("variable"):
             t = self.type_of(v.find("type"), v)
             out.append(ir.VarDecl(self.req(v, "name"), t,
-                                  self.init_of(v.find("initialValue"), self.string_kind(t)),
+                                  self.init_of(v.find("initialValue"), t),
                                   v.attrib.get("address"),
                                   pos=ir.Pos(self.file, v.line, v.col)))
         return out
@@ -611,16 +618,15 @@ class _Importer:
             dts = types.find("dataTypes")
             declared = [(self.req(dt, "name"), self.type_of(dt.find("baseType"), dt), dt)
                         for dt in (dts.findall("dataType") if dts is not None else [])]
-            self._string_types = _shipped_string_types()
-            for _ in range(len(declared)):     # aliases of aliases
+            self._declared = {name.upper() for name, _, _ in declared}
+            for _ in range(len(declared) if self._bare_strings else 0):   # aliases of aliases
                 more = {name.upper(): self.string_kind(t) for name, t, _ in declared
                         if self.string_kind(t)}
                 if more.keys() <= self._string_types.keys():
                     break
                 self._string_types.update(more)
             for name, t, dt in declared:
-                prog.types.append(ir.TypeDecl(name, t, self.init_of(dt.find("initialValue"),
-                                                                    self.string_kind(t)),
+                prog.types.append(ir.TypeDecl(name, t, self.init_of(dt.find("initialValue"), t),
                                               pos=ir.Pos(self.file, dt.line, dt.col)))
             pous = types.find("pous")
             for p in pous.findall("pou") if pous is not None else []:
@@ -681,6 +687,7 @@ def parse_plcopen(text: str, filename: str = "<input>") -> ir.Program:
     return validate_names(_Importer(filename).project(_parse_xml(text, filename)))
 
 
+@functools.lru_cache(maxsize=None)
 def _shipped_string_types() -> dict[str, str]:
     """The string aliases of plcpred's library stubs (Beremiz SVGHMI's HMI_STRING)."""
     from .libraries import shipped
