@@ -222,7 +222,7 @@ class ItfT:
     bases: list = field(default_factory=list)   # the interfaces it EXTENDS (known ones)
 
     def _chain(self):
-        """This interface, then those it extends (depth first, each once)."""
+        """This interface, then those it extends, nearest first (each once)."""
         seen, stack = set(), [self]
         while stack:
             t = stack.pop(0)
