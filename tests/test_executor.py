@@ -47,6 +47,17 @@ def test_time_arithmetic_and_conversions():
     assert p.U == 1_625 * MS and p.N == 3250 and p.R == 3.25 and p.K == 3
 
 
+def test_dates_count_seconds_and_long_times_nanoseconds_when_converted():
+    # CODESYS/TwinCAT: DT_TO_UDINT is seconds since 1970, TIME milliseconds, LTIME ns
+    p = run(body("d : DT := DT#2024-01-01-00:30:00; e : DT; day : DATE := D#1970-01-02;"
+                 "lt : LTIME := LTIME#1ms; s, n, k : ULINT; r : LREAL; tod : TOD;",
+                 "s := DT_TO_ULINT(d); e := ULINT_TO_DT(s + 60); n := DATE_TO_ULINT(day);"
+                 "k := LTIME_TO_ULINT(lt); r := DT_TO_LREAL(d); tod := UDINT_TO_TOD(1500);"))
+    assert (p.S, p.N, p.K) == (1_704_069_000, 86_400, 1_000_000)
+    assert p.E == (1_704_069_000 + 60) * 10 ** 9 and p.R == 1_704_069_000.0
+    assert p.TOD == 1500 * MS
+
+
 def test_standard_functions():
     p = run(body("a, b, c : INT; w : WORD; m : REAL; s : STRING;",
                  "a := MAX(3, 9, 4); b := LIMIT(0, 12, 10); c := SEL(TRUE, 1, 2) + MUX(2, 5, 6, 7);"

@@ -1732,12 +1732,15 @@ class Compiler:
                 "time" if ts[0].cat == "date" else "int")
             if getattr(ts[0], "name", "") in ("CHAR", "WCHAR") and t.cat == "int":
                 src = "char"          # a character's code, not its text read as a number
+            # DT_TO_UDINT counts seconds, TIME_TO_UDINT milliseconds, LTIME nanoseconds
+            unit = ty.ns_per_count(ts[0].name) if ts[0].cat in ("time", "date") else (
+                ty.ns_per_count(t.name))
             if t.cat == "int":
-                return f"_to_int({codes[0]}, {t.bits}, {t.signed}, {src!r})", t
+                return f"_to_int({codes[0]}, {t.bits}, {t.signed}, {src!r}, {unit})", t
             if t.cat == "real":
-                return f"_to_real({codes[0]}, {src!r})", t
+                return f"_to_real({codes[0]}, {src!r}, {unit})", t
             if t.cat in ("time", "date"):
-                return f"_to_time({codes[0]}, {src!r})", t
+                return f"_to_time({codes[0]}, {src!r}, {unit})", t
             if t.cat == "bool":
                 return f"_to_bool({codes[0]}, {src!r})", BOOL
             if dst in ("CHAR", "WCHAR"):

@@ -236,13 +236,14 @@ MATH = {"ABS": abs, "SQRT": sqrt, "LN": ln, "LOG": log10, "EXP": math.exp, "SIN"
 
 # ---------------------------------------------------------------------- conversions
 
-def to_int(value, bits: int, signed: bool, source: str):
+def to_int(value, bits: int, signed: bool, source: str, ns_per_count: int = 1_000_000):
     """Any elementary value to an integer type of ``bits`` width. ``source`` is the
-    category of the value: bool, int, real, time or string."""
+    category of the value: bool, int, real, time or string; a time or date (held in
+    nanoseconds) counts in units of ``ns_per_count`` (types.ns_per_count)."""
     if source == "real":
         value = round_half_away(value)
     elif source == "time":
-        value = int(value) // 1_000_000  # TIME counts milliseconds when converted
+        value = int(value) // ns_per_count
     elif source == "string":
         value = int(str(value).strip() or 0)
     elif source == "char":        # CHAR_TO_BYTE: the character's code
@@ -250,20 +251,21 @@ def to_int(value, bits: int, signed: bool, source: str):
     return wrap(int(value), bits, signed)
 
 
-def to_real(value, source: str) -> float:
+def to_real(value, source: str, ns_per_count: int = 1_000_000) -> float:
     if source == "time":
-        return value / 1_000_000
+        return value / ns_per_count
     if source == "string":
         return float(str(value).strip() or 0)
     return float(value)
 
 
-def to_time(value, source: str) -> int:
+def to_time(value, source: str, ns_per_count: int = 1_000_000) -> int:
+    """A number as a time or date whose count is worth ``ns_per_count`` nanoseconds."""
     if source == "real":
-        return round_half_away(value * 1_000_000)
+        return round_half_away(value * ns_per_count)
     if source == "time":
         return int(value)
-    return int(value) * 1_000_000
+    return int(value) * ns_per_count
 
 
 def to_bool(value, source: str) -> bool:

@@ -38,6 +38,18 @@ STRING = Elem("STRING", "string")
 DINT = Elem("DINT", "int", 32, True)
 
 
+def ns_per_count(name: str) -> int:
+    """What one count of a time or date type is worth when converted to or from a number,
+    as CODESYS and TwinCAT do it: DATE and DT count seconds since 1970, TIME and TOD
+    milliseconds, the long types (LTIME, LDATE, LTOD, LDT) nanoseconds."""
+    up = name.upper()
+    if up in ("DATE", "DT", "DATE_AND_TIME"):
+        return 1_000_000_000
+    if up in ("LTIME", "LDATE", "LTOD", "LTIME_OF_DAY", "LDT", "LDATE_AND_TIME"):
+        return 1
+    return 1_000_000
+
+
 def elementary(name: str) -> Elem | None:
     up = name.upper()
     if up in ("BOOL", "BIT"):
