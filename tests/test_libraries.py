@@ -573,3 +573,63 @@ END_PROGRAM
 """)
     assert main(["check", str(f)]) == 0
     assert list(_scan(f).S) == ["001F", "ff", "001234", "101", "", "10", "abcd"]
+
+
+def test_time_zone_blocks_convert_by_the_bias_across_days_and_years(tmp_path):
+    # lcls-twincat-motion's PMPS database block: local time to UTC with the zone read
+    # from the system (here UTC, after one busy call)
+    f = write(tmp_path, "tz.st", """PROGRAM P
+VAR
+    n : INT;
+    busy : ARRAY[1..3] OF BOOL;
+    getTz : FB_GetTimeZoneInformation;
+    toUtc : FB_TzSpecificLocalTimeToSystemTime;
+    toLocal : FB_SystemTimeToTzSpecificLocalTime;
+    tz : ST_TimeZoneInformation;
+    t, u, v : TIMESTRUCT;
+    d : DT;
+END_VAR
+n := n + 1;
+getTz(sNetID := '', bExecute := TRUE, tTimeout := T#10S);
+busy[n] := getTz.bBusy;
+t.wYear := 2023; t.wMonth := 12; t.wDay := 31; t.wHour := 23; t.wMinute := 30;
+tz.bias := 60;                       (* UTC-1: UTC = local + 60 min *)
+toUtc(in := t, tzInfo := tz);
+u := toUtc.out;
+t.wYear := 2024; t.wMonth := 3; t.wDay := 1; t.wHour := 0; t.wMinute := 30;
+tz.bias := -90;                      (* UTC+1:30, from UTC back to local: Feb 29th *)
+toLocal(in := t, tzInfo := tz);
+t.wHour := 0; t.wMinute := 30;
+tz.bias := 90;
+toLocal(in := t, tzInfo := tz);
+v := toLocal.out;
+d := SYSTEMTIME_TO_DT(u);
+END_PROGRAM
+""")
+    assert main(["check", str(f)]) == 0
+    p = _scan(f, 3)
+    assert list(p.BUSY) == [True, False, False]
+    assert (p.GETTZ.TZID, p.GETTZ.TZINFO.BIAS) == (0, 0)
+    u, v = p.U, p.V
+    assert (u.WYEAR, u.WMONTH, u.WDAY, u.WHOUR, u.WMINUTE, u.WDAYOFWEEK) == (2024, 1, 1, 0, 30, 1)
+    assert (v.WYEAR, v.WMONTH, v.WDAY, v.WHOUR, v.WMINUTE, v.WDAYOFWEEK) == (2024, 2, 29, 23, 0, 4)
+    assert p.D == 1704069000 * 10 ** 9          # 2024-01-01T00:30:00Z (held in ns)
+
+
+def test_ipc_diagnostics_never_reach_the_ipc(tmp_path):
+    f = write(tmp_path, "ipc.st", """PROGRAM P
+VAR
+    reg : FB_IPCDiag_Register;
+    rd : FB_IPCDiag_ReadParameter;
+    os : STRING := 'unset';
+    hr : HRESULT;
+END_VAR
+reg(bExecute := TRUE, tTimeout := T#1S);
+rd(bExecute := TRUE, eParameterKey := E_IPCDiag_ParameterKey.OS_Name, fbRegister := reg);
+hr := rd.GetParameter(pBuffer := ADR(os), nBufferSize := SIZEOF(os));
+END_PROGRAM
+""")
+    assert main(["check", str(f)]) == 0
+    p = _scan(f, 2)
+    assert p.REG.BERROR and not p.REG.BVALID and p.REG.HRERRORCODE < 0     # FAILED()
+    assert not p.RD.BVALID and p.HR < 0 and p.OS == "unset"
