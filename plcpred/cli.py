@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 
 from . import __version__
@@ -273,7 +274,7 @@ def cmd_size(args) -> int:
                          max_events=args.max_events, shown=args.consumers)
         s = size_prediction(result, args.hours, allowance=allowance, band_bar=band,
                             sec_kwh_per_nm3=args.sec, price_per_kwh=args.price,
-                            idle_after_s=idle_after)
+                            idle_after_s=idle_after, compressor=_compressor(args))
     except PlcpredError as e:
         print(e, file=sys.stderr)
         return 1
@@ -375,7 +376,8 @@ def cmd_sweep(args) -> int:
             raise SweepError("give at least one --set or --measure")
         rows = sweep(args.machine, settings, horizon_s, dt_s, engine=args.engine,
                      scheduler=args.scheduler, workers=args.workers, program=args.program,
-                     hours=args.hours, sec=args.sec, price=args.price)
+                     hours=args.hours, sec=args.sec, price=args.price,
+                     compressor=_compressor(args))
     except (SweepError, OutputError) as e:
         return _fail(str(e))
     except PlcpredError as e:
@@ -454,10 +456,50 @@ def _energy_args(p) -> None:
                    help="specific energy, kWh per normal m^3 (default: isothermal "
                         "compression to the supply pressure over 57.4 %% efficiency, "
                         "0.1 at 7 bar gauge)")
+    p.add_argument("--compressor-power", type=_specific_power, default=None,
+                   metavar="POWER",
+                   help="the compressor's specific package input power at full load, from "
+                        "its data sheet: 16.5kW/100cfm (CAGI) or 5.8kW/(m3/min) (ISO "
+                        "1217); the specific energy then follows the supply pressure with "
+                        "this compressor's efficiency (instead of 57.4 %%)")
+    p.add_argument("--compressor-bar", type=_nonneg_float, default=7.0, metavar="BAR_G",
+                   help="the full-load pressure the data sheet rates it at, bar gauge "
+                        "(default 7; 100 psig is 6.9)")
     p.add_argument("--price", type=_nonneg_float, default=0.15,
                    help="energy price per kWh (default 0.15)")
     p.add_argument("--currency", default="", type=_currency,
                    help="what --price and the cost are in, shown with them (EUR, USD, ...)")
+
+
+_POWER_UNITS = {"kw/100cfm": 1.0 / 2.8316846592, "kw/(m3/min)": 1.0, "kw/m3/min": 1.0,
+                "kw/(m³/min)": 1.0, "kw/m³/min": 1.0}
+
+
+def _specific_power(text: str) -> float:
+    """A data sheet's specific power as kW per m^3/min: '16.5kW/100cfm', '5.8kW/(m3/min)'."""
+    m = re.fullmatch(r"\s*([0-9.]+(?:[eE][-+]?\d+)?)\s*(\S+)\s*", text)
+    unit = m.group(2).lower() if m else ""
+    if not m or unit not in _POWER_UNITS:
+        raise argparse.ArgumentTypeError(
+            f"expected a specific power such as 16.5kW/100cfm or 5.8kW/(m3/min), not {text!r}")
+    value = float(m.group(1)) * _POWER_UNITS[unit]
+    if not 0 < value < float("inf"):
+        raise argparse.ArgumentTypeError("a specific power must be > 0")
+    return value
+
+
+def _compressor(args):
+    """The data sheet of --compressor-power/--compressor-bar (None without them)."""
+    from .air.sizing import CompressorSheet
+
+    if args.compressor_power is None:
+        return None
+    if args.sec is not None:
+        raise ValueError("give --sec or --compressor-power, not both: --sec is the specific "
+                         "energy itself")
+    if args.compressor_bar <= 0:
+        raise ValueError("--compressor-bar must be above 0 bar gauge")
+    return CompressorSheet(args.compressor_power, args.compressor_bar)
 
 
 def _nonneg_float(text: str) -> float:

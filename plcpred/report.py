@@ -292,13 +292,8 @@ def sizing_assumptions(machine, s, today=None) -> list[tuple[str, str]]:
     from collections import Counter
 
     from . import __version__
-    from .air.sizing import ISOTHERMAL_EFFICIENCY, specific_energy_kwh_per_nm3
-
     kinds = Counter(c.kind for c in machine.consumers)
-    curve = specific_energy_kwh_per_nm3(machine.supply_bar_g, machine.atmosphere_kpa)
-    sec_how = ("isothermal compression to the supply pressure over "
-               f"{100 * ISOTHERMAL_EFFICIENCY:.1f} % efficiency (E1)"
-               if abs(s.sec_kwh_per_nm3 - curve) < 1e-12 else "given (--sec)")
+    sec_how = s.sec_basis
     money = f" {s.currency}" if s.currency else ""
     def shown(path) -> str:
         try:

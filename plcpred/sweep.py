@@ -224,7 +224,8 @@ def _set_program_value(program, name: str, value: str, key: str):
 
 def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
                  program_path: str | None = None, hours: float | None = None,
-                 sec: float | None = None, price: float | None = None) -> dict:
+                 sec: float | None = None, price: float | None = None,
+                 compressor=None) -> dict:
     """One prediction with the scenario applied: a row of totals, and the year's air,
     energy and cost (``hours`` None: the machine file's [calendar], else 4000 h)."""
     from .air import predict
@@ -240,7 +241,7 @@ def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
         from .air.cycles import blowing_only_in_cycle
         result = predict(machine, horizon_s, dt=dt_s, program=program,
                          timeline=blowing_only_in_cycle(machine, result.timeline))
-    s = size_prediction(result, hours, sec_kwh_per_nm3=sec,
+    s = size_prediction(result, hours, sec_kwh_per_nm3=sec, compressor=compressor,
                         price_per_kwh=DEFAULT_PRICE if price is None else price)
     row = dict(scenario)
     row.update({"total_nl": s.total_nl, "mean_l_min": s.mean_l_min,
@@ -275,7 +276,8 @@ class _Progress:
 def sweep(machine_path, settings: list[Setting], horizon_s: float, dt_s=None,
           engine: str = "local", scheduler: str | None = None, workers: int | None = None,
           progress: bool | None = None, program=None, hours: float | None = None,
-          sec: float | None = None, price: float | None = None) -> list[dict]:
+          sec: float | None = None, price: float | None = None,
+          compressor=None) -> list[dict]:
     """Rows of :func:`run_scenario` for every scenario, in scenario order."""
     machine_path = str(machine_path)
     combos = scenarios(settings)
@@ -288,7 +290,7 @@ def sweep(machine_path, settings: list[Setting], horizon_s: float, dt_s=None,
     for sc in combos:
         apply_settings(data, machine_path, prog, sc)
     bar = _Progress(len(combos), progress)
-    args = [(machine_path, sc, horizon_s, dt_s, program_path, hours, sec, price)
+    args = [(machine_path, sc, horizon_s, dt_s, program_path, hours, sec, price, compressor)
             for sc in combos]
     if engine == "dask":
         return _run_dask(args, scheduler, bar)

@@ -341,6 +341,52 @@ def test_size_takes_the_energy_from_the_supply_pressure(tmp_path):
     assert json.loads((tmp_path / "b" / "sizing.json").read_text())["sec_kwh_per_nm3"] == 0.1
 
 
+def test_a_compressor_data_sheet_sets_the_energy_along_the_pressure_curve(tmp_path):
+    from plcpred.air.sizing import CompressorSheet
+
+    # CAGI: 16.5 kW per 100 cfm at 7 bar(g); 100 cfm = 2.8317 m^3/min of free air, so at its
+    # rated pressure a normal m^3 costs 16.5 / (2.8317 * 60) kWh, whatever the curve says
+    sheet = CompressorSheet.from_kw_per_100cfm(16.5, 7.0)
+    at_rated = 16.5 / (100 * 0.028316846592 * 60)
+    assert sheet.sec_kwh_per_nm3(7.0) == pytest.approx(at_rated, rel=1e-12)
+    assert at_rated == pytest.approx(0.0971, abs=1e-4)
+    # isothermal work over the sheet's energy: 0.0574 / 0.0971
+    assert sheet.isothermal_efficiency() == pytest.approx(0.05744 / 0.09711, rel=1e-3)
+    # below its rated pressure it costs what the isothermal work saves (E1)
+    ratio = math.log(501.325 / 101.325) / math.log(801.325 / 101.325)
+    assert sheet.sec_kwh_per_nm3(4.0) == pytest.approx(at_rated * ratio, rel=1e-12)
+    # the same compressor in ISO 1217 units: kW per m^3/min
+    assert CompressorSheet(16.5 / 2.8316846592).sec_kwh_per_nm3(4.0) == pytest.approx(
+        sheet.sec_kwh_per_nm3(4.0), rel=1e-12)
+
+    # the rig runs at 3.987 bar(g), below the sheet's 7: less than the sheet's figure
+    r = run("size", RIG, "--horizon", "20s", "--out", tmp_path / "a",
+            "--compressor-power", "16.5kW/100cfm")
+    assert r.returncode == 0, r.stderr
+    data = json.loads((tmp_path / "a" / "sizing.json").read_text())
+    assert data["sec_kwh_per_nm3"] == pytest.approx(sheet.sec_kwh_per_nm3(3.987), rel=1e-3)
+    assert "data sheet" in data["sec_basis"]
+    assert "59.1 % isothermal efficiency" in (tmp_path / "a" / "sizing.md").read_text()
+    # rated below the supply: extrapolated, and said so
+    r = run("size", RIG, "--horizon", "20s", "--out", tmp_path / "b",
+            "--compressor-power", "5.8kW/(m3/min)", "--compressor-bar", "3")
+    assert r.returncode == 0 and "above the pressure the compressor is rated at" in r.stderr
+    for bad in (["--compressor-power", "16kW"], ["--compressor-power", "0kW/100cfm"],
+                ["--compressor-power", "16.5kW/100cfm", "--sec", "0.1"]):
+        r = run("size", RIG, "--horizon", "20s", "--out", tmp_path / "c", *bad)
+        assert r.returncode == 2 and "compressor-power" in r.stderr, bad
+        assert not (tmp_path / "c").exists()
+    # a sweep over the supply pressure counts each scenario with the same compressor
+    r = run("sweep", PICK, "--horizon", "20s", "--set", "supply_bar_g=5,6", "--workers", "1",
+            "--compressor-power", "16.5kW/100cfm", "--out", tmp_path / "s")
+    assert r.returncode == 0, r.stderr
+    import csv
+    for row in csv.DictReader((tmp_path / "s" / "sweep.csv").open()):
+        sec = sheet.sec_kwh_per_nm3(float(row["supply_bar_g"]))
+        assert float(row["energy_kwh_per_year"]) == pytest.approx(
+            float(row["air_nm3_per_year"]) * sec, rel=1e-9)
+
+
 def test_currency_is_shown_with_the_cost(tmp_path):
     r = run("size", PICK, "--horizon", "20s", "--out", tmp_path / "a", "--price", "0.2",
             "--currency", "EUR")

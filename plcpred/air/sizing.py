@@ -88,6 +88,7 @@ class Sizing:
     # the idle air split: leaks, and nozzles / blowers left on while nothing moves
     idle_leak_nl: float = 0.0
     idle_blowers_nl: float = 0.0
+    sec_basis: str = ""             # where the specific energy comes from
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -106,6 +107,42 @@ def specific_energy_kwh_per_nm3(supply_bar_g: float, atmosphere_kpa: float = 101
     p_supply_pa = p_atm_pa + supply_bar_g * 1e5
     work_j_per_nm3 = P0_PA * math.log(p_supply_pa / p_atm_pa)
     return work_j_per_nm3 / 3.6e6 / isothermal_efficiency
+
+
+CFM_M3_MIN = 0.028316846592          # one cubic foot per minute, in m^3/min
+
+
+@dataclass(frozen=True)
+class CompressorSheet:
+    """(E1) What a compressor's data sheet says of its energy: the specific package input
+    power at full load (CAGI data sheets give kW per 100 cfm, ISO 1217 ones kW per m^3/min
+    of free air delivered, both at an intake of 100 kPa and 20 degC, as the ISO 8778
+    normal m^3 is) and the full-load pressure it is rated at. Read as an isothermal
+    efficiency (the isothermal work of E1 at the rated pressure over the sheet's energy
+    per m^3), it gives the specific energy at any supply pressure along E1's curve."""
+    kw_per_m3_min: float
+    rated_bar_g: float = 7.0
+
+    @classmethod
+    def from_kw_per_100cfm(cls, kw_per_100cfm: float, rated_bar_g: float = 7.0):
+        return cls(kw_per_100cfm / (100.0 * CFM_M3_MIN), rated_bar_g)
+
+    def isothermal_efficiency(self, atmosphere_kpa: float = 101.325) -> float:
+        sheet_kwh_per_nm3 = self.kw_per_m3_min / 60.0          # kW per m^3/min
+        return specific_energy_kwh_per_nm3(self.rated_bar_g, atmosphere_kpa, 1.0) \
+            / sheet_kwh_per_nm3
+
+    def sec_kwh_per_nm3(self, supply_bar_g: float, atmosphere_kpa: float = 101.325
+                        ) -> float:
+        return specific_energy_kwh_per_nm3(supply_bar_g, atmosphere_kpa,
+                                           self.isothermal_efficiency(atmosphere_kpa))
+
+    def describe(self, atmosphere_kpa: float = 101.325) -> str:
+        return (f"the compressor's data sheet: {self.kw_per_m3_min:.3g} kW per m³/min "
+                f"({self.kw_per_m3_min * 100.0 * CFM_M3_MIN:.3g} kW per 100 cfm) at "
+                f"{self.rated_bar_g:g} bar(g), "
+                f"{100 * self.isothermal_efficiency(atmosphere_kpa):.1f} % isothermal "
+                "efficiency, along E1 to the supply pressure")
 
 
 def receiver_deficit(flow_l_min, dt_s: float, design_flow_l_min: float):
@@ -142,7 +179,7 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
          price_per_kwh: float = DEFAULT_PRICE, efficiency: float = 1.0,
          idle_after_s: float = 0.0, cycles=None, last_switch_s: float | None = None,
          supply: tuple[float, float] | None = None, calendar=None,
-         waiting=None) -> Sizing:
+         waiting=None, compressor: CompressorSheet | None = None) -> Sizing:
     """Size the supply for ``profile`` (module note); ``cycles`` (a
     :class:`~plcpred.air.cycles.Cycles`) adds the steady cycle's figures, and
     ``last_switch_s`` (when the valves last switch) warns of a machine that stops long
@@ -153,10 +190,27 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
     ``idle_state = "program"`` the blowers the program leaves on when nothing moves
     (their rate over the run's idle time) (E2). ``waiting`` (a cell mask,
     :func:`~plcpred.air.cycles.rest_mask`) narrows idle to the cells in which the
-    machine's outputs are as it waits: productive blow-off in a cycle is not idle air."""
-    if sec_kwh_per_nm3 is None:
-        sec_kwh_per_nm3 = (DEFAULT_SEC_KWH_NM3 if supply is None
-                           else specific_energy_kwh_per_nm3(*supply))
+    machine's outputs are as it waits: productive blow-off in a cycle is not idle air.
+    A ``compressor`` data sheet (:class:`CompressorSheet`) sets E1's efficiency
+    instead of the default one; ``sec_kwh_per_nm3`` overrides both."""
+    warnings = []
+    if sec_kwh_per_nm3 is not None:
+        sec_basis = "given (--sec)"
+    elif supply is None:
+        sec_kwh_per_nm3, sec_basis = DEFAULT_SEC_KWH_NM3, "the published figure at 7 bar(g)"
+    elif compressor is not None:
+        if compressor.kw_per_m3_min <= 0 or compressor.rated_bar_g <= 0:
+            raise ValueError("a compressor's specific power and rated pressure must be > 0")
+        sec_kwh_per_nm3 = compressor.sec_kwh_per_nm3(*supply)
+        sec_basis = compressor.describe(supply[1])
+        if supply[0] > compressor.rated_bar_g:
+            warnings.append(f"the supply ({supply[0]:g} bar(g)) is above the pressure the "
+                            f"compressor is rated at ({compressor.rated_bar_g:g} bar(g)): "
+                            "its energy there is extrapolated along E1")
+    else:
+        sec_kwh_per_nm3 = specific_energy_kwh_per_nm3(*supply)
+        sec_basis = ("isothermal compression to the supply pressure over "
+                     f"{100 * ISOTHERMAL_EFFICIENCY:.1f} % efficiency (E1)")
     if allowance < 0 or band_bar <= 0 or hours_per_year < 0 or sec_kwh_per_nm3 < 0 \
             or efficiency <= 0:
         raise ValueError("allowance, hours and specific energy must be >= 0, the pressure "
@@ -187,7 +241,6 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
     # (E2) annual air: production hours at the mean, idle hours at the idle flow
     air_nm3 = (mean * hours_per_year + idle_flow * idle_hours) * 60.0 / 1000.0
     energy = air_nm3 * sec_kwh_per_nm3 / efficiency
-    warnings = []
     if last_switch_s is not None and last_switch_s < STOPS_EARLY * profile.horizon_s:
         warnings.append(
             f"the valves last switch at {last_switch_s:g} s of the {profile.horizon_s:g} s "
@@ -202,7 +255,7 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
         allowance=allowance, deficit_nl=deficit, deficit_at_s=at_s, band_bar=band_bar,
         receiver_l=receiver_l, energy_kwh_per_year=energy,
         cost_per_year=energy * price_per_kwh, hours_per_year=hours_per_year,
-        sec_kwh_per_nm3=sec_kwh_per_nm3, price_per_kwh=price_per_kwh,
+        sec_kwh_per_nm3=sec_kwh_per_nm3, sec_basis=sec_basis, price_per_kwh=price_per_kwh,
         total_nl=profile.total_nl, active_nl=split["active"], passive_nl=split["passive"],
         leak_nl=split["leak"], idle_nl=idle_nl,
         idle_share=idle_nl / profile.total_nl if profile.total_nl > 0 else 0.0,
