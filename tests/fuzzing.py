@@ -37,7 +37,8 @@ TRICKY_TOKENS = [
     "REF=", "?=", "S=", "R=", "𝑒𝑥𝑒𝑐", "é", "\u200b", "\x00", "\t", "(*", "*)", "//",
     "{", "}", "1..2", "MOD 0", "/ 0", "** 99999", "SHL 99999", "-32768", "NOT",
     "x := x + 1;", "WHILE TRUE DO END_WHILE;", "FOR i := 0 TO 2000000000 DO END_FOR;",
-    "REPEAT UNTIL FALSE END_REPEAT;",
+    "REPEAT UNTIL FALSE END_REPEAT;", "__TRY", "__CATCH", "__CATCH(x)", "__FINALLY",
+    "__ENDTRY", "XSIZEOF(POINTER TO INT)", "WString.",
 ]
 
 

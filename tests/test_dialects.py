@@ -617,3 +617,150 @@ END_CONFIGURATION
     # MAIN's two calls, then the task's own, with go still TRUE from MAIN (inputs keep
     # their value between calls): one instance counted three times
     assert (main.C, sub.COUNT) == (2, 3)
+
+
+# ---------------------------------------------------------------- __TRY / __CATCH
+def test_try_catch_finally_catches_what_the_plc_raises():
+    # TwinCAT/CODESYS exception handling (trofimich/TwinCAT.OpenFramework writes it in
+    # every Try* method): the body stops where it fails, the catch gets the RTSEXCPT code
+    src = body("a, b, q, r : INT; arr : ARRAY[1..3] OF INT; i : INT := 5; exc, exc2 : DINT;"
+               "caught, fin, fin2 : BOOL; p : POINTER TO INT;",
+               "__TRY\n  q := 7;\n  r := a / b;\n  q := 99;\n__CATCH(exc)\n  caught := TRUE;\n"
+               "__FINALLY\n  fin := TRUE;\n__ENDTRY\n"
+               "__try arr[i] := 1; __catch (exc2) __endtry;\n"
+               "__TRY r := p^; __CATCH r := -1; __ENDTRY\n"
+               "__TRY q := q + 1; __FINALLY fin2 := TRUE; __ENDTRY")
+    assert problems(src) == []
+    inst = ProgramInstance(parse_st(src, "t.st"))
+    inst.guard(inst.scan, 0)
+    p = inst.programs[0]
+    assert (p.Q, p.CAUGHT, p.FIN, p.FIN2) == (8, True, True, True)
+    assert (p.EXC, p.EXC2, p.R) == (0x102, 0x101, -1)   # DIVIDEBYZERO, ARRAYBOUNDS
+    # printed back as written, and read again the same
+    again = to_st(parse_st(src, "t.st"))
+    assert "__CATCH(exc)" in again and "__FINALLY" in again and "__ENDTRY" in again
+    assert to_st(parse_st(again, "u.st")) == again
+
+
+def test_try_without_catch_runs_finally_and_the_error_goes_on():
+    src = body("a, b, r : INT; fin : BOOL;",
+               "__TRY\n  r := a / b;\n__FINALLY\n  fin := TRUE;\n__ENDTRY")
+    inst = ProgramInstance(parse_st(src, "t.st"))
+    with pytest.raises(ExecutionError, match="t.st:6:"):
+        inst.guard(inst.scan, 0)
+    assert inst.programs[0].FIN
+    # a watchdog is plcpred's, not the PLC's: a __CATCH does not swallow it
+    loop = body("x : INT; e : DINT;", "__TRY WHILE TRUE DO x := x + 1; END_WHILE; "
+                                     "__CATCH(e) x := -1; __ENDTRY")
+    inst = ProgramInstance(parse_st(loop, "t.st"))
+    with pytest.raises(ExecutionError, match="WHILE"):
+        inst.guard(inst.scan, 0)
+    # without __ENDTRY in the file the words are names, as before
+    assert problems(body("__try : INT;", "__try := 1;")) == []
+
+
+def test_exception_codes_by_name_from_the_system_library(tmp_path):
+    from plcpred.parser import load_program
+    f = tmp_path / "exc.st"
+    f.write_text(body("a, b, r : INT; exc : __SYSTEM.ExceptionCode; zero : BOOL;",
+                      "__TRY r := a / b; __CATCH(exc) "
+                      "zero := exc = __SYSTEM.ExceptionCode.RTSEXCPT_DIVIDEBYZERO; __ENDTRY"))
+    inst = ProgramInstance(load_program(f))
+    inst.guard(inst.scan, 0)
+    assert inst.programs[0].ZERO
+
+
+def test_sizeof_of_a_pointer_type_and_xsizeof():
+    # TwinCAT.OpenFramework: MEMCPY(dst, src, TO_UDINT(XSIZEOF(POINTER TO IException) * n))
+    src = body("a, b, c : DINT; x : ARRAY[1..4] OF INT;",
+               "a := SIZEOF(POINTER TO INT); b := TO_DINT(XSIZEOF(POINTER TO BOOL) * 3);"
+               "c := XSIZEOF(x);")
+    assert problems(src) == []
+    inst = ProgramInstance(parse_st(src, "t.st"))
+    inst.guard(inst.scan, 0)
+    p = inst.programs[0]
+    assert (p.A, p.B, p.C) == (8, 24, 8)          # TwinCAT x64: a pointer is 8 bytes
+    with pytest.raises(Exception, match="only __NEW and SIZEOF take a type"):
+        parse_st(body("a : DINT;", "a := LEN(POINTER TO INT);"), "t.st")
+
+
+def test_a_block_or_global_named_string_or_wstring():
+    # a library's string helpers reached as String.Concat2(...) and WString.Concat2(...)
+    src = ("FUNCTION_BLOCK WideStrings\nMETHOD Concat2 : WSTRING\n"
+           "VAR_INPUT a, b : WSTRING; END_VAR\nConcat2 := WCONCAT(a, b);\nEND_METHOD\n"
+           "END_FUNCTION_BLOCK\nVAR_GLOBAL\n  WString : WideStrings;\nEND_VAR\n"
+           + body("s : WSTRING; t : STRING;", 's := WString.Concat2("ab", "cd"); t := \'x\';'))
+    assert problems(src) == []
+    inst = ProgramInstance(parse_st(src, "t.st"))
+    inst.guard(inst.scan, 0)
+    assert inst.programs[0].S == "abcd"
+
+
+def test_generic_blocks_as_twincat_writes_them_in_a_library():
+    # TwinCAT.OpenFramework: VAR_GENERIC CONSTANT before EXTENDS/IMPLEMENTS, a generic
+    # base (EXTENDS Lib.AutomationController<7>) and a generic instance with its FB_init
+    # arguments (Collections.List<0>(0))
+    src = """FUNCTION_BLOCK ABSTRACT Base
+VAR_GENERIC CONSTANT
+    N : INT := 0;
+END_VAR
+EXTENDS Root IMPLEMENTS I_Thing
+VAR
+    items : ARRAY[0..N] OF INT;
+END_VAR
+METHOD Count : INT
+Count := N; items[N] := 1;
+END_METHOD
+END_FUNCTION_BLOCK
+FUNCTION_BLOCK Root
+VAR_OUTPUT root : BOOL := TRUE; END_VAR
+END_FUNCTION_BLOCK
+INTERFACE I_Thing
+END_INTERFACE
+FUNCTION_BLOCK OnlyGeneric
+VAR_GENERIC CONSTANT
+    K : INT := 2;
+END_VAR
+IMPLEMENTS I_Thing
+VAR_OUTPUT k2 : INT; END_VAR
+k2 := K * 2;
+END_FUNCTION_BLOCK
+FUNCTION_BLOCK List
+VAR_GENERIC CONSTANT
+    CAP : INT := 0;
+END_VAR
+VAR
+    cap0 : INT;
+END_VAR
+METHOD FB_init : BOOL
+VAR_INPUT
+    bInitRetains : BOOL;
+    bInCopyCode : BOOL;
+    initial : INT;
+END_VAR
+cap0 := initial + CAP;
+END_METHOD
+END_FUNCTION_BLOCK
+FUNCTION_BLOCK Seven EXTENDS Lib.Base<7>
+END_FUNCTION_BLOCK
+FUNCTION_BLOCK Twice
+VAR_GENERIC CONSTANT
+    M : INT := 1;
+END_VAR
+EXTENDS Base<(M * 2)>
+END_FUNCTION_BLOCK
+""" + body("s : Seven; t : Twice<5>; l : List<3>(40); o : OnlyGeneric<4>; n, m, c, k : INT;"
+           "r : BOOL;",
+           "n := s.Count(); m := t.Count(); c := l.cap0; r := s.root; o(); k := o.k2;")
+    program = parse_st(src, "t.st")
+    assert problems(src) == []
+    inst = ProgramInstance(program)
+    inst.guard(inst.scan, 0)
+    p = inst.programs[0]
+    assert (p.N, p.M, p.C, p.R, p.K) == (7, 10, 43, True, 8)
+    printed = to_st(program)
+    assert "EXTENDS Lib.Base<7>" in printed and "EXTENDS Base<(M * 2)>" in printed
+    assert to_st(parse_st(printed, "u.st")) == printed
+    with pytest.raises(Exception, match="only VAR_GENERIC CONSTANT may stand before"):
+        parse_st("FUNCTION_BLOCK B\nVAR x : INT; END_VAR\nEXTENDS Root\nEND_FUNCTION_BLOCK\n",
+                 "t.st")

@@ -214,7 +214,7 @@ def test_a_library_file_plcpred_cannot_read_leaves_the_rest_of_the_library(tmp_p
     write(tmp_path, "libs/ShopLib/FB_Good.st", "FUNCTION_BLOCK FB_Good\nVAR_OUTPUT q : BOOL; "
           "END_VAR\nq := TRUE;\nEND_FUNCTION_BLOCK\n")
     write(tmp_path, "libs/ShopLib/FB_Odd.st", "FUNCTION_BLOCK FB_Odd\nVAR n : INT; END_VAR\n"
-          "__TRY\n  n := n + 1;\n__CATCH(exc)\n  n := 0;\n__ENDTRY\nEND_FUNCTION_BLOCK\n")
+          "n := n + * 1;\nEND_FUNCTION_BLOCK\n")
     good = write(tmp_path, "good.st", "PROGRAM P\nVAR fb : FB_Good; b : BOOL; END_VAR\n"
                  "fb(); b := fb.q;\nEND_PROGRAM\n")
     odd = write(tmp_path, "odd.st", "PROGRAM P\nVAR fb : FB_Odd; END_VAR\nfb();\nEND_PROGRAM\n")

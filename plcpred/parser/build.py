@@ -25,7 +25,7 @@ OP_TEXT = {"AMP": "AND", "EQ": "=", "NE": "<>", "LT": "<", "GT": ">", "LE": "<="
            "PLUS": "+", "MINUS": "-", "STAR": "*", "SLASH": "/", "POW": "**"}
 ACCESS = {"PUBLIC", "PRIVATE", "PROTECTED", "INTERNAL"}
 TIMED_QUALIFIERS = {"L", "D", "SD", "DS", "SL"}
-_COMPOUND = (ir.If, ir.Case, ir.For, ir.While, ir.Repeat)
+_COMPOUND = (ir.If, ir.Case, ir.For, ir.While, ir.Repeat, ir.Try)
 _STATEMENT_TYPES = tuple(ir.Stmt.__args__)
 
 
@@ -192,10 +192,13 @@ class IRBuilder:
         return tok
 
     def new_pointers(self, func, tok, target, count):
-        """``__NEW(POINTER TO T, n)``: the only call that takes a pointer type."""
-        if not (isinstance(func, ir.Name) and func.name.upper() == "__NEW"):
-            raise self._err("only __NEW takes a type: __NEW(POINTER TO T, n)",
-                            self._pos(tok))
+        """``__NEW(POINTER TO T, n)`` and ``SIZEOF(POINTER TO T)`` (TwinCAT's XSIZEOF
+        too): the calls that take a pointer type."""
+        name = func.name.upper() if isinstance(func, ir.Name) else ""
+        if name not in ("__NEW", "SIZEOF", "XSIZEOF") or (name != "__NEW"
+                                                           and count is not None):
+            raise self._err("only __NEW and SIZEOF take a type: __NEW(POINTER TO T, n), "
+                            "SIZEOF(POINTER TO T)", self._pos(tok))
         pos = self._pos(tok)
         args = [ir.Arg(None, ir.TypeExpr(ir.PointerType(self._plain(target), pos=pos),
                                          pos=pos), pos=pos)]
@@ -322,6 +325,16 @@ class IRBuilder:
     def repeat_stmt(self, tok, body, cond):
         return ir.Repeat(body, cond, pos=self._pos(tok))
 
+    def try_stmt(self, tok, body, catch, finally_body):
+        var, catch_body = catch if catch is not None else (None, None)
+        return ir.Try(body, catch_body, finally_body, var, pos=self._pos(tok))
+
+    def catch_plain(self, body):
+        return (None, body)
+
+    def catch_var(self, tok, body):
+        return (ir.Name(str(tok), pos=self._pos(tok)), body)
+
     def exit_stmt(self, tok):
         return ir.Exit(pos=self._pos(tok))
 
@@ -400,6 +413,10 @@ class IRBuilder:
 
     def named_generic_arg(self, name, value):
         return ir.Arg(str(name), value, pos=self._pos(name))
+
+    def generic_fb_init_type(self, name, _lt, *rest):
+        *generic, _gt, args = rest
+        return _FbInit(self.generic_type(name, _lt, *generic, _gt), args or [])
 
     def fb_init_type(self, name, args):
         return _FbInit(ir.NamedType(str(name), pos=name.pos), args or [])
@@ -564,10 +581,30 @@ class IRBuilder:
 
     def fb_pou(self, tok, mods, name, extends, implements, var_blocks, items):
         access, modifiers = self._split_modifiers(mods)
+        base, base_args = extends if isinstance(extends, tuple) else (extends, [])
         return self._pou("FUNCTION_BLOCK", tok, name, var_blocks, items,
-                         extends=str(extends) if extends else None,
+                         extends=str(base) if base else None, extends_args=base_args,
                          implements=[str(i) for i in implements or []], access=access,
                          modifiers=modifiers)
+
+    def fb_pou_generic_head(self, tok, mods, name, head, extends, implements, var_blocks,
+                            items):
+        return self.fb_pou(tok, mods, name, extends, implements, [head] + var_blocks, items)
+
+    def fb_pou_generic_head_impl(self, tok, mods, name, head, implements, var_blocks, items):
+        return self.fb_pou(tok, mods, name, None, implements, [head] + var_blocks, items)
+
+    def generic_head(self, block):
+        if block.kind != "VAR_GENERIC":
+            raise self._err(f"only VAR_GENERIC CONSTANT may stand before EXTENDS or "
+                            f"IMPLEMENTS, not {block.kind}", block.pos)
+        return block
+
+    def extends_ref(self, name):
+        return (str(name), [])
+
+    def generic_extends(self, name, _lt, *rest):
+        return (str(name), self.generic_type(name, _lt, *rest).generic_args)
 
     def class_pou(self, tok, mods, name, extends, implements, var_blocks, items):
         """A CLASS is read as the FUNCTION_BLOCK it is equivalent to (no body of its own:

@@ -450,6 +450,13 @@ class Checker:
             elif t is ir.Repeat:
                 self._stmts(s.body, ctx)
                 self._expr(s.cond, ctx.scope, ctx)
+            elif t is ir.Try:
+                self._stmts(s.body, ctx)
+                if s.catch_var is not None:
+                    self._write_target(s.catch_var, ctx)
+                for body in (s.catch_body, s.finally_body):
+                    if body:
+                        self._stmts(body, ctx)
             elif t is ir.Opaque:
                 self.warn(s.pos, f"{s.what} is not read: the program checks, but running "
                                  "it stops with an error")
@@ -706,6 +713,8 @@ def _sub_bodies(s):
             yield s.else_body
     elif isinstance(s, (ir.For, ir.While, ir.Repeat)):
         yield s.body
+    elif isinstance(s, ir.Try):
+        yield from (b for b in (s.body, s.catch_body, s.finally_body) if b)
 
 
 class ExternalWarning(ProgramWarning):

@@ -69,7 +69,7 @@ def specialize(program: ir.Program, context=()) -> ir.Program:
     """``program`` with every instance of a generic FB typed by a copy of the FB for its
     values (the FBs may be declared in ``context`` too, a library). ``program`` itself is
     not changed; it is returned as it is when nothing in it is generic."""
-    if not any(_generic_block(p) for p in program.pous) and not any(
+    if not any(_generic_block(p) or p.extends_args for p in program.pous) and not any(
             _has_generic_args(h.type) for h in _type_refs(program)):
         return program
     out = copy.deepcopy(program)
@@ -84,7 +84,8 @@ def specialize(program: ir.Program, context=()) -> ir.Program:
     def visit(t: ir.NamedType):
         if not t.generic_args:
             return t
-        pou = generic.get(t.name.upper())
+        # a library's block named with its namespace (TOF_Collections.List<8>)
+        pou = generic.get(t.name.upper()) or generic.get(t.name.rsplit(".", 1)[-1].upper())
         if pou is None:
             raise ProgramError(f"'{t.name}' has no VAR_GENERIC CONSTANT for the values in "
                                "angle brackets", *_where(t))
@@ -110,6 +111,18 @@ def specialize(program: ir.Program, context=()) -> ir.Program:
         elif all(d.init is not None for d in decls):
             kept.append(_copy_with(pou, pou.name, [d.init for d in decls]))
     out.pous = kept + added
+    # a block extending a generic one (EXTENDS FB_Base<7>) extends the base's copy for
+    # those values; a copy may extend another generic block in turn
+    done, seen = 0, len(added)
+    while done < len(out.pous):
+        pou = out.pous[done]
+        done += 1
+        if pou.extends_args:
+            pou.extends = visit(ir.NamedType(pou.extends, pos=pou.pos,
+                                             generic_args=pou.extends_args)).name
+            pou.extends_args = []
+            out.pous += added[seen:]
+            seen = len(added)
     return out
 
 
@@ -204,6 +217,8 @@ def _copy_with(pou: ir.Pou, name: str, values: list) -> ir.Pou:
     by_name = {d.name.upper(): v for d, v in zip(_generic_block(pou), values)}
     for holder in _type_refs(ir.Program(pous=[new])):
         holder.type = _walk(holder.type, bound=lambda e: _substituted(e, by_name))
+    for a in new.extends_args:          # EXTENDS FB_Base<N> with this block's own N
+        a.value = _substituted(a.value, by_name)
     return new
 
 

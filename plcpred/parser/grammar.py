@@ -24,6 +24,7 @@ TERMINALS = """
 %declare CONFIGURATION _END_CONFIGURATION RESOURCE _END_RESOURCE TASK
 %declare PUBLIC PRIVATE PROTECTED INTERNAL ABSTRACT FINAL CLASS _END_CLASS
 %declare INITIAL_STEP STEP _END_STEP TRANSITION _FROM _END_TRANSITION ACTION _END_ACTION
+%declare TRY _CATCH CATCH_VAR _FINALLY _ENDTRY
 """
 
 COMMON = r"""
@@ -75,10 +76,10 @@ args: arg (_COMMA arg)* _COMMA?
 stmt_list: stmt*
 ?stmt: assign | ref_assign | set_assign | reset_assign | attempt_assign | call_stmt | if_stmt | case_stmt | for_stmt
      | while_stmt | repeat_stmt | exit_stmt | continue_stmt | return_stmt | empty_stmt
-     | jmp_stmt | label_stmt | inline_stmt
+     | jmp_stmt | label_stmt | inline_stmt | try_stmt
 ?stmt_nolabel: assign | ref_assign | set_assign | reset_assign | attempt_assign | call_stmt | if_stmt | case_stmt
              | for_stmt | while_stmt | repeat_stmt | exit_stmt | continue_stmt | return_stmt
-             | empty_stmt | jmp_stmt | inline_stmt
+             | empty_stmt | jmp_stmt | inline_stmt | try_stmt
 
 assign: postfix _ASSIGN expr _SEMI
       | postfix _ASSIGN postfix _ASSIGN expr _SEMI -> chained_assign
@@ -106,6 +107,10 @@ empty_stmt: _SEMI
 jmp_stmt: JMP NAME _SEMI
 label_stmt: NAME _COLON
 inline_stmt: INLINE_CODE
+// CODESYS/TwinCAT: __TRY ... __CATCH(exc) ... __FINALLY ... __ENDTRY
+try_stmt: TRY stmt_list [catch_part] [_FINALLY stmt_list] _ENDTRY
+catch_part: _CATCH stmt_list -> catch_plain
+          | CATCH_VAR stmt_list -> catch_var
 
 // ------------------------------------------------------------------ types and declarations
 qual_name: NAME (_DOT NAME)*
@@ -122,6 +127,7 @@ name_list: NAME (_COMMA NAME)*
           | qual_name _LPAR [args] _RPAR -> fb_init_type
           | qual_name _LSQB fb_init_args (_COMMA fb_init_args)* _RSQB -> fb_init_list_type
           | qual_name LT generic_arg (_COMMA generic_arg)* GT -> generic_type
+          | qual_name LT generic_arg (_COMMA generic_arg)* GT _LPAR [args] _RPAR -> generic_fb_init_type
           | _LPAR enum_value (_COMMA enum_value)* _RPAR [NAME] -> enum_type
           | STRUCT var_decl* _END_STRUCT -> struct_type
           | UNION var_decl* _END_UNION -> struct_type
@@ -165,7 +171,14 @@ _top_item: program_pou | fb_pou | class_pou | function_pou | type_block | interf
 
 // a ';' after a header is accepted, as CODESYS and TwinCAT do
 program_pou: PROGRAM modifiers NAME _SEMI? var_blocks body_items _END_PROGRAM
-fb_pou: FUNCTION_BLOCK modifiers NAME [_EXTENDS qual_name] [_IMPLEMENTS qual_list] _SEMI? var_blocks body_items _END_FUNCTION_BLOCK
+fb_pou: FUNCTION_BLOCK modifiers NAME [_EXTENDS extends_ref] [_IMPLEMENTS qual_list] _SEMI? var_blocks body_items _END_FUNCTION_BLOCK
+      // TwinCAT writes a generic block's VAR_GENERIC CONSTANT before EXTENDS/IMPLEMENTS
+      | FUNCTION_BLOCK modifiers NAME generic_head _EXTENDS extends_ref [_IMPLEMENTS qual_list] _SEMI? var_blocks body_items _END_FUNCTION_BLOCK -> fb_pou_generic_head
+      | FUNCTION_BLOCK modifiers NAME generic_head _IMPLEMENTS qual_list _SEMI? var_blocks body_items _END_FUNCTION_BLOCK -> fb_pou_generic_head_impl
+generic_head: var_block
+// a base block with its generic constants: EXTENDS FB_Base<7>
+extends_ref: qual_name
+           | qual_name LT generic_arg (_COMMA generic_arg)* GT -> generic_extends
 // IEC 61131-3 ed.3 CLASS: a function block whose behaviour is all in its methods
 class_pou: CLASS modifiers NAME [_EXTENDS qual_name] [_IMPLEMENTS qual_list] _SEMI? var_blocks body_items _END_CLASS
 function_pou: FUNCTION modifiers NAME [_COLON type_spec] _SEMI? var_blocks body_items _END_FUNCTION

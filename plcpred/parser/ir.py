@@ -333,6 +333,20 @@ class Repeat:
 
 
 @dataclass(slots=True)
+class Try:
+    """CODESYS/TwinCAT ``__TRY body __CATCH(var) catch_body __FINALLY finally_body
+    __ENDTRY``: a run-time exception (division by zero, an index out of bounds, a null
+    pointer) in ``body`` runs ``catch_body`` with its code in ``catch_var`` (a
+    ``__SYSTEM.ExceptionCode``); ``finally_body`` runs in any case. ``catch_body`` None:
+    there is no __CATCH and the exception goes on after __FINALLY."""
+    body: list["Stmt"]
+    catch_body: list["Stmt"] | None
+    finally_body: list["Stmt"] | None
+    catch_var: "Name | None" = None
+    pos: Pos | None = _pos()
+
+
+@dataclass(slots=True)
 class Exit:
     pos: Pos | None = _pos()
 
@@ -375,7 +389,7 @@ class Opaque:
     pos: Pos | None = _pos()
 
 
-Stmt = Union[Assign, CallStmt, If, Case, For, While, Repeat, Exit, Continue, Return, Empty,
+Stmt = Union[Assign, CallStmt, If, Case, For, While, Repeat, Try, Exit, Continue, Return, Empty,
              Label, Jmp, Opaque]
 
 
@@ -483,6 +497,8 @@ class Pou:
     actions: list[SfcAction] = field(default_factory=list)
     pragmas: list[str] = field(default_factory=list)
     pos: Pos | None = _pos()
+    # the generic constants of a generic base block: EXTENDS FB_Base<7>
+    extends_args: list[Arg] = field(default_factory=list)
 
     @property
     def is_sfc(self) -> bool:

@@ -68,7 +68,17 @@ CONTEXT_KEYWORDS = {
     "TASK": "END_CONFIGURATION",
     "CLASS": "END_CLASS",
     "END_CLASS": "END_CLASS",
+    # CODESYS/TwinCAT exception handling
+    "__TRY": "__ENDTRY",
+    "__CATCH": "__ENDTRY",
+    "__FINALLY": "__ENDTRY",
+    "__ENDTRY": "__ENDTRY",
 }
+# token types of keywords that are not named after themselves
+_KEYWORD_TYPES = {"__TRY": "TRY", "__CATCH": "_CATCH", "__FINALLY": "_FINALLY",
+                  "__ENDTRY": "_ENDTRY"}
+# ``__CATCH(exc)``: one token, so that a statement in parentheses may follow a bare __CATCH
+_CATCH_VARIABLE = re.compile(r"[ \t]*\([ \t]*([A-Za-z_][A-Za-z0-9_]*)[ \t]*\)")
 
 ELEMENTARY_TYPES = frozenset("""
 BOOL SINT INT DINT LINT USINT UINT UDINT ULINT BYTE WORD DWORD LWORD REAL LREAL
@@ -138,7 +148,8 @@ class Tokenizer:
         upper = text.upper()
         enabled = {kw for kw, closer in context_keywords.items() if closer in upper}
         # keyword (upper case) -> token type
-        self.keywords = {kw: (kw if kw in kept else "_" + kw) for kw in keywords | enabled}
+        self.keywords = {kw: _KEYWORD_TYPES.get(kw, kw if kw in kept else "_" + kw)
+                         for kw in keywords | enabled}
         self.pragmas: list[tuple[str, int, int]] = []
 
     def error(self, message: str, line: int, col: int) -> ProgramError:
@@ -151,7 +162,8 @@ class Tokenizer:
           one token: an ``S`` or ``R`` right against ``=`` after the end of a variable (a
           name, ``]``, ``)`` or ``^``);
         * a keyword is a name where the vendors allow one: after ``.`` (``st.Program``),
-          and, for the modifier-like keywords of :data:`SOFT_KEYWORDS`, where only a name
+          STRING and WSTRING before ``.`` or ``:`` (a GVL's ``WString : WideStrings;``
+          and ``WString.Concat2(...)``), and, for the modifier-like keywords of :data:`SOFT_KEYWORDS`, where only a name
           can stand (``Internal : BOOL;``, ``x := Reference + 1;``)."""
         prev = None
         tokens = self._tokens()
@@ -167,6 +179,9 @@ class Tokenizer:
                 nxt = next(tokens, None)
             elif tok.type != "NAME" and _WORD.fullmatch(tok.value) and (
                     (prev is not None and prev.type == "_DOT")
+                    # a namespace or block named like a type: String.Concat2(...)
+                    or (tok.type in ("STRING", "WSTRING") and nxt is not None
+                        and nxt.type in ("_DOT", "_COLON"))
                     or (tok.value.upper() in SOFT_KEYWORDS and (
                         nxt is None or nxt.type in _AFTER_A_NAME
                         or (prev is not None and prev.type in _BEFORE_A_NAME)))):
@@ -214,7 +229,10 @@ class Tokenizer:
                     continue
                 upper = word.upper()
                 toktype = keywords.get(upper)
-                if toktype is not None:
+                if toktype == "_CATCH" and (m2 := _CATCH_VARIABLE.match(text, end)):
+                    yield Token("CATCH_VAR", m2.group(1), line, col)
+                    end = m2.end()
+                elif toktype is not None:
                     yield Token(toktype, word, line, col)
                 elif upper == "REF" and text.startswith("=", end) and not text.startswith("=>", end):
                     yield Token("_REFASSIGN", "REF=", line, col)

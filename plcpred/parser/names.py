@@ -40,7 +40,7 @@ MAX_NAME_LENGTH = 255
 MAX_EXPRESSION_DEPTH = 100   # operators, calls, indexing nested in one expression
 MAX_STATEMENT_DEPTH = 40     # IF / CASE / loops nested in one body
 MAX_LOOP_DEPTH = 12          # FOR / WHILE / REPEAT nested in one body
-_STATEMENTS = (ir.If, ir.Case, ir.For, ir.While, ir.Repeat)
+_STATEMENTS = (ir.If, ir.Case, ir.For, ir.While, ir.Repeat, ir.Try)
 _LOOPS = (ir.For, ir.While, ir.Repeat)
 _EXPRESSIONS = (ir.Unary, ir.Binary, ir.Call, ir.Index, ir.Member, ir.BitAccess, ir.Deref,
                 ir.Arg, ir.AssignExpr)

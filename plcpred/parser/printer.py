@@ -202,6 +202,14 @@ def statement(s, indent: str) -> list[str]:
     if t is ir.Repeat:
         return ([f"{indent}REPEAT"] + statements(s.body, i2)
                 + [f"{indent}UNTIL {expr(s.cond)}", f"{indent}END_REPEAT;"])
+    if t is ir.Try:
+        out = [f"{indent}__TRY"] + statements(s.body, i2)
+        if s.catch_body is not None:
+            out.append(f"{indent}__CATCH" + (f"({expr(s.catch_var)})" if s.catch_var else ""))
+            out += statements(s.catch_body, i2)
+        if s.finally_body is not None:
+            out += [f"{indent}__FINALLY"] + statements(s.finally_body, i2)
+        return out + [f"{indent}__ENDTRY"]
     if t is ir.Exit:
         return [f"{indent}EXIT;"]
     if t is ir.Continue:
@@ -286,7 +294,7 @@ def pou(p: ir.Pou) -> list[str]:
     head = p.kind if p.kind == "PROGRAM" else _head(p.kind, p.access, p.modifiers, "")[:-1]
     head = f"{head} {p.name}"
     if p.extends:
-        head += f" EXTENDS {p.extends}"
+        head += f" EXTENDS {type_ref(ir.NamedType(p.extends, generic_args=p.extends_args))}"
     if p.implements:
         head += f" IMPLEMENTS {', '.join(p.implements)}"
     if p.return_type is not None:

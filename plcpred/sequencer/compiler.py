@@ -947,6 +947,25 @@ class Compiler:
                 e(ind, "else:", pos)
                 self._stmts(s.else_body, scope, ind + 1, loop)
                 e(ind + 1, "pass")
+        elif isinstance(s, ir.Try):
+            e(ind, "try:", pos)
+            self._stmts(s.body, scope, ind + 1, loop)
+            e(ind + 1, "pass")
+            if s.catch_body is not None:
+                x = self.src.temp("x")
+                # only what the PLC would raise is caught (a watchdog, or a construct
+                # plcpred cannot run, still stops the run)
+                e(ind, f"except _plc_exceptions as {x}:", pos)
+                e(ind + 1, f"if _exception_code({x}) is None: raise", pos)
+                if s.catch_var is not None:
+                    self._store(s.catch_var, f"_exception_code({x})", ty.DINT, scope,
+                                ind + 1, pos)
+                self._stmts(s.catch_body, scope, ind + 1, loop)
+                e(ind + 1, "pass")
+            if s.finally_body is not None or s.catch_body is None:
+                e(ind, "finally:", pos)
+                self._stmts(s.finally_body or [], scope, ind + 1, loop)
+                e(ind + 1, "pass")
         elif isinstance(s, ir.Case):
             sel, st = self._expr(s.selector, scope)
             tmp = self.src.temp("sel")
@@ -1683,6 +1702,13 @@ class Compiler:
         args = [a for a in call.args if not a.output]
         if key == "__NEW":
             return self._new(call, args, scope)
+        if key == "XSIZEOF":            # TwinCAT: SIZEOF as a platform-wide integer
+            key = "SIZEOF"
+        if key == "SIZEOF" and len(args) == 1 and isinstance(args[0].value, ir.TypeExpr):
+            size = ty.byte_size(self.types.resolve(args[0].value.type, args[0].value.pos))
+            if size is None:
+                raise _err(call, "SIZEOF of this type is not known to the executor")
+            return str(size), ty.DINT
         if key == "__ISVALIDREF":
             # a reference (or pointer, interface) that refers to something: not NULL
             if len(args) != 1:
@@ -1945,6 +1971,8 @@ def written_names(program: ir.Program) -> set | None:
             return None
         if isinstance(x, ir.Assign) and x.op == "REF=" and not target(x.value):
             return None         # a reference to it: written through the reference
+        if isinstance(x, ir.Try) and x.catch_var is not None and not target(x.catch_var):
+            return None
         if isinstance(x, ir.For):
             out.add(x.var.upper())
             if x.target is not None and not target(x.target):
@@ -2092,6 +2120,12 @@ class _Flow:
         elif isinstance(s, (ir.While, ir.Repeat)):
             self.use(s.cond)
             self.stmts(s.body)
+        elif isinstance(s, ir.Try):
+            self.stmts(s.body)
+            if s.catch_var is not None:
+                self.flows.append((_root(s.catch_var), set()))
+            self.stmts(s.catch_body or [])
+            self.stmts(s.finally_body or [])
 
 
 def _children(e):

@@ -232,6 +232,7 @@ def _namespace(timers: list, sfcs: list) -> dict:
         "_unlisted": _unlisted,
         "_setattrs": _setattrs, "_nest": _nest, "_copy": _copy, "_snap_any": _snap_any,
         "_refkey": _refkey, "_for_range": _for_range, "_watchdog": _watchdog,
+        "_plc_exceptions": rtm.PLC_EXCEPTIONS, "_exception_code": rtm.exception_code,
         "_opaque": _opaque, "_memcpy": _memcpy, "_memset": _memset, "_memcmp": _memcmp,
         "_chkidx": rtm.check_index, "_getbit": rtm.getbit, "_setbit": rtm.setbit,
         "_wrap": rtm.wrap, "_idiv": rtm.idiv, "_imod": rtm.imod, "_fdiv": rtm.fdiv,

@@ -234,6 +234,40 @@ MATH = {"ABS": abs, "SQRT": sqrt, "LN": ln, "LOG": log10, "EXP": math.exp, "SIN"
         "ATAN": math.atan, "ATAN2": math.atan2, "EXPT": expt}
 
 
+# ------------------------------------------------------------ exceptions (__TRY)
+
+# what compiled code raises where a PLC raises an exception, and its
+# __SYSTEM.ExceptionCode (CODESYS/TwinCAT RTSEXCPT_* numbers)
+PLC_EXCEPTIONS = (ZeroDivisionError, IndexError, AttributeError, ValueError, OverflowError,
+                  RecursionError, ExecutionError)
+RTSEXCPT_ACCESS_VIOLATION = 0x51
+RTSEXCPT_STACK_OVERFLOW = 0x54
+RTSEXCPT_ARRAYBOUNDS = 0x101
+RTSEXCPT_DIVIDEBYZERO = 0x102
+RTSEXCPT_OVERFLOW = 0x103
+RTSEXCPT_FPU_ERROR = 0x150
+
+
+def exception_code(e: BaseException) -> int | None:
+    """The PLC exception code of an error raised in compiled code, None for what is no
+    PLC exception (a watchdog, a construct plcpred cannot execute, a bug)."""
+    if isinstance(e, ZeroDivisionError):
+        return RTSEXCPT_DIVIDEBYZERO
+    if isinstance(e, IndexError):
+        return RTSEXCPT_ARRAYBOUNDS
+    if isinstance(e, RecursionError):
+        return RTSEXCPT_STACK_OVERFLOW
+    if isinstance(e, OverflowError):
+        return RTSEXCPT_OVERFLOW
+    if isinstance(e, ValueError):
+        return RTSEXCPT_FPU_ERROR          # SQRT, LN, LOG of numbers out of their domain
+    if isinstance(e, AttributeError) and "NoneType" in str(e):
+        return RTSEXCPT_ACCESS_VIOLATION   # through a pointer or reference that is not set
+    if type(e) is ExecutionError and "a null pointer" in str(e):
+        return RTSEXCPT_ACCESS_VIOLATION
+    return None
+
+
 # ---------------------------------------------------------------------- conversions
 
 def to_int(value, bits: int, signed: bool, source: str, ns_per_count: int = 1_000_000):
