@@ -764,3 +764,28 @@ END_FUNCTION_BLOCK
     with pytest.raises(Exception, match="only VAR_GENERIC CONSTANT may stand before"):
         parse_st("FUNCTION_BLOCK B\nVAR x : INT; END_VAR\nEXTENDS Root\nEND_FUNCTION_BLOCK\n",
                  "t.st")
+
+
+def test_new_and_sizeof_of_a_string_type():
+    # TwinCAT.OpenFramework: namespaceUriPointer := __NEW(STRING(MAX_STRING_LENGTH));
+    src = body("p : POINTER TO STRING(40); w : POINTER TO WSTRING; n, m : DINT; s : STRING;",
+               "IF p = 0 THEN p := __NEW(STRING(40)); w := __NEW(WSTRING); END_IF\n"
+               "p^ := 'hello'; s := p^; n := SIZEOF(STRING(10)); m := SIZEOF(WSTRING(10));")
+    assert problems(src) == []
+    inst = ProgramInstance(parse_st(src, "t.st"))
+    inst.guard(inst.scan, 0)
+    p = inst.programs[0]
+    assert (p.S, p.N, p.M) == ("hello", 11, 22)
+    assert "__NEW(STRING(40))" in to_st(parse_st(src, "t.st"))
+
+
+def test_an_assignment_as_the_condition_of_if():
+    # TwinCAT.OpenFramework's Timer: IF Restart := Start() THEN
+    src = ("FUNCTION Start : BOOL\nStart := TRUE;\nEND_FUNCTION\n"
+           + body("r, q : BOOL; n : INT;",
+                  "IF r := Start() THEN n := 1; ELSIF q := NOT r THEN n := 2; END_IF"))
+    assert problems(src) == []
+    inst = ProgramInstance(parse_st(src, "t.st"))
+    inst.guard(inst.scan, 0)
+    assert (inst.programs[0].R, inst.programs[0].N) == (True, 1)
+    assert "IF (r := Start()) THEN" in to_st(parse_st(src, "t.st"))

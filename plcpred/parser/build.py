@@ -191,17 +191,29 @@ class IRBuilder:
     def fn_operator(self, tok):
         return tok
 
+    def new_string(self, func, tok, length, count):
+        """``__NEW(STRING(80))``, ``SIZEOF(WSTRING(10))``: a string type where a call
+        takes a type."""
+        return self._type_call(func, tok, self.string_type(tok, length), count)
+
+    def string_kw(self, tok):
+        return tok
+
     def new_pointers(self, func, tok, target, count):
         """``__NEW(POINTER TO T, n)`` and ``SIZEOF(POINTER TO T)`` (TwinCAT's XSIZEOF
         too): the calls that take a pointer type."""
+        pos = self._pos(tok)
+        return self._type_call(func, tok, ir.PointerType(self._plain(target), pos=pos),
+                               count)
+
+    def _type_call(self, func, tok, type_, count):
         name = func.name.upper() if isinstance(func, ir.Name) else ""
         if name not in ("__NEW", "SIZEOF", "XSIZEOF") or (name != "__NEW"
                                                            and count is not None):
             raise self._err("only __NEW and SIZEOF take a type: __NEW(POINTER TO T, n), "
                             "SIZEOF(POINTER TO T)", self._pos(tok))
         pos = self._pos(tok)
-        args = [ir.Arg(None, ir.TypeExpr(ir.PointerType(self._plain(target), pos=pos),
-                                         pos=pos), pos=pos)]
+        args = [ir.Arg(None, ir.TypeExpr(type_, pos=pos), pos=pos)]
         if count is not None:
             args.append(ir.Arg(None, count, pos=count.pos))
         return ir.Call(func, args, pos=func.pos)

@@ -45,6 +45,7 @@ COMMON = r"""
         | postfix _CARET -> deref
         | postfix _LPAR [args] _RPAR -> call
         | postfix _LPAR POINTER _TO type_spec [_COMMA expr] _RPAR -> new_pointers
+        | postfix _LPAR string_kw [string_len] [_COMMA expr] _RPAR -> new_string
 
 ?atom: NAME -> name
      | ADDRESS -> address
@@ -88,8 +89,11 @@ set_assign: postfix _SETASSIGN expr _SEMI
 reset_assign: postfix _RESETASSIGN expr _SEMI
 attempt_assign: postfix _ATTEMPT expr _SEMI
 call_stmt: postfix _SEMI
-if_stmt: IF expr _THEN stmt_list elsif* [_ELSE stmt_list] _END_IF
-elsif: _ELSIF expr _THEN stmt_list
+if_stmt: IF condition _THEN stmt_list elsif* [_ELSE stmt_list] _END_IF
+elsif: _ELSIF condition _THEN stmt_list
+// TwinCAT accepts an assignment as the condition: IF ok := Start() THEN
+?condition: expr
+          | postfix _ASSIGN expr -> assign_expr
 case_stmt: CASE expr _OF case_part* [_ELSE stmt_list] _END_CASE
 ?case_part: case_head | stmt_nolabel
 case_head: case_label (_COMMA case_label)* _COLON
@@ -132,6 +136,7 @@ name_list: NAME (_COMMA NAME)*
           | STRUCT var_decl* _END_STRUCT -> struct_type
           | UNION var_decl* _END_UNION -> struct_type
 ?string_len: _LPAR expr _RPAR | _LSQB expr _RSQB
+!string_kw: STRING | WSTRING
 // one array element's FB_init arguments (TwinCAT: ARRAY[1..2] OF FB_T[(a := 1), (a := 2)])
 fb_init_args: _LPAR [args] _RPAR
 // a generic FB's constants (CODESYS, TwinCAT): FB_Buf<100>, FB_Buf<(N * 2)>, FB_T<(n := 5)>

@@ -1705,7 +1705,12 @@ class Compiler:
         if key == "XSIZEOF":            # TwinCAT: SIZEOF as a platform-wide integer
             key = "SIZEOF"
         if key == "SIZEOF" and len(args) == 1 and isinstance(args[0].value, ir.TypeExpr):
-            size = ty.byte_size(self.types.resolve(args[0].value.type, args[0].value.pos))
+            spec = args[0].value.type
+            if isinstance(spec, ir.StringType) and isinstance(spec.length, ir.Literal) \
+                    and isinstance(spec.length.value, int):
+                # SIZEOF(STRING(10)): the characters and the terminator
+                return str((spec.length.value + 1) * (2 if spec.wide else 1)), ty.DINT
+            size = ty.byte_size(self.types.resolve(spec, args[0].value.pos))
             if size is None:
                 raise _err(call, "SIZEOF of this type is not known to the executor")
             return str(size), ty.DINT
