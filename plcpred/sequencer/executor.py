@@ -957,9 +957,11 @@ class Sequencer:
             raise
         except Exception as e:  # a fault inside the compiled program
             raise inst.positioned(e) from None
-        time_ns = np.frombuffer(tt, dtype=np.int64).copy()
-        sig = np.frombuffer(ss, dtype=np.int32).copy()
-        val = np.frombuffer(vv, dtype=np.float64).copy()
+        # views of the typed arrays, not copies: nothing is added to them any more, and a
+        # copy would double the peak memory of a long untiled run at its very end
+        time_ns = np.frombuffer(tt, dtype=np.int64)
+        sig = np.frombuffer(ss, dtype=np.int32)
+        val = np.frombuffer(vv, dtype=np.float64)
         info = {"scans": scans, "scan_ms": scan / 1e6, "wall_s": _time.perf_counter() - wall0,
                 "mode": "scan-stepping" if scan_stepping else "event-driven",
                 "period_s": (tiled_from[1] - tiled_from[0]) / NS if tiled_from else None,
