@@ -346,7 +346,7 @@ def _run_dask(args, scheduler, bar):
         # a few batches per worker thread: the scheduler's round trip is paid per batch,
         # and the batches still balance the load; rows stream back as batches finish
         threads = max(1, sum(client.nthreads().values()))
-        size = max(1, -(-len(args) // (4 * threads)))
+        size = max(1, -(-len(args) // (8 * threads)))
         batches = [list(range(a, min(a + size, len(args)))) for a in range(0, len(args), size)]
         futures = [client.submit(run_batch, [args[k] for k in b], pure=False)
                    for b in batches]
