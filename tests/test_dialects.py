@@ -789,3 +789,25 @@ def test_an_assignment_as_the_condition_of_if():
     inst.guard(inst.scan, 0)
     assert (inst.programs[0].R, inst.programs[0].N) == (True, 1)
     assert "IF (r := Start()) THEN" in to_st(parse_st(src, "t.st"))
+
+
+def test_a_pou_as_the_codesys_editor_shows_it_without_its_end_keyword(tmp_path):
+    # CODESYS tutorials and copied code: declarations and body of one POU, no END_PROGRAM
+    f = tmp_path / "PLC_PRG.st"
+    f.write_text("PROGRAM PLC_PRG\nVAR\n    n : INT;\nEND_VAR\nCASE n OF\n0: n := 1;\n"
+                 "END_CASE")
+    from plcpred.parser import load_program
+    program = load_program(f)
+    errors, warnings = check_program(program)
+    assert errors == []
+    assert [(w.line, w.message) for w in warnings] == [
+        (1, "the PROGRAM has no END_PROGRAM: read to the end of the file (as CODESYS's "
+            "editor shows a POU)")]
+    inst = ProgramInstance(program)
+    inst.guard(inst.scan, 0)
+    assert inst.programs[0].N == 1
+    # a statement left open is still the error it was
+    with pytest.raises(Exception, match="CASE is not closed"):
+        parse_st("PROGRAM P\nVAR n : INT; END_VAR\nCASE n OF\n0: n := 1;\n", "t.st")
+    with pytest.raises(Exception, match=r"t.st:3:1: IF is not closed"):
+        parse_st("PROGRAM P\nVAR n : INT; END_VAR\nIF n > 0 THEN n := 1;", "t.st")

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from . import ir
 from .build import DIALECT, GrammarRunner
+from .errors import ProgramError
 from .grammar import ST_GRAMMAR
 from .lexer import Tokenizer
 from .names import validate_names
@@ -19,10 +20,52 @@ def parse_st(text: str, filename: str = "<input>", validate: bool = True,
     reads B&R Automation Studio's forms where they differ (``Action;`` calls)."""
     tokenizer = Tokenizer(text, filename)
     token = DIALECT.set(dialect)
+    unclosed = None
     try:
-        program = _RUNNER.parse(tokenizer, filename)
+        try:
+            program = _RUNNER.parse(tokenizer, filename)
+        except ProgramError as e:
+            # a POU as CODESYS's editor shows it (and users copy it): header, declarations
+            # and body, with no END_PROGRAM; read to the end of the file, with a warning
+            unclosed = _unclosed_pou(text, filename) if "end of the file" in e.message \
+                or e.message.startswith("unexpected end of file") else None
+            if unclosed is None:
+                raise
+            tokenizer = Tokenizer(f"{text}\nEND_{unclosed[0]}\n", filename)
+            try:
+                program = _RUNNER.parse(tokenizer, filename)
+            except ProgramError:
+                raise e from None
     finally:
         DIALECT.reset(token)
     program.pragmas = [(p, ir.Pos(filename, line, col)) for p, line, col in tokenizer.pragmas]
+    if unclosed is not None:
+        program.pragmas.append((UNCLOSED_NOTE.format(*unclosed),
+                                ir.Pos(filename, unclosed[1], 1)))
     program.source = filename
     return validate_names(program) if validate else program
+
+
+_POU_OPENERS = ("PROGRAM", "FUNCTION_BLOCK", "FUNCTION")
+
+
+def _unclosed_pou(text: str, filename: str) -> tuple[str, int] | None:
+    """(kind, line) of the POU a file opens last and never closes, when it is the only
+    one left open; None otherwise (or when the file does not even tokenize)."""
+    try:
+        tokens = list(Tokenizer(text, filename))
+    except ProgramError:
+        return None
+    stack = []
+    for t in tokens:
+        if t.type in _POU_OPENERS:
+            stack.append(t)
+        elif t.type.startswith("_END_") and t.type[5:] in _POU_OPENERS:
+            if not stack or stack[-1].type != t.type[5:]:
+                return None
+            stack.pop()
+    if len(stack) != 1:
+        return None
+    return stack[0].type, stack[0].line
+# the note a POU read to the end of its file leaves for the check to warn about
+UNCLOSED_NOTE = "{{unclosed-pou {} at line {}}}"
