@@ -633,3 +633,33 @@ END_PROGRAM
     p = _scan(f, 2)
     assert p.REG.BERROR and not p.REG.BVALID and p.REG.HRERRORCODE < 0     # FAILED()
     assert not p.RD.BVALID and p.HR < 0 and p.OS == "unset"
+
+
+def test_softmotion_axis_power_with_regulator_and_reading_the_position(tmp_path):
+    # CODESYS SoftMotion (SM3_Basic): AXIS_REF_SM3, MC_Power's bRegulatorOn/bDriveStart,
+    # MC_ReadActualPosition
+    f = write(tmp_path, "sm3.st", """PROGRAM P
+VAR
+    Drive : AXIS_REF_SM3;
+    pw : MC_Power;
+    mv : MC_MoveAbsolute;
+    rd : MC_ReadActualPosition;
+    pos : LREAL;
+    regulator : BOOL := TRUE;
+END_VAR
+pw(Axis := Drive, Enable := TRUE, bRegulatorOn := regulator, bDriveStart := TRUE);
+mv(Axis := Drive, Execute := pw.Status, Position := 100, Velocity := 1000,
+   Acceleration := 10000, Deceleration := 10000);
+rd(Axis := Drive, Enable := TRUE);
+pos := rd.Position;
+END_PROGRAM
+""")
+    assert main(["check", str(f)]) == 0
+    p = _scan(f, 100)
+    assert p.POS == 100.0 and p.MV.DONE and p.RD.VALID
+    # the regulator off: the axis is not powered and never moves
+    inst = ProgramInstance(load_program(f))
+    inst.programs[0].REGULATOR = False
+    for k in range(100):
+        inst.guard(inst.scan, k * 10 * MS)
+    assert not inst.programs[0].PW.STATUS and inst.programs[0].POS == 0.0
