@@ -199,11 +199,10 @@ class Checker:
         for include, pos in missing_project_files([self.program]):
             self.warn(pos, f"the .plcproj lists {include}, which is not there: the project "
                            "is read without it")
-        for prag, pos in self.program.pragmas:
-            if prag.startswith("{unclosed-pou "):
-                kind = prag.split()[1]
-                self.warn(pos, f"the {kind} has no END_{kind}: read to the end of the file "
-                               "(as CODESYS's editor shows a POU)")
+        from .st import unclosed_pous
+        for kind, pos in unclosed_pous(self.program):
+            self.warn(pos, f"the {kind} has no END_{kind}: read to the end of the file "
+                           "(as CODESYS's editor shows a POU)")
         self._check_duplicates()
         for t in self.program.types:
             self._check_type(t.type, {})

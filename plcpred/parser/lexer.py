@@ -163,8 +163,9 @@ class Tokenizer:
           name, ``]``, ``)`` or ``^``);
         * a keyword is a name where the vendors allow one: after ``.`` (``st.Program``),
           STRING and WSTRING before ``.`` or ``:`` (a GVL's ``WString : WideStrings;``
-          and ``WString.Concat2(...)``), and, for the modifier-like keywords of :data:`SOFT_KEYWORDS`, where only a name
-          can stand (``Internal : BOOL;``, ``x := Reference + 1;``)."""
+          and ``WString.Concat2(...)``), and, for the modifier-like keywords of
+          :data:`SOFT_KEYWORDS`, where only a name can stand (``Internal : BOOL;``,
+          ``x := Reference + 1;``)."""
         prev = None
         tokens = self._tokens()
         tok = next(tokens, None)

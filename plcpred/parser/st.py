@@ -17,7 +17,9 @@ def parse_st(text: str, filename: str = "<input>", validate: bool = True,
     configurations, global variable lists). Raises :class:`ProgramError` with the file,
     line and column of the first problem. ``validate=False`` is for front ends that
     build on this one and validate their whole result themselves; ``dialect`` "bnr"
-    reads B&R Automation Studio's forms where they differ (``Action;`` calls)."""
+    reads B&R Automation Studio's forms where they differ (``Action;`` calls). A file
+    whose one POU left open runs to its end (as CODESYS's editor shows a POU: no
+    END_PROGRAM) is read to there, noted for :func:`unclosed_pous`."""
     tokenizer = Tokenizer(text, filename)
     token = DIALECT.set(dialect)
     unclosed = None
@@ -40,7 +42,7 @@ def parse_st(text: str, filename: str = "<input>", validate: bool = True,
         DIALECT.reset(token)
     program.pragmas = [(p, ir.Pos(filename, line, col)) for p, line, col in tokenizer.pragmas]
     if unclosed is not None:
-        program.pragmas.append((UNCLOSED_NOTE.format(*unclosed),
+        program.pragmas.append((_UNCLOSED_NOTE + unclosed[0] + "}",
                                 ir.Pos(filename, unclosed[1], 1)))
     program.source = filename
     return validate_names(program) if validate else program
@@ -67,5 +69,14 @@ def _unclosed_pou(text: str, filename: str) -> tuple[str, int] | None:
     if len(stack) != 1:
         return None
     return stack[0].type, stack[0].line
-# the note a POU read to the end of its file leaves for the check to warn about
-UNCLOSED_NOTE = "{{unclosed-pou {} at line {}}}"
+
+
+# the note a POU read to the end of its file leaves in the program's pragmas
+_UNCLOSED_NOTE = "{unclosed-pou "
+
+
+def unclosed_pous(program: ir.Program) -> list[tuple[str, ir.Pos]]:
+    """(kind, header position) of each POU that :func:`parse_st` read to the end of its
+    file for want of its END keyword."""
+    return [(p[len(_UNCLOSED_NOTE):-1], pos) for p, pos in program.pragmas
+            if p.startswith(_UNCLOSED_NOTE)]
