@@ -377,11 +377,13 @@ class DemandSteps:
         """The highest instantaneous demand (steps left out: they have no rate), or the
         highest mean over any window of ``window_s`` within the horizon (a window's
         mean is largest with one of its ends on a breakpoint)."""
-        inside = self.times_s < self.horizon_s
+        # the breakpoints before the horizon: a prefix (times are sorted), taken as a
+        # view, not a copy (a week of a machine that never repeats has millions)
+        inside = int(np.searchsorted(self.times_s, self.horizon_s, side="left"))
         if not window_s:
-            return float(self.rate_nl_s[inside].max(initial=0.0)) * 60.0
+            return float(self.rate_nl_s[:inside].max(initial=0.0)) * 60.0
         w = min(float(window_s), self.horizon_s)
-        b = self.times_s[inside]
+        b = self.times_s[:inside]
         best = 0.0
         for a in range(0, len(b) + 1, 250_000):         # in blocks: bounded memory
             part = b[a:a + 250_000]
