@@ -663,3 +663,26 @@ END_PROGRAM
     for k in range(100):
         inst.guard(inst.scan, k * 10 * MS)
     assert not inst.programs[0].PW.STATUS and inst.programs[0].POS == 0.0
+
+
+def test_the_stub_index_is_current_and_only_needed_stubs_are_read(tmp_path):
+    # plcpred/libraries/index.json says which stub file declares what; a stub changed
+    # without `python -m plcpred.parser.libraries --index` fails here
+    import json
+
+    import plcpred.parser.libraries as libs
+    assert json.loads(libs.INDEX_FILE.read_text()) == libs.build_index()
+    # a fresh process reads only the stub a program needs (here Tc2_Utilities's F_LTrim)
+    f = write(tmp_path, "trim.st", "PROGRAM P\nVAR s : STRING; END_VAR\n"
+              "s := F_LTrim('  x');\nEND_PROGRAM\n")
+    import subprocess
+    import sys
+    code = ("import plcpred.parser.libraries as L\nfrom plcpred.parser import load_program\n"
+            f"load_program({str(f)!r})\n"
+            "print(L._shipped_file.cache_info().currsize, len(L._shipped_files()))")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    parsed, stubs = map(int, r.stdout.split())
+    # Tc2_Utilities, and Tc2_System for the T_MaxString it uses: two of the sixteen
+    assert (parsed, stubs >= 10) == (2, True)
+    assert _scan(f).S == "x"

@@ -49,18 +49,68 @@ def _library(program: ir.Program, namespace: str) -> Library:
                    list(program.globals))
 
 
+def _shipped_files() -> list[Path]:
+    return sorted([*SHIPPED_DIR.glob("*.st"), *SHIPPED_DIR.glob("*.TcGVL")])
+
+
+@functools.lru_cache(maxsize=None)
+def _shipped_file(name: str) -> tuple[Library, ...]:
+    """The libraries one stub file declares (one per namespace its pragma gives)."""
+    from . import load_program
+    f = SHIPPED_DIR / name
+    prog = load_program(f, libraries=False)
+    namespaces = [p[0] for p in prog.pragmas if p[0].lower().startswith("{library ")]
+    return tuple(_library(prog, ns) for pragma in namespaces or ["{library " + f.stem + "}"]
+                 for ns in pragma[len("{library "):-1].replace(",", " ").split())
+
+
 @functools.lru_cache(maxsize=None)
 def shipped() -> tuple[Library, ...]:
-    """The stubs plcpred ships (parsed once per process)."""
-    from . import load_program
-    libs = []
-    for f in sorted([*SHIPPED_DIR.glob("*.st"), *SHIPPED_DIR.glob("*.TcGVL")]):
-        prog = load_program(f, libraries=False)
-        namespaces = [p[0] for p in prog.pragmas if p[0].lower().startswith("{library ")]
-        for pragma in namespaces or ["{library " + f.stem + "}"]:
-            for ns in pragma[len("{library "):-1].replace(",", " ").split():
-                libs.append(_library(prog, ns))
-    return tuple(libs)
+    """The stubs plcpred ships, all of them (parsed once per process, 0.2 s; a program's
+    libraries are read through :func:`shipped_index`, which parses only the files that
+    declare a name it uses)."""
+    return tuple(lib for f in _shipped_files() for lib in _shipped_file(f.name))
+
+
+INDEX_FILE = SHIPPED_DIR / "index.json"
+
+
+def build_index() -> dict:
+    """{stub file: {"namespaces": [...], "names": [...]}}: every upper-case name a stub
+    file's libraries declare (POUs, types, interfaces, GVLs and their variables,
+    enumeration values), as :data:`INDEX_FILE` keeps it."""
+    out = {}
+    for f in _shipped_files():
+        libs = _shipped_file(f.name)
+        names = set()
+        for lib in libs:
+            names |= set(lib.pous) | set(lib.types) | set(lib.interfaces)
+            for g in lib.globals:
+                names |= {d.name.upper() for d in g.block.decls}
+                if g.name:
+                    names.add(g.name.upper())
+            names |= set(_enum_values(lib))
+        out[f.name] = {"namespaces": [lib.namespace for lib in libs], "names": sorted(names)}
+    return out
+
+
+@functools.lru_cache(maxsize=None)
+def shipped_index() -> dict:
+    """:data:`INDEX_FILE` read (the test suite checks it against :func:`build_index`)."""
+    import json
+    return json.loads(INDEX_FILE.read_text(encoding="utf-8"))
+
+
+class _ShippedFile:
+    """The libraries of one stub file, parsed only when a name it declares is wanted."""
+
+    def __init__(self, name: str, entry: dict):
+        self.name = name
+        self.names = frozenset(entry["names"])
+        self.namespaces = entry["namespaces"]
+
+    def libraries(self) -> tuple[Library, ...]:
+        return _shipped_file(self.name)
 
 
 def user_libraries(paths) -> list[Library]:
@@ -106,6 +156,21 @@ def _user_library(path: Path, _stamp: tuple) -> Library:
     lib = _library(program, namespace)
     lib.unread = unread
     return lib
+
+
+def main(argv=None) -> int:
+    """``python -m plcpred.parser.libraries --index``: write :data:`INDEX_FILE` again
+    after a stub changed."""
+    import json
+    import sys
+    args = sys.argv[1:] if argv is None else argv
+    if args != ["--index"]:
+        print("usage: python -m plcpred.parser.libraries --index", file=sys.stderr)
+        return 2
+    INDEX_FILE.write_text(json.dumps(build_index(), indent=1, sort_keys=True) + "\n",
+                          encoding="utf-8")
+    print(f"wrote {INDEX_FILE}")
+    return 0
 
 
 # ------------------------------------------------------------------------- references
@@ -266,13 +331,23 @@ def _defined(programs) -> set[tuple[str, str]]:
 def library_program(programs: list[ir.Program], paths=()) -> ir.Program:
     """What ``programs`` use from the libraries (user libraries first, then the shipped
     stubs), as one Program; library qualifiers in ``programs`` are dropped."""
-    libs = user_libraries(paths) + list(shipped())
-    namespaces = {lib.namespace for lib in libs} | BUILTIN_NAMESPACES
+    users = user_libraries(paths)
+    stubs = [_ShippedFile(name, entry) for name, entry in shipped_index().items()]
+    namespaces = {lib.namespace for lib in users} | BUILTIN_NAMESPACES | {
+        ns for f in stubs for ns in f.namespaces}
     for p in programs:
         strip_namespaces(p, namespaces)
     out = ir.Program(source="<libraries>")
     out.pragmas += [(_note(_UNREAD, why), ir.Pos("<libraries>", 0, 0))
-                    for lib in libs for why in lib.unread]
+                    for lib in users for why in lib.unread]
+
+    def libraries_for(name: str):
+        """The libraries that may declare ``name``, in order: the user's, then the stub
+        files that declare it (parsed on first need)."""
+        yield from users
+        for f in stubs:
+            if name in f.names:
+                yield from f.libraries()
     have = _defined(programs)
     wanted = set().union(*(referenced_names(p) for p in programs)) - have
     added: set[int] = set()
@@ -284,8 +359,9 @@ def library_program(programs: list[ir.Program], paths=()) -> ir.Program:
             continue
         # a value named bare brings its enumeration, unless anything else has the name
         by_value = kind == "V" and name not in own_values and not any(
-            name in lib.pous or name in lib.types or name in lib.interfaces for lib in libs)
-        for lib in libs:
+            name in lib.pous or name in lib.types or name in lib.interfaces
+            for lib in libraries_for(name))
+        for lib in libraries_for(name):
             found = lib.pous.get(name) or lib.types.get(name) or lib.interfaces.get(name) \
                 or (by_value and _enum_of(lib, name)) or None
             gvl = None if found or kind == "T" else next(
@@ -308,13 +384,22 @@ def library_program(programs: list[ir.Program], paths=()) -> ir.Program:
     return out
 
 
-def _enum_of(lib: Library, value: str) -> ir.TypeDecl | None:
-    """The enumerated type of ``lib`` that has the value ``value`` (upper case), where a
-    program names the value bare (``IBaseLibrary.TYPE_BIT``)."""
+def _enum_values(lib: Library) -> dict:
+    """Upper-case enumeration value -> the first of ``lib``'s TYPEs that has it."""
     if lib.enum_values is None:
         lib.enum_values = {}
         for t in lib.types.values():
             if isinstance(t.type, ir.EnumType):
                 for v, _ in t.type.values:
                     lib.enum_values.setdefault(v.upper(), t)
-    return lib.enum_values.get(value)
+    return lib.enum_values
+
+
+def _enum_of(lib: Library, value: str) -> ir.TypeDecl | None:
+    """The enumerated type of ``lib`` that has the value ``value`` (upper case), where a
+    program names the value bare (``IBaseLibrary.TYPE_BIT``)."""
+    return _enum_values(lib).get(value)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
