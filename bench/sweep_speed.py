@@ -33,12 +33,10 @@ def settings_for(n: int):
 
 def _import_plcpred() -> None:
     """A Dask worker in the state a local pool's worker starts in: forked from this
-    process, which has imported plcpred and read the library stubs (0.2 s each)."""
+    process, which has imported plcpred (0.2 s a fresh process pays)."""
     import importlib
-
-    from plcpred.parser.libraries import shipped
     importlib.import_module("plcpred.air.predict")
-    shipped()
+    importlib.import_module("plcpred.sweep")
 
 
 def main(argv=None) -> int:
@@ -65,9 +63,8 @@ def main(argv=None) -> int:
     for _ in range(args.repeat):
         with LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
                           dashboard_address=None) as cluster, Client(cluster) as client:
-            # workers up, with plcpred imported and its stubs read, before the clock
-            # starts: the local pool's workers are forked from this process and start
-            # with what it has
+            # workers up, with plcpred imported, before the clock starts: the local
+            # pool's workers are forked from this process and start with its imports
             client.run(_import_plcpred)
             t0 = time.perf_counter()
             remote = sweep(machine, settings, horizon_s, engine="dask", scheduler=client,
