@@ -187,9 +187,9 @@ class Checker:
         """Libraries the project's .plcproj references that are neither shipped as stubs
         nor given (their namespaces)."""
         if self._missing_libs is None:
-            from .libraries import BUILTIN_NAMESPACES, referenced_libraries, shipped_index
-            known = BUILTIN_NAMESPACES | {ns.upper() for f in shipped_index().values()
-                                          for ns in f["namespaces"]}
+            from .libraries import (BUILTIN_NAMESPACES, referenced_libraries,
+                                    shipped_namespaces)
+            known = BUILTIN_NAMESPACES | {ns.upper() for ns in shipped_namespaces()}
             self._missing_libs = sorted({r for r in referenced_libraries(self.g.programs)
                                          if r.upper() not in known})
         return self._missing_libs

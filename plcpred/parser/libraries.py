@@ -67,8 +67,8 @@ def _shipped_file(name: str) -> tuple[Library, ...]:
 @functools.lru_cache(maxsize=None)
 def shipped() -> tuple[Library, ...]:
     """The stubs plcpred ships, all of them (parsed once per process, 0.2 s; a program's
-    libraries are read through :func:`shipped_index`, which parses only the files that
-    declare a name it uses)."""
+    libraries are read through :func:`shipped_declaring`, which parses only the files
+    that declare a name it uses)."""
     return tuple(lib for f in _shipped_files() for lib in _shipped_file(f.name))
 
 
@@ -95,22 +95,26 @@ def build_index() -> dict:
 
 
 @functools.lru_cache(maxsize=None)
-def shipped_index() -> dict:
-    """:data:`INDEX_FILE` read (the test suite checks it against :func:`build_index`)."""
+def shipped_index() -> tuple[tuple[str, tuple[str, ...], frozenset], ...]:
+    """(stub file, its namespaces, the names it declares) as :data:`INDEX_FILE` has them
+    (the test suite checks the file against :func:`build_index`)."""
     import json
-    return json.loads(INDEX_FILE.read_text(encoding="utf-8"))
+    index = json.loads(INDEX_FILE.read_text(encoding="utf-8"))
+    return tuple((name, tuple(e["namespaces"]), frozenset(e["names"]))
+                 for name, e in index.items())
 
 
-class _ShippedFile:
-    """The libraries of one stub file, parsed only when a name it declares is wanted."""
+def shipped_namespaces() -> set[str]:
+    """The namespaces of the stubs plcpred ships (no stub is parsed)."""
+    return {ns for _, namespaces, _ in shipped_index() for ns in namespaces}
 
-    def __init__(self, name: str, entry: dict):
-        self.name = name
-        self.names = frozenset(entry["names"])
-        self.namespaces = entry["namespaces"]
 
-    def libraries(self) -> tuple[Library, ...]:
-        return _shipped_file(self.name)
+def shipped_declaring(name: str):
+    """The libraries of the stub files that declare ``name`` (upper case), in file
+    order; a file is parsed when it first declares a name asked for."""
+    for file, _, names in shipped_index():
+        if name in names:
+            yield from _shipped_file(file)
 
 
 def user_libraries(paths) -> list[Library]:
@@ -332,9 +336,7 @@ def library_program(programs: list[ir.Program], paths=()) -> ir.Program:
     """What ``programs`` use from the libraries (user libraries first, then the shipped
     stubs), as one Program; library qualifiers in ``programs`` are dropped."""
     users = user_libraries(paths)
-    stubs = [_ShippedFile(name, entry) for name, entry in shipped_index().items()]
-    namespaces = {lib.namespace for lib in users} | BUILTIN_NAMESPACES | {
-        ns for f in stubs for ns in f.namespaces}
+    namespaces = {lib.namespace for lib in users} | BUILTIN_NAMESPACES | shipped_namespaces()
     for p in programs:
         strip_namespaces(p, namespaces)
     out = ir.Program(source="<libraries>")
@@ -345,9 +347,7 @@ def library_program(programs: list[ir.Program], paths=()) -> ir.Program:
         """The libraries that may declare ``name``, in order: the user's, then the stub
         files that declare it (parsed on first need)."""
         yield from users
-        for f in stubs:
-            if name in f.names:
-                yield from f.libraries()
+        yield from shipped_declaring(name)
     have = _defined(programs)
     wanted = set().union(*(referenced_names(p) for p in programs)) - have
     added: set[int] = set()

@@ -11,7 +11,6 @@ line and column.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import re
 
 from xml.parsers import expat
@@ -281,7 +280,13 @@ class _Importer:
         up = t.name.upper()
         if up in self._string_types or up in self._declared or up in ELEMENTARY:
             return self._string_types.get(up)
-        return _shipped_string_types().get(up)    # parses the stubs once, when needed
+        # a stub's string alias (Beremiz SVGHMI's HMI_STRING): only the stubs that
+        # declare the name are parsed
+        from .libraries import shipped_declaring
+        stub = next((lib.types[up] for lib in shipped_declaring(up) if up in lib.types),
+                    None)
+        return self.string_kind(stub.type) if stub is not None and isinstance(
+            stub.type, ir.StringType) else None
 
     def simple_value(self, el: _El, text: str, t: ir.TypeRef | None):
         """An initial value written as text, for a variable of type ``t``."""
@@ -685,15 +690,3 @@ class _Importer:
 def parse_plcopen(text: str, filename: str = "<input>") -> ir.Program:
     """Import a PLCopen TC6 XML project into the IR."""
     return validate_names(_Importer(filename).project(_parse_xml(text, filename)))
-
-
-@functools.lru_cache(maxsize=None)
-def _shipped_string_types() -> dict[str, str]:
-    """The string aliases of plcpred's library stubs (Beremiz SVGHMI's HMI_STRING)."""
-    from .libraries import shipped
-    out = {}
-    for lib in shipped():
-        for name, t in lib.types.items():
-            if isinstance(t.type, ir.StringType):
-                out[name] = "W" if t.type.wide else "S"
-    return out
