@@ -138,7 +138,7 @@ def _fields(obj) -> list[str]:
 
 def _deref(p, what, where):
     if p is None:
-        raise rtm.ExecutionError(f"{what}: a null pointer", *where)
+        raise rtm.NullPointer(f"{what}: a null pointer", *where)
     return p.get() if isinstance(p, rtm.Ref) else p
 
 
@@ -330,7 +330,7 @@ class ProgramInstance:
         """A Python exception raised by compiled code, as an error at its source line."""
         pos = self._position(e.__traceback__)
         msg = str(e) or type(e).__name__
-        if isinstance(e, AttributeError) and "NoneType" in msg:
+        if isinstance(e, AttributeError) and rtm.null_access(e):
             msg = "a pointer, reference or interface variable is not set (NULL)"
         if isinstance(e, RecursionError):
             msg = "recursion: a POU calls itself"

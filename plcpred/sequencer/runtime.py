@@ -34,6 +34,17 @@ class Watchdog(ExecutionError):
     pass
 
 
+class NullPointer(ExecutionError):
+    """A pointer or reference dereferenced while it is not set (NULL)."""
+
+
+def null_access(e: BaseException) -> bool:
+    """Whether ``e`` is compiled code reaching through a pointer, reference or interface
+    that is not set: Python's AttributeError on None, or a :class:`NullPointer`."""
+    return isinstance(e, NullPointer) or (isinstance(e, AttributeError)
+                                          and "NoneType" in str(e))
+
+
 class Ref:
     """A reference to an attribute (a variable of an FB instance, a struct member, a global):
     what ``ADR``/``REF=`` give for elementary variables and what VAR_IN_OUT receives."""
@@ -239,7 +250,7 @@ MATH = {"ABS": abs, "SQRT": sqrt, "LN": ln, "LOG": log10, "EXP": math.exp, "SIN"
 # what compiled code raises where a PLC raises an exception, and its
 # __SYSTEM.ExceptionCode (CODESYS/TwinCAT RTSEXCPT_* numbers)
 PLC_EXCEPTIONS = (ZeroDivisionError, IndexError, AttributeError, ValueError, OverflowError,
-                  RecursionError, ExecutionError)
+                  RecursionError, NullPointer)
 RTSEXCPT_ACCESS_VIOLATION = 0x51
 RTSEXCPT_STACK_OVERFLOW = 0x54
 RTSEXCPT_ARRAYBOUNDS = 0x101
@@ -261,9 +272,7 @@ def exception_code(e: BaseException) -> int | None:
         return RTSEXCPT_OVERFLOW
     if isinstance(e, ValueError):
         return RTSEXCPT_FPU_ERROR          # SQRT, LN, LOG of numbers out of their domain
-    if isinstance(e, AttributeError) and "NoneType" in str(e):
-        return RTSEXCPT_ACCESS_VIOLATION   # through a pointer or reference that is not set
-    if type(e) is ExecutionError and "a null pointer" in str(e):
+    if null_access(e):
         return RTSEXCPT_ACCESS_VIOLATION
     return None
 
