@@ -471,18 +471,21 @@ def _energy_args(p) -> None:
                    help="what --price and the cost are in, shown with them (EUR, USD, ...)")
 
 
-_POWER_UNITS = {"kw/100cfm": 1.0 / 2.8316846592, "kw/(m3/min)": 1.0, "kw/m3/min": 1.0,
-                "kw/(m³/min)": 1.0, "kw/m³/min": 1.0}
+# a data sheet's units of specific power: per 100 cfm (CAGI) or per m^3/min (ISO 1217)
+_POWER_UNITS = {"kw/100cfm": "100cfm", "kw/(m3/min)": "m3/min", "kw/m3/min": "m3/min",
+                "kw/(m³/min)": "m3/min", "kw/m³/min": "m3/min"}
 
 
 def _specific_power(text: str) -> float:
     """A data sheet's specific power as kW per m^3/min: '16.5kW/100cfm', '5.8kW/(m3/min)'."""
+    from .air.sizing import CFM_M3_MIN
+
     m = re.fullmatch(r"\s*([0-9.]+(?:[eE][-+]?\d+)?)\s*(\S+)\s*", text)
-    unit = m.group(2).lower() if m else ""
-    if not m or unit not in _POWER_UNITS:
+    unit = _POWER_UNITS.get(m.group(2).lower()) if m else None
+    if unit is None:
         raise argparse.ArgumentTypeError(
             f"expected a specific power such as 16.5kW/100cfm or 5.8kW/(m3/min), not {text!r}")
-    value = float(m.group(1)) * _POWER_UNITS[unit]
+    value = float(m.group(1)) / (100.0 * CFM_M3_MIN if unit == "100cfm" else 1.0)
     if not 0 < value < float("inf"):
         raise argparse.ArgumentTypeError("a specific power must be > 0")
     return value
@@ -497,8 +500,6 @@ def _compressor(args):
     if args.sec is not None:
         raise ValueError("give --sec or --compressor-power, not both: --sec is the specific "
                          "energy itself")
-    if args.compressor_bar <= 0:
-        raise ValueError("--compressor-bar must be above 0 bar gauge")
     return CompressorSheet(args.compressor_power, args.compressor_bar)
 
 

@@ -123,6 +123,14 @@ class CompressorSheet:
     kw_per_m3_min: float
     rated_bar_g: float = 7.0
 
+    def __post_init__(self):
+        if not 0 < self.kw_per_m3_min < math.inf:
+            raise ValueError(f"a compressor's specific power must be > 0 kW per m^3/min, "
+                             f"not {self.kw_per_m3_min:g}")
+        if not 0 < self.rated_bar_g < math.inf:
+            raise ValueError(f"a compressor's rated pressure (--compressor-bar) must be "
+                             f"above 0 bar gauge, not {self.rated_bar_g:g}")
+
     @classmethod
     def from_kw_per_100cfm(cls, kw_per_100cfm: float, rated_bar_g: float = 7.0):
         return cls(kw_per_100cfm / (100.0 * CFM_M3_MIN), rated_bar_g)
@@ -199,8 +207,6 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
     elif supply is None:
         sec_kwh_per_nm3, sec_basis = DEFAULT_SEC_KWH_NM3, "the published figure at 7 bar(g)"
     elif compressor is not None:
-        if compressor.kw_per_m3_min <= 0 or compressor.rated_bar_g <= 0:
-            raise ValueError("a compressor's specific power and rated pressure must be > 0")
         sec_kwh_per_nm3 = compressor.sec_kwh_per_nm3(*supply)
         sec_basis = compressor.describe(supply[1])
         if supply[0] > compressor.rated_bar_g:
