@@ -35,6 +35,14 @@ def problems(src):
     return [str(e) for e in errors]
 
 
+def checked_scan(src):
+    """The PROGRAM of ``src`` after one scan, ``src`` having checked without errors."""
+    assert problems(src) == []
+    inst = ProgramInstance(parse_st(src, "t.st"))
+    inst.guard(inst.scan, 0)
+    return inst.programs[0]
+
+
 # ---------------------------------------------------------------- standard FB pin names
 PIN_DECLS = "c : CTU; d : CTD; ud : CTUD; s : SR; r : RS; x, y : BOOL; n, m, k : INT; qs, qr : BOOL;"
 PIN_CODES = {
@@ -630,10 +638,7 @@ def test_try_catch_finally_catches_what_the_plc_raises():
                "__try arr[i] := 1; __catch (exc2) __endtry;\n"
                "__TRY r := p^; __CATCH r := -1; __ENDTRY\n"
                "__TRY q := q + 1; __FINALLY fin2 := TRUE; __ENDTRY")
-    assert problems(src) == []
-    inst = ProgramInstance(parse_st(src, "t.st"))
-    inst.guard(inst.scan, 0)
-    p = inst.programs[0]
+    p = checked_scan(src)
     assert (p.Q, p.CAUGHT, p.FIN, p.FIN2) == (8, True, True, True)
     assert (p.EXC, p.EXC2, p.R) == (0x102, 0x101, -1)   # DIVIDEBYZERO, ARRAYBOUNDS
     # printed back as written, and read again the same
@@ -675,10 +680,7 @@ def test_sizeof_of_a_pointer_type_and_xsizeof():
     src = body("a, b, c : DINT; x : ARRAY[1..4] OF INT;",
                "a := SIZEOF(POINTER TO INT); b := TO_DINT(XSIZEOF(POINTER TO BOOL) * 3);"
                "c := XSIZEOF(x);")
-    assert problems(src) == []
-    inst = ProgramInstance(parse_st(src, "t.st"))
-    inst.guard(inst.scan, 0)
-    p = inst.programs[0]
+    p = checked_scan(src)
     assert (p.A, p.B, p.C) == (8, 24, 8)          # TwinCAT x64: a pointer is 8 bytes
     with pytest.raises(Exception, match="only __NEW and SIZEOF take a type"):
         parse_st(body("a : DINT;", "a := LEN(POINTER TO INT);"), "t.st")
@@ -690,10 +692,7 @@ def test_a_block_or_global_named_string_or_wstring():
            "VAR_INPUT a, b : WSTRING; END_VAR\nConcat2 := WCONCAT(a, b);\nEND_METHOD\n"
            "END_FUNCTION_BLOCK\nVAR_GLOBAL\n  WString : WideStrings;\nEND_VAR\n"
            + body("s : WSTRING; t : STRING;", 's := WString.Concat2("ab", "cd"); t := \'x\';'))
-    assert problems(src) == []
-    inst = ProgramInstance(parse_st(src, "t.st"))
-    inst.guard(inst.scan, 0)
-    assert inst.programs[0].S == "abcd"
+    assert checked_scan(src).S == "abcd"
 
 
 def test_generic_blocks_as_twincat_writes_them_in_a_library():
@@ -752,12 +751,9 @@ END_FUNCTION_BLOCK
 """ + body("s : Seven; t : Twice<5>; l : List<3>(40); o : OnlyGeneric<4>; n, m, c, k : INT;"
            "r : BOOL;",
            "n := s.Count(); m := t.Count(); c := l.cap0; r := s.root; o(); k := o.k2;")
-    program = parse_st(src, "t.st")
-    assert problems(src) == []
-    inst = ProgramInstance(program)
-    inst.guard(inst.scan, 0)
-    p = inst.programs[0]
+    p = checked_scan(src)
     assert (p.N, p.M, p.C, p.R, p.K) == (7, 10, 43, True, 8)
+    program = parse_st(src, "t.st")
     printed = to_st(program)
     assert "EXTENDS Lib.Base<7>" in printed and "EXTENDS Base<(M * 2)>" in printed
     assert to_st(parse_st(printed, "u.st")) == printed
@@ -771,10 +767,7 @@ def test_new_and_sizeof_of_a_string_type():
     src = body("p : POINTER TO STRING(40); w : POINTER TO WSTRING; n, m : DINT; s : STRING;",
                "IF p = 0 THEN p := __NEW(STRING(40)); w := __NEW(WSTRING); END_IF\n"
                "p^ := 'hello'; s := p^; n := SIZEOF(STRING(10)); m := SIZEOF(WSTRING(10));")
-    assert problems(src) == []
-    inst = ProgramInstance(parse_st(src, "t.st"))
-    inst.guard(inst.scan, 0)
-    p = inst.programs[0]
+    p = checked_scan(src)
     assert (p.S, p.N, p.M) == ("hello", 11, 22)
     assert "__NEW(STRING(40))" in to_st(parse_st(src, "t.st"))
 
@@ -784,10 +777,8 @@ def test_an_assignment_as_the_condition_of_if():
     src = ("FUNCTION Start : BOOL\nStart := TRUE;\nEND_FUNCTION\n"
            + body("r, q : BOOL; n : INT;",
                   "IF r := Start() THEN n := 1; ELSIF q := NOT r THEN n := 2; END_IF"))
-    assert problems(src) == []
-    inst = ProgramInstance(parse_st(src, "t.st"))
-    inst.guard(inst.scan, 0)
-    assert (inst.programs[0].R, inst.programs[0].N) == (True, 1)
+    p = checked_scan(src)
+    assert (p.R, p.N) == (True, 1)
     assert "IF (r := Start()) THEN" in to_st(parse_st(src, "t.st"))
 
 
