@@ -234,7 +234,7 @@ def cmd_predict(args) -> int:
     # a stroke with neither stroke_time_s nor switch_delay_s is a step: it has a volume
     # but no rate, so the instantaneous peak leaves it out (the windowed ones count it)
     steps = (", strokes without stroke_time_s left out"
-             if prof._steps_for(0.0).n_steps else "")
+             if prof.has_steps else "")
     print(f"mean {prof.mean_l_min:.1f} NL/min, peak {prof.peak_l_min():.1f} NL/min "
           f"(instantaneous{steps}), {prof.peak_l_min(1.0):.1f} NL/min (1 s), "
           f"{prof.peak_l_min(60.0):.1f} NL/min (1 min)")

@@ -109,7 +109,11 @@ def plot_demand(profile, path, title="Air demand", shown: int | None = SHOWN_CON
                  f"{profile.peak_l_min():.1f} NL/min (instantaneous; grid "
                  f"{profile.dt_s:g} s{avg}), total {profile.total_nl:.1f} NL", fontsize=10)
     ax2 = ax.twinx()
-    ax2.plot(bin_edges * scale, profile.cumulative_nl_at(bin_edges), color="black", lw=1.4,
+    # the layers hold every consumer once: their bins add up to the cumulative (without
+    # merging all the rectangles again, which a week that never repeats makes costly)
+    cumulative_nl = np.concatenate([[0.0], np.cumsum(
+        flows.sum(axis=0) * np.diff(bin_edges) / 60.0 if layers else np.zeros(len(t)))])
+    ax2.plot(bin_edges * scale, cumulative_nl, color="black", lw=1.4,
              label="cumulative NL")
     ax2.set_ylabel("cumulative (NL)")
     ax2.set_ylim(bottom=0)

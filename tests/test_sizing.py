@@ -529,3 +529,52 @@ def test_idle_air_is_air_while_the_machine_waits(tmp_path):
     b = size(m.profile, waiting=rest_mask(m.machine, m.timeline, m.profile))
     blower = float(m.profile.consumer_nl[m.profile.names.index("blower")])
     assert b.idle_blowers_nl / blower == pytest.approx((4.0 - 1.0 - 0.2) / 4.0, abs=0.01)
+
+
+def test_peaks_in_blocks_are_the_peaks_of_the_whole_run():
+    # a run that never repeats is worked out in blocks of time; every block must see
+    # each window whole, also those across a block's end, and strokes without duration
+    from plcpred.air.demand import DemandProfile
+
+    rng = np.random.default_rng(3)
+    horizon = 400.0
+    rects = []
+    for _ in range(4):
+        # times in eighths of a second: a window's ends then land exactly on breakpoints
+        start = np.sort(rng.integers(0, 8 * 400, 250)) / 8.0
+        dur = np.where(rng.random(250) < 0.2, 0.0, rng.integers(1, 24, 250) / 8.0)
+        rects.append((start, dur, rng.uniform(0.1, 2.0, 250)))
+    rects.append((np.array([0.0]), np.array([horizon]), np.array([horizon * 0.5])))
+    prof = DemandProfile(names=list("abcdL"), roles=["active"] * 4 + ["leak"], rects=rects,
+                         dt_s=0.1, horizon_s=horizon)
+    # by hand, without the steps (a window's air is then continuous in its position):
+    # the rate just after each breakpoint, and each window with an end on a breakpoint,
+    # from the plain cumulative sums
+    ramps = [tuple(x[r[1] > 0] for x in r) for r in rects]
+    smooth = DemandProfile(names=list("abcdL"), roles=["active"] * 4 + ["leak"],
+                           rects=ramps, dt_s=0.1, horizon_s=horizon)
+    starts, durs, vols = (np.concatenate([r[k] for r in ramps]) for k in range(3))
+    points = np.unique(np.concatenate([starts, starts + durs]))
+    points = points[points < horizon]
+    covering = (starts[None, :] <= points[:, None]) & (points[:, None] < (starts + durs)[None, :])
+    rate = covering @ (vols / durs)
+    assert smooth.peak_l_min() == pytest.approx(rate.max() * 60, rel=1e-12)
+    assert prof.peak_l_min() == pytest.approx(rate.max() * 60, rel=1e-12)  # steps: no rate
+    for w in (0.125, 1.0, 7.25, 60.0):
+        ends = np.concatenate([points, points + w, [w, horizon]])
+        ends = ends[(ends >= w) & (ends <= horizon)]
+        gain = smooth.cumulative_nl_at(ends) - smooth.cumulative_nl_at(ends - w)
+        for block in (10**9, 1, 17, 300):
+            assert smooth.peak_l_min(w, block_rects=block) == pytest.approx(
+                gain.max() / w * 60, rel=1e-12)
+    for w in (None, 0.125, 1.0, 7.3, 60.0, 399.0, 800.0):
+        whole = prof.peak_l_min(w, block_rects=10**9)
+        for block in (1, 17, 300):
+            assert prof.peak_l_min(w, block_rects=block) == pytest.approx(whole, rel=1e-12)
+    # a repeating machine: its stretch of distinct windows, in blocks too
+    from plcpred.air import predict
+    tiled = predict(PICK, "1h").profile
+    assert tiled.templates is not None
+    for w in (None, 1.0, 60.0):
+        assert tiled.peak_l_min(w, block_rects=5) == pytest.approx(
+            tiled.peak_l_min(w), rel=1e-12)

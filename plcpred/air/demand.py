@@ -328,9 +328,11 @@ class DemandSteps:
     cum_nl: np.ndarray
     horizon_s: float
     n_steps: int = 0          # strokes with no duration (no rate: left out of peaks)
+    start_s: float = 0.0      # the stretch [start_s, horizon_s] it covers (the air before
+    #                           start_s is not in cum_nl: a block of a longer run)
 
     @classmethod
-    def of(cls, rects, horizon_s: float) -> "DemandSteps":
+    def of(cls, rects, horizon_s: float, start_s: float = 0.0) -> "DemandSteps":
         # written to hold few arrays of all breakpoints at once: a week of a fast machine
         # has millions of them
         start = np.concatenate([r[0] for r in rects]) if rects else np.zeros(0)
@@ -350,7 +352,7 @@ class DemandSteps:
             jump = jump[order]
         del order
         if not len(t):
-            return cls(t, t, t, float(horizon_s), n_step)
+            return cls(t, t, t, float(horizon_s), n_step, float(start_s))
         # one breakpoint per distinct time (t is sorted)
         first = np.flatnonzero(np.concatenate([[True], t[1:] != t[:-1]]))
         times = t[first]
@@ -361,7 +363,8 @@ class DemandSteps:
         gaps = np.diff(times, prepend=times[:1])
         rate_before = np.concatenate([[0.0], rate_after[:-1]])
         cum = np.cumsum(rate_before * gaps + jumps)
-        return cls(times, np.clip(rate_after, 0.0, None), cum, float(horizon_s), n_step)
+        return cls(times, np.clip(rate_after, 0.0, None), cum, float(horizon_s), n_step,
+                   float(start_s))
 
     def cumulative_nl(self, at_s) -> np.ndarray:
         """NL used by each time (steps at a time counted in)."""
@@ -375,26 +378,32 @@ class DemandSteps:
 
     def peak_l_min(self, window_s: float | None = None) -> float:
         """The highest instantaneous demand (steps left out: they have no rate), or the
-        highest mean over any window of ``window_s`` within the horizon (a window's
-        mean is largest with one of its ends on a breakpoint)."""
+        highest mean over any window of ``window_s`` within ``[start_s, horizon_s]`` (a
+        window's mean is largest with one of its ends on a breakpoint)."""
         # the breakpoints before the horizon: a prefix (times are sorted), taken as a
         # view, not a copy (a week of a machine that never repeats has millions)
         inside = int(np.searchsorted(self.times_s, self.horizon_s, side="left"))
         if not window_s:
             return float(self.rate_nl_s[:inside].max(initial=0.0)) * 60.0
         w = min(float(window_s), self.horizon_s)
+        first_end = self.start_s + w
         b = self.times_s[:inside]
         best = 0.0
         for a in range(0, len(b) + 1, 250_000):         # in blocks: bounded memory
             part = b[a:a + 250_000]
-            ends = np.concatenate([part, part + w] + ([[w, self.horizon_s]] if not a else []))
-            ends = ends[(ends >= w - 1e-12) & (ends <= self.horizon_s + 1e-12)]
+            ends = np.concatenate([part, part + w]
+                                  + ([[first_end, self.horizon_s]] if not a else []))
+            ends = ends[(ends >= first_end - 1e-12) & (ends <= self.horizon_s + 1e-12)]
             gain = self.cumulative_nl(ends) - self.cumulative_nl(ends - w)
             best = max(best, float(gain.max(initial=0.0)))
         return best / w * 60.0
 
 
 # ---------------------------------------------------------------------- the profile
+
+
+# rectangles merged at once for the peaks (about 150 bytes each while merged)
+PEAK_BLOCK_RECTS = 200_000
 
 
 def shows_every_consumer(n_consumers: int, shown: int | None) -> bool:
@@ -426,6 +435,20 @@ class _Series:
     def rects(self) -> tuple:
         """(start_s, duration_s, nl) of all the rectangles."""
         return self.start_s, self.duration_s, self.nl
+
+    def clipped(self, lo_s: float, hi_s: float) -> tuple:
+        """(start_s, duration_s, nl) of the air that flows within ``[lo_s, hi_s]``: the
+        rectangles cut at both ends (their volume in proportion, the rate unchanged)
+        and the steps at times within it."""
+        i0 = int(np.searchsorted(self.reach_s, lo_s, side="left"))
+        i1 = int(np.searchsorted(self.start_s, hi_s, side="right"))
+        start, dur, nl = self.start_s[i0:i1], self.duration_s[i0:i1], self.nl[i0:i1]
+        a = np.maximum(start, lo_s)
+        cut = np.minimum(start + dur, hi_s) - a
+        ramp = dur > 0
+        keep = np.where(ramp, cut > 0, start >= lo_s)
+        share = np.divide(cut, dur, out=np.ones_like(cut), where=ramp)
+        return a[keep], np.where(ramp, cut, 0.0)[keep], (nl * share)[keep]
 
     def cells_nl(self, edges_s) -> np.ndarray:
         """Normal litres in each cell of ``edges_s`` (any stretch of any grid)."""
@@ -461,14 +484,21 @@ class DemandProfile:
     def steps(self) -> DemandSteps:
         """The exact total demand over the whole horizon (breakpoints, rates,
         cumulative). For a repeating machine this holds every repetition: the profile's
-        own peaks use :meth:`_steps_for`, which needs a few."""
-        return self._steps_over(self.horizon_s)
+        own peaks need a few (:meth:`peak_l_min`)."""
+        return DemandSteps.of(self._rects_over(self.horizon_s), self.horizon_s)
 
-    def _steps_for(self, window_s: float) -> DemandSteps:
-        """The exact demand over a stretch that holds every distinct window of
-        ``window_s`` (the whole horizon unless the machine repeats)."""
+    @property
+    def has_steps(self) -> bool:
+        """Whether some stroke has no duration (a volume without a rate, which the
+        instantaneous peak leaves out)."""
+        return any(r is not None and bool(np.any(np.asarray(r[1]) <= 0))
+                   for r in list(self.rects) + list(self.templates or ()))
+
+    def _cover_s(self, window_s: float) -> float:
+        """The end of a stretch from 0 that holds every distinct window of ``window_s``
+        (the whole horizon unless the machine repeats)."""
         if self.templates is None:
-            return self._steps_over(self.horizon_s)
+            return self.horizon_s
         # the demand repeats from t1 = (the last base stroke's end, the template's end
         # less a period) on, so every window of window_s has an equal one that starts
         # within [t1, t1 + period)
@@ -483,22 +513,20 @@ class DemandProfile:
         hi = max([float((tm[0] + np.clip(tm[1], 0, None)).max())
                   for tm in self.templates if tm is not None and len(tm[0])] + [0.0])
         t1 = max(ends + [hi - p, 0.0])
-        return self._steps_over(min(self.horizon_s, t1 + p + float(window_s or 0.0)))
+        return min(self.horizon_s, t1 + p + float(window_s or 0.0))
 
-    def _steps_over(self, cover_s: float) -> DemandSteps:
-        """The exact demand over ``[0, cover_s]`` (a repeating machine's repetitions
-        up to then)."""
-        cache = self.__dict__.setdefault("_steps_cache", {})
-        if cover_s not in cache:
-            rects = list(self.rects)
-            p = self.period_s
-            for tm in self.templates or ():
-                if tm is not None and len(tm[0]):
-                    k = np.arange(int(max(0.0, (cover_s - tm[0].min()) // p)) + 1) * p
-                    rects.append(((tm[0][None, :] + k[:, None]).ravel(),
-                                  np.tile(tm[1], len(k)), np.tile(tm[2], len(k))))
-            cache[cover_s] = DemandSteps.of(rects, cover_s)
-        return cache[cover_s]
+    def _rects_over(self, cover_s: float) -> list:
+        """Per consumer, the rectangles up to ``cover_s`` (a repeating machine's
+        repetitions up to then) as (start_s, duration_s, nl) sorted by start."""
+        rects = list(self.rects)
+        p = self.period_s
+        for i, tm in enumerate(self.templates or ()):
+            if tm is not None and len(tm[0]):
+                k = np.arange(int(max(0.0, (cover_s - tm[0].min()) // p)) + 1) * p
+                reps = _Series([((tm[0][None, :] + k[:, None]).ravel(),
+                                 np.tile(tm[1], len(k)), np.tile(tm[2], len(k)))])
+                rects[i] = _Series([rects[i], reps.rects]).rects
+        return rects
 
     @functools.cached_property
     def edges_s(self) -> np.ndarray:
@@ -599,10 +627,33 @@ class DemandProfile:
     def mean_l_min(self) -> float:
         return self.total_nl / self.horizon_s * 60.0
 
-    def peak_l_min(self, window_s: float | None = None) -> float:
+    def peak_l_min(self, window_s: float | None = None,
+                   block_rects: int = PEAK_BLOCK_RECTS) -> float:
         """The highest instantaneous demand, or the highest mean over any window of
-        ``window_s``: exact (:class:`DemandSteps`, the same at every ``dt``)."""
-        return self._steps_for(window_s or 0.0).peak_l_min(window_s)
+        ``window_s``: exact (:class:`DemandSteps`, the same at every ``dt``).
+
+        Worked out in blocks of time holding about ``block_rects`` rectangles, each
+        block reaching ``window_s`` into the next so that every window lies wholly in
+        one: a week of a machine that never repeats has millions of breakpoints, and
+        all of them merged at once would take more memory than the run itself."""
+        cache = self.__dict__.setdefault("_peak_cache", {})
+        key = (float(window_s or 0.0), block_rects)
+        if key not in cache:
+            cover = self._cover_s(window_s or 0.0)
+            series = [_Series([r]) for r in self._rects_over(cover) if len(r[0])]
+            n = sum(len(x.start_s) for x in series)
+            bounds = np.linspace(0.0, cover, max(1, -(-n // max(1, block_rects))) + 1)
+            w = min(float(window_s), cover) if window_s else 0.0
+            best = 0.0
+            for lo, nxt in zip(bounds[:-1], bounds[1:]):
+                hi = cover if nxt >= bounds[-1] else min(cover, float(nxt) + w)
+                if window_s and float(lo) + w > hi:
+                    continue
+                block = DemandSteps.of([x.clipped(float(lo), hi) for x in series], hi,
+                                       start_s=float(lo))
+                best = max(best, block.peak_l_min(w if window_s else None))
+            cache[key] = best
+        return cache[key]
 
     def grid_peak_l_min(self, window_s: float | None = None) -> float:
         """The highest total flow of a grid cell, or mean over ``window_s`` in whole
