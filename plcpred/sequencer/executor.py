@@ -20,6 +20,8 @@ that never repeat simply keep the executor running scan by scan to the horizon.
 from __future__ import annotations
 
 import builtins
+import hashlib
+import pickle
 import re
 import time as _time
 from array import array
@@ -943,7 +945,7 @@ class Sequencer:
                         for sch, _, _ in schedules:
                             sch.log.clear()
                 if can_tile and len(seen) < MAX_KEYS:
-                    key = self._state_key(inst, t, schedules, cylinders)
+                    key = _digest(self._state_key(inst, t, schedules, cylinders))
                     if key is not None:
                         t1 = seen.get(key)
                         if t1 is not None:
@@ -1022,6 +1024,20 @@ class Sequencer:
             parts.append(k)
         return (inst.snap(t), tuple(parts), tuple([cyl.state_key(t) for cyl in cylinders]),
                 inst.phase(t))
+
+
+def _digest(key):
+    """A fixed point's state as a 128-bit digest of its pickled form, so that the
+    MAX_KEYS states remembered while looking for a repetition take 16 bytes each
+    instead of a whole machine's variables (a wide program's state is kilobytes: 40 MB
+    over a run that never repeats). Two states that differ share a digest with
+    probability 2**-128; a state pickle cannot write is kept as it is."""
+    if key is None:
+        return None
+    try:
+        return hashlib.blake2b(pickle.dumps(key, protocol=5), digest_size=16).digest()
+    except Exception:  # noqa: BLE001  (a value of a class made for the program)
+        return key
 
 
 _ATTR = re.compile(r"[A-Za-z_][A-Za-z0-9_]*", re.ASCII)
