@@ -163,6 +163,11 @@ class Compiler:
         self.et_thresholds: set = set()  # constants timers' ET is compared with (ns)
         self._et_const = False
         self._member_names = names_in(program)
+        self._extended = {n.upper() for p in program.pous for n in _base_names(p)}
+        self._global_constants = {
+            d.name.upper() for b in [g.block for g in program.globals]
+            + [b for c in program.configurations for b in c.var_blocks]
+            if "CONSTANT" in [q.upper() for q in b.qualifiers] for d in b.decls}
         self.referenced: set | None = set()   # names handed out by reference (_ref_of)
 
     # ================================================================== project
@@ -457,7 +462,9 @@ class Compiler:
         e(1, "def _snap(self, rel):")
         sinks = self._sinks(fb, scope)
         self.sinks[fb.name] = sinks
-        parts = [self._snap_code(f"self.{ident(d.name)}", scope.names[ident(d.name)][1])
+        counted = self._threshold_counters(fb, scope) - sinks
+        parts = [f"self.{ident(d.name)}.key_counted(rel)" if ident(d.name) in counted else
+                 self._snap_code(f"self.{ident(d.name)}", scope.names[ident(d.name)][1])
                  for d in own if d not in temps and ident(d.name) not in sinks]
         parts += [f"self._e_{ident(d.name)}" for d in edges]
         if pou.is_sfc:
@@ -568,6 +575,56 @@ class Compiler:
             # step scan by scan while timers run
             self.reads_et = True
         return sinks
+
+    def _threshold_counters(self, fb: FbT, scope: Scope) -> set:
+        """Counters whose count nothing reads, only their Q, which stops changing once
+        the count is past the threshold: a CTU whose PV is one constant (Q := CV >= PV)
+        or a CTD (Q := CV <= 0). They are compared with the count held at the threshold
+        (``key_counted``), so that a machine that counts its parts to request a filter
+        check after 5000 of them repeats its cycle once it has. Decided from the FB's
+        own code: the instance is only called (every input named, PV one constant, CV
+        bound to nothing) and its Q read; an instance named as ``x.member`` anywhere,
+        or one of an FB that another extends, is left alone."""
+        pou = fb.pou
+        if pou.name.upper() in self._extended:
+            return set()
+        kinds = {}
+        for b in pou.var_blocks:
+            for d in b.decls if b.kind == "VAR" else ():
+                t = scope.names[ident(d.name)][1]
+                kind = t.name.upper().partition("_")[0] if isinstance(t, StdFbT) else None
+                if kind in ("CTU", "CTD") and not d.address \
+                        and d.name.upper() not in self._member_names:
+                    kinds[d.name.upper()] = kind
+        if not kinds:
+            return set()
+        own_constants = {d.name.upper() for b in pou.var_blocks
+                         if "CONSTANT" in [q.upper() for q in b.qualifiers] for d in b.decls}
+        local = {d.name.upper() for b in pou.var_blocks for d in b.decls} | {
+            d.name.upper() for m in pou.methods for b in m.var_blocks for d in b.decls}
+
+        def constant(x):
+            if isinstance(x, ir.Literal):
+                return ("literal", x.type_name, x.value)
+            if isinstance(x, ir.Name) and (x.name.upper() in own_constants or (
+                    x.name.upper() in self._global_constants and x.name.upper() not in local)):
+                return ("name", x.name.upper())
+            return None
+
+        ok = dict.fromkeys(kinds, True)
+        pv: dict = {k: set() for k in kinds}
+        for name, node, parent in _name_uses(pou, set(kinds)):
+            if isinstance(parent, ir.Call) and parent.func is node:
+                for a in parent.args:
+                    if a.name is None or a.name.upper() == "CV":
+                        ok[name] = False
+                    elif a.name.upper() == "PV":
+                        pv[name].add(constant(a.value))
+            elif not (isinstance(parent, ir.Member) and parent.base is node
+                      and parent.member.upper() == "Q"):
+                ok[name] = False        # CV read or written, the instance handed on, ...
+        return {ident(k) for k, kind in kinds.items() if ok[k] and (
+            kind == "CTD" or (len(pv[k]) <= 1 and None not in pv[k]))}
 
     def _snap_code(self, code: str, t) -> str:
         if t.cat in ("fb", "struct"):
@@ -1935,6 +1992,30 @@ def names_in(program, cls=ir.Member, attr="member") -> set:
         elif hasattr(x, "__dataclass_fields__"):
             stack.extend(getattr(x, f) for f in x.__dataclass_fields__ if f != "pos")
     return names
+
+
+def _name_uses(root, names: set) -> list:
+    """(upper-case name, node, parent) of every ``ir.Name`` in ``root`` whose name is in
+    ``names``; the parent is the node whose field holds it (lists are passed through)."""
+    out = []
+    stack = [(root, None)]
+    while stack:
+        x, parent = stack.pop()
+        if isinstance(x, ir.Name) and x.name.upper() in names:
+            out.append((x.name.upper(), x, parent))
+        if isinstance(x, (list, tuple)):
+            stack.extend((y, parent) for y in x)
+        elif hasattr(x, "__dataclass_fields__"):
+            stack.extend((getattr(x, f), x) for f in x.__dataclass_fields__ if f != "pos")
+    return out
+
+
+def _base_names(pou) -> list[str]:
+    """The names of the FBs ``pou`` extends (without a library prefix)."""
+    ext = getattr(pou, "extends", None)
+    if not ext:
+        return []
+    return [str(n).rsplit(".", 1)[-1] for n in (ext if isinstance(ext, list) else [ext])]
 
 
 def _target_names(e, out: set) -> bool:

@@ -944,13 +944,18 @@ class Sequencer:
                     if not opened:
                         for sch, _, _ in schedules:
                             sch.log.clear()
-                if can_tile and len(seen) < MAX_KEYS:
+                if can_tile:
                     key = _digest(self._state_key(inst, t, schedules, cylinders))
                     if key is not None:
                         t1 = seen.get(key)
                         if t1 is not None:
                             tiled_from = (t1, t)
                             break
+                        if len(seen) >= MAX_KEYS:
+                            # start over: a machine that repeats only later (a counter
+                            # past its threshold) is still found if its period holds
+                            # fewer than MAX_KEYS fixed points
+                            seen.clear()
                         seen[key] = t
                 if nxt is None:
                     break  # nothing will ever change again

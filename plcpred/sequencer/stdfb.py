@@ -290,6 +290,12 @@ class CTU(StandardFB):
         self.Q = self.CV >= self.PV
 
 
+    def key_counted(self, rel) -> tuple:
+        """:meth:`key` with the count held at PV: for a counter whose CV nothing reads
+        and whose PV stays, counts at or past PV behave alike (Q stays TRUE until R)."""
+        return (self.CU, self.R, self.PV, self.Q, min(self.CV, self.PV), self._cu, self._max)
+
+
 class CTD(StandardFB):
     """Down-counter: LD loads PV, each rising edge of CD counts down; Q := CV <= 0."""
     INPUTS, OUTPUTS = ("CD", "LD", "PV"), ("Q", "CV")
@@ -307,6 +313,11 @@ class CTD(StandardFB):
         elif edge and self.CV > self._min:
             self.CV -= 1
         self.Q = self.CV <= 0
+
+    def key_counted(self, rel) -> tuple:
+        """:meth:`key` with the count held at 0: for a counter whose CV nothing reads,
+        counts at or below 0 behave alike (Q stays TRUE until LD loads PV)."""
+        return (self.CD, self.LD, self.PV, self.Q, max(self.CV, 0), self._cd, self._min)
 
 
 class CTUD(StandardFB):
