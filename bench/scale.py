@@ -244,12 +244,17 @@ def main(argv=None) -> int:
             ok &= good
             print(f"target: 24 h jittered within 2x tiled: {ratio:.1f}x "
                   f"({86400 / jr['wall_s']:,.0f}x real time) -> {'ok' if good else 'MISSED'}")
-            week = run_child(pick, "7d", None)
-            show("pick_place 7d", week)
-            good = week["peak_mb"] < 500
+            # every sample machine, the ones that never repeat (or only late) among them
+            weeks = {}
+            for m in sorted((ROOT / "samples").rglob("*.toml")):
+                weeks[m.stem] = run_child(m, "7d", None)
+                show(f"{m.stem} 7d", weeks[m.stem])
+            peaks = {k: r.get("peak_mb", float("inf")) for k, r in weeks.items()}
+            worst = max(peaks, key=peaks.get)
+            good = peaks[worst] < 500
             ok &= good
-            print(f"target: 7 days under 500 MB: {week['peak_mb']:.0f} MB -> "
-                  f"{'ok' if good else 'MISSED'}")
+            print(f"target: 7 days of every sample under 500 MB: at most {peaks[worst]:.0f} "
+                  f"MB ({worst}) -> {'ok' if good else 'MISSED'}")
     return 0 if ok else 1
 
 
