@@ -73,6 +73,25 @@ def test_csv_written_in_stretches_equals_the_exact_cumulative_on_the_whole_grid(
     assert body[:, 1] == pytest.approx(body[:, 2:].sum(axis=1), abs=1e-4)
 
 
+def test_groups_read_in_pieces_equal_the_exact_cumulative(tmp_path, monkeypatch):
+    # a group of consumers is read without merging its rectangles, and in pieces of
+    # the grid when it holds many: each cell against the exact cumulative of them all
+    from plcpred.air import demand
+
+    prof = predict(wide_machine(tmp_path), "30s", dt=0.01).profile
+    edges = prof.edges_s
+    which = [0, 3, 5, 16, 18]                     # cylinders, the leak
+    rects = [np.concatenate([prof.rects[i][k] for i in which]) for k in range(3)]
+    expected = np.diff(_cumulative(edges, *rects))
+    whole = prof.cells_nl(which)
+    monkeypatch.setattr(demand, "CELL_ITEMS", 7)    # a piece per 7 rectangles
+    pieces = prof.cells_nl(which)
+    assert whole == pytest.approx(expected, abs=1e-12)
+    assert pieces == pytest.approx(expected, abs=1e-12)
+    assert prof.cells_nl([4], edges[100:2001:3]) == pytest.approx(
+        np.diff(_cumulative(edges[100:2001:3], *prof.rects[4])), abs=1e-12)
+
+
 def test_a_wide_machine_shows_its_largest_users_and_other(tmp_path):
     m = wide_machine(tmp_path)
     prof = predict(m, "20s", dt=0.01).profile

@@ -450,13 +450,57 @@ class _Series:
         share = np.divide(cut, dur, out=np.ones_like(cut), where=ramp)
         return a[keep], np.where(ramp, cut, 0.0)[keep], (nl * share)[keep]
 
+    def reaching(self, lo_s: float, hi_s: float) -> tuple:
+        """(start_s, duration_s, nl) of the rectangles that reach into ``[lo_s, hi_s]``
+        (views: a stretch of the sorted arrays)."""
+        lo = int(np.searchsorted(self.reach_s, lo_s, side="left"))
+        hi = int(np.searchsorted(self.start_s, hi_s, side="right"))
+        return self.start_s[lo:hi], self.duration_s[lo:hi], self.nl[lo:hi]
+
     def cells_nl(self, edges_s) -> np.ndarray:
         """Normal litres in each cell of ``edges_s`` (any stretch of any grid)."""
-        edges_s = np.asarray(edges_s, dtype=float)
-        lo = int(np.searchsorted(self.reach_s, edges_s[0], side="left"))
-        hi = int(np.searchsorted(self.start_s, edges_s[-1], side="right"))
-        return _cell_volumes(edges_s, self.start_s[lo:hi], self.duration_s[lo:hi],
-                             self.nl[lo:hi])
+        return _cells_in_pieces(edges_s, [self])
+
+
+class _Group:
+    """Several consumers read together without merging their rectangles: each member's
+    own sorted rectangles are cut to the stretch asked for, so that the memory follows
+    the stretch, not the run (the "other" of a wide machine over a day that never
+    repeats is millions of rectangles)."""
+
+    def __init__(self, members: list[_Series]):
+        self.members = members
+
+    def cells_nl(self, edges_s) -> np.ndarray:
+        """Normal litres in each cell of ``edges_s`` (any stretch of any grid)."""
+        return _cells_in_pieces(edges_s, self.members)
+
+
+# rectangles placed on a grid at once (about 100 bytes each while placed)
+CELL_ITEMS = 250_000
+
+
+def _cells_in_pieces(edges_s, members: list) -> np.ndarray:
+    """The cells of ``edges_s`` under the rectangles of ``members`` (series) together,
+    worked out in pieces of the grid that each hold at most about ``CELL_ITEMS``
+    rectangles (a cell's air depends only on the rectangles that reach into it)."""
+    edges_s = np.asarray(edges_s, dtype=float)
+
+    def volumes(e):
+        parts = [m.reaching(e[0], e[-1]) for m in members]
+        if not parts:
+            return np.zeros(len(e) - 1)
+        if len(parts) == 1:
+            return _cell_volumes(e, *parts[0])
+        return _cell_volumes(e, *(np.concatenate([p[k] for p in parts]) for k in range(3)))
+
+    n_cells = len(edges_s) - 1
+    items = sum(len(m.reaching(edges_s[0], edges_s[-1])[0]) for m in members)
+    pieces = min(n_cells, -(-items // CELL_ITEMS))
+    if pieces <= 1:
+        return volumes(edges_s)
+    cuts = np.linspace(0, n_cells, pieces + 1).astype(int)
+    return np.concatenate([volumes(edges_s[a:b + 1]) for a, b in zip(cuts[:-1], cuts[1:])])
 
 
 @dataclass
@@ -567,11 +611,21 @@ class DemandProfile:
             return out.reshape(at_s.shape)
         return cumulative
 
+    def _member(self, i: int) -> _Series:
+        """Consumer ``i``'s rectangles as a series (made once)."""
+        members = self.__dict__.setdefault("_members", {})
+        if i not in members:
+            members[i] = _Series([self.rects[i]])
+        return members[i]
+
     def _cells_of(self, which):
         """A function of grid edges giving the normal litres per cell of the consumers at
-        indices ``which`` (their rectangles merged once)."""
+        indices ``which`` (each consumer's rectangles cut to the stretch asked for)."""
         if self.templates is None:
-            return self.series(which).cells_nl
+            which = list(which)
+            if len(which) == 1:
+                return self._member(which[0]).cells_nl
+            return _Group([self._member(i) for i in which]).cells_nl
         cumulative = self._cumulative_of(which)
         return lambda edges_s: np.diff(cumulative(edges_s))
 
