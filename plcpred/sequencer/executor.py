@@ -1075,24 +1075,29 @@ def _changed(values: tuple, before: tuple, chunk: int = 32) -> list[int]:
     return out
 
 
-def _slot_expressions(slots) -> tuple[dict, list[str]]:
+def _slot_expressions(slots) -> tuple[dict, str, list[str]]:
     """The one way slots reach generated code: each ``(object, attribute)`` becomes
-    ``o<k>.<attribute>`` (``o<k>.x[<index>]`` for an SFC runtime's step flag), the
-    attribute checked to be a generated (mangled) name, the object passed by name."""
-    names, parts = {}, []
-    for k, (obj, attr) in enumerate(slots):
+    ``a<k>.<attribute>`` (``a<k>.x[<index>]`` for an SFC runtime's step flag), the
+    attribute checked to be a generated (mangled) name, the object passed by name
+    (``o<k>``, one per distinct object, taken into the local ``a<k>`` by the returned
+    prologue: most slots are the globals' or one program's)."""
+    names, parts, index = {}, [], {}
+    for obj, attr in slots:
         if not (isinstance(attr, int) or _ATTR.fullmatch(attr)):
             raise ValueError(f"internal: slot {attr!r} is not a generated attribute name")
+        k = index.setdefault(id(obj), len(index))
         names[f"o{k}"] = obj
-        parts.append(f"o{k}.x[{attr}]" if isinstance(obj, SfcRuntime) else f"o{k}.{attr}")
-    return names, parts
+        parts.append(f"a{k}.x[{attr}]" if isinstance(obj, SfcRuntime) else f"a{k}.{attr}")
+    prologue = "".join(f"    a{k} = o{k}\n" for k in range(len(index)))
+    return names, prologue, parts
 
 
 def _value_getter(slots):
     """A function returning the current values of ``(object, attribute)`` slots (an SFC
     runtime with a step index reads that step's flag) as one tuple, built in one go."""
-    names, parts = _slot_expressions(slots)
-    src = "def values():\n    return (" + "".join(p + ", " for p in parts) + ")\n"
+    names, prologue, parts = _slot_expressions(slots)
+    src = "def values():\n" + prologue + "    return (" + "".join(
+        p + ", " for p in parts) + ")\n"
     exec(src, names)
     return names["values"]
 
@@ -1100,9 +1105,9 @@ def _value_getter(slots):
 def _value_setter(slots):
     """A function writing a sequence of values to ``(object, attribute)`` slots in one
     statement (the input image of a scan)."""
-    names, parts = _slot_expressions(slots)
+    names, prologue, parts = _slot_expressions(slots)
     if not parts:
         return lambda values: None
-    src = "def write(v):\n    " + "".join(p + ", " for p in parts) + "= v\n"
+    src = "def write(v):\n" + prologue + "    " + "".join(p + ", " for p in parts) + "= v\n"
     exec(src, names)
     return names["write"]

@@ -184,10 +184,16 @@ class FbT:
             t = t.base
 
     def var(self, key: str):
+        """The declaration of variable ``key`` (upper case), its own or inherited."""
         for t in self.chain():
-            for d in t.pou.decls():
-                if ident(d.name) == key:
-                    return d
+            table = t.__dict__.get("_vars")
+            if table is None:      # made on first use: a wide program has thousands
+                table = {}
+                for d in t.pou.decls():
+                    table.setdefault(ident(d.name), d)
+                t._vars = table
+            if key in table:
+                return table[key]
         return None
 
     def method(self, key: str):
