@@ -440,9 +440,7 @@ class _Series:
         """(start_s, duration_s, nl) of the air that flows within ``[lo_s, hi_s]``: the
         rectangles cut at both ends (their volume in proportion, the rate unchanged)
         and the steps at times within it."""
-        i0 = int(np.searchsorted(self.reach_s, lo_s, side="left"))
-        i1 = int(np.searchsorted(self.start_s, hi_s, side="right"))
-        start, dur, nl = self.start_s[i0:i1], self.duration_s[i0:i1], self.nl[i0:i1]
+        start, dur, nl = self.reaching(lo_s, hi_s)
         a = np.maximum(start, lo_s)
         cut = np.minimum(start + dur, hi_s) - a
         ramp = dur > 0
