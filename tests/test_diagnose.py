@@ -306,6 +306,22 @@ def test_passive_flow_found_and_fixed_file_reproduces_it(tmp_path):
                                                      abs=0.5)
 
 
+def test_a_large_change_and_the_meter_lag_found_together():
+    # knives at 1.53x their flow through a 0.29 s meter, one run: with the knives at the
+    # file's flow, a later clock without lag fits the edges better than the true lag, and
+    # the fit had stayed there (a passive flow then looked like a higher supply)
+    def strong_knives(pred, flow):
+        k = pred.profile.names.index("air knives")
+        return flow.sum(axis=0) + 0.53 * flow[k]
+    run = run_of(RIG, 20, rate_hz=2.0, tau_s=0.29, noise=0.7, offset_s=13.0, seed=3,
+                 transform=strong_knives)
+    d = diagnose(RIG, [run])
+    assert d.verdict == "passive_flow", d.report()
+    best = d.effects[0]
+    assert best.physical["air knives"]["factor"] == pytest.approx(1.53, rel=0.02)
+    assert best.heldout_score.rmse_l_min < 2.0 * d.noise_l_min
+
+
 def test_leave_one_run_out_with_several_runs():
     runs = [run_of(RIG, 20, offset_s=1.0, seed=s, name=f"r{s}.csv") for s in range(3)]
     d = diagnose(RIG, runs, effects=["leak", "supply_pressure"])

@@ -481,17 +481,25 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
 
     res, u = solve(u0)
     if start is None:
-        # the sweep chose the clock with the other parameters at their initial values
-        # (a leak still far from its size): once they are fitted, the clock grid again,
-        # and least squares from a better clock if there is one
+        # the sweep chose the clock (and the meter's lag) with the other parameters at
+        # their initial values (a leak still far from its size, a knife's flow half what
+        # it is): once they are fitted, the clock grid again, and least squares from a
+        # better clock if there is one. A lag left at a bound of its range (none, or
+        # the slowest thermal meter) was most likely traded for the clock against a
+        # wrong amplitude: then with each lag of its grid too
         c0 = 2.0 * res.cost
         best = (c0, u)
+        at_bound = lag_free and (u[clock + 1] < 1e-6 or u[clock + 1] > 1.0 - 1e-6)
+        lags = [None] + ([v for v in flat[clock + 1].grid] if at_bound else [])
         for c in CLOCK_GRID_S:
-            trial_u = u.copy()
-            trial_u[clock] = (c - lo[clock]) / span[clock]
-            trial = cost(trial_u)
-            if trial < best[0]:
-                best = (trial, trial_u)
+            for lag in lags:
+                trial_u = u.copy()
+                trial_u[clock] = (c - lo[clock]) / span[clock]
+                if lag is not None:
+                    trial_u[clock + 1] = (lag - lo[clock + 1]) / span[clock + 1]
+                trial = cost(trial_u)
+                if trial < best[0]:
+                    best = (trial, trial_u)
         if best[0] < c0 * (1.0 - 1e-6):
             res2, u2 = solve(best[1])
             if res2.cost < res.cost:
