@@ -692,7 +692,10 @@ class DemandProfile:
         key = (float(window_s or 0.0), block_rects)
         if key not in cache:
             cover = self._cover_s(window_s or 0.0)
-            series = [_Series([r]) for r in self._rects_over(cover) if len(r[0])]
+            # a run that does not repeat: the consumers' own series, as the grid reads them
+            series = [self._member(i) for i, r in enumerate(self.rects) if len(r[0])] \
+                if self.templates is None else \
+                [_Series([r]) for r in self._rects_over(cover) if len(r[0])]
             n = sum(len(x.start_s) for x in series)
             bounds = np.linspace(0.0, cover, max(1, -(-n // max(1, block_rects))) + 1)
             w = min(float(window_s), cover) if window_s else 0.0
