@@ -821,6 +821,7 @@ class Sequencer:
             and self.plant_model is None \
             and not any(s.random for s, _, _ in schedules)
         seen: dict = {}
+        seen_values: set = set()  # hashes of the recorded signals' values at fixed points
         parts: dict = {}      # rest key -> [(edges ahead, duration, changes)]
         opened: dict = {}     # rest key -> (first scan, first change, log positions)
         timeless: set = set()  # rest keys that hold no time
@@ -945,7 +946,18 @@ class Sequencer:
                         for sch, _, _ in schedules:
                             sch.log.clear()
                 if can_tile:
-                    key = _digest(self._state_key(inst, t, schedules, cylinders))
+                    # the whole state can only repeat where the recorded signals do: its
+                    # key (costly on a wide machine) is made only at fixed points whose
+                    # signal values an earlier one had (a count shown on an output then
+                    # costs nothing; a repeating machine is found a period later)
+                    shown = hash(values)
+                    key = None
+                    if shown in seen_values:
+                        key = _digest(self._state_key(inst, t, schedules, cylinders))
+                    elif len(seen_values) < MAX_KEYS:
+                        seen_values.add(shown)
+                    else:
+                        seen_values.clear()
                     if key is not None:
                         t1 = seen.get(key)
                         if t1 is not None:
