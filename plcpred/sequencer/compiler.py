@@ -163,11 +163,13 @@ class Compiler:
         self.et_thresholds: set = set()  # constants timers' ET is compared with (ns)
         self._et_const = False
         self._member_names = names_in(program)
-        self._extended = {n.upper() for p in program.pous for n in _base_names(p)}
+        # FBs another extends (the base's name without a library prefix)
+        self._extended = {p.extends.rsplit(".", 1)[-1].upper() for p in program.pous
+                          if p.extends}
         self._global_constants = {
             d.name.upper() for b in [g.block for g in program.globals]
             + [b for c in program.configurations for b in c.var_blocks]
-            if "CONSTANT" in [q.upper() for q in b.qualifiers] for d in b.decls}
+            if _constant_block(b) for d in b.decls}
         self.referenced: set | None = set()   # names handed out by reference (_ref_of)
 
     # ================================================================== project
@@ -269,7 +271,7 @@ class Compiler:
         self.time_constants = {}
         for b in [g.block for g in self.program.globals] + [
                 b for p in self.program.pous for b in p.var_blocks]:
-            if "CONSTANT" in [q.upper() for q in b.qualifiers]:
+            if _constant_block(b):
                 for d in b.decls:
                     if (isinstance(d.init, ir.Literal) and d.init.type_name in ("TIME", "LTIME")
                             and isinstance(d.type, ir.NamedType)
@@ -598,8 +600,8 @@ class Compiler:
                     kinds[d.name.upper()] = kind
         if not kinds:
             return set()
-        own_constants = {d.name.upper() for b in pou.var_blocks
-                         if "CONSTANT" in [q.upper() for q in b.qualifiers] for d in b.decls}
+        own_constants = {d.name.upper() for b in pou.var_blocks if _constant_block(b)
+                         for d in b.decls}
         local = {d.name.upper() for b in pou.var_blocks for d in b.decls} | {
             d.name.upper() for m in pou.methods for b in m.var_blocks for d in b.decls}
 
@@ -1976,46 +1978,36 @@ class Compiler:
 
 # ---------------------------------------------------------------------- helpers
 
+def _nodes(root):
+    """Every IR node under ``root`` with its parent, the node whose field holds it (lists
+    are passed through; a project: its POUs and configurations). Iterative: statement
+    nesting in a program file is unbounded."""
+    stack = [([root.pous, root.configurations], None)] if isinstance(root, ir.Program) \
+        else [(root, None)]
+    while stack:
+        x, parent = stack.pop()
+        if isinstance(x, (list, tuple)):
+            stack.extend((y, parent) for y in x)
+        elif hasattr(x, "__dataclass_fields__"):
+            yield x, parent
+            stack.extend((getattr(x, f), x) for f in x.__dataclass_fields__ if f != "pos")
+
+
 def names_in(program, cls=ir.Member, attr="member") -> set:
     """Every ``x.member`` name used in a project or IR subtree, upper case (with ``cls``
     and ``attr``: every ``Name.name``, every ``DirectAddress.address``, ...)."""
-    names = set()
-    # iterative: statement nesting in a program file is unbounded
-    stack = [program.pous, program.configurations] if isinstance(program, ir.Program) \
-        else [program]
-    while stack:
-        x = stack.pop()
-        if isinstance(x, cls):
-            names.add(getattr(x, attr).upper())
-        if isinstance(x, (list, tuple)):
-            stack.extend(x)
-        elif hasattr(x, "__dataclass_fields__"):
-            stack.extend(getattr(x, f) for f in x.__dataclass_fields__ if f != "pos")
-    return names
+    return {getattr(x, attr).upper() for x, _ in _nodes(program) if isinstance(x, cls)}
 
 
 def _name_uses(root, names: set) -> list:
     """(upper-case name, node, parent) of every ``ir.Name`` in ``root`` whose name is in
-    ``names``; the parent is the node whose field holds it (lists are passed through)."""
-    out = []
-    stack = [(root, None)]
-    while stack:
-        x, parent = stack.pop()
-        if isinstance(x, ir.Name) and x.name.upper() in names:
-            out.append((x.name.upper(), x, parent))
-        if isinstance(x, (list, tuple)):
-            stack.extend((y, parent) for y in x)
-        elif hasattr(x, "__dataclass_fields__"):
-            stack.extend((getattr(x, f), x) for f in x.__dataclass_fields__ if f != "pos")
-    return out
+    ``names``."""
+    return [(x.name.upper(), x, parent) for x, parent in _nodes(root)
+            if isinstance(x, ir.Name) and x.name.upper() in names]
 
 
-def _base_names(pou) -> list[str]:
-    """The names of the FBs ``pou`` extends (without a library prefix)."""
-    ext = getattr(pou, "extends", None)
-    if not ext:
-        return []
-    return [str(n).rsplit(".", 1)[-1] for n in (ext if isinstance(ext, list) else [ext])]
+def _constant_block(b) -> bool:
+    return "CONSTANT" in [q.upper() for q in b.qualifiers]
 
 
 def _target_names(e, out: set) -> bool:
@@ -2261,7 +2253,7 @@ _FB_INIT_FLAGS = ("BINITRETAINS", "BINCOPYCODE")
 def _int_constants(blocks):
     """(name key, value) of each integer literal constant the CONSTANT ``blocks`` declare."""
     for b in blocks:
-        if "CONSTANT" in [q.upper() for q in b.qualifiers]:
+        if _constant_block(b):
             for d in b.decls:
                 if isinstance(d.init, ir.Literal) and isinstance(d.init.value, int) \
                         and not isinstance(d.init.value, bool):
