@@ -31,6 +31,17 @@ from .errors import PlcpredError
 from .memory import use_large_malloc_thresholds
 
 DASK_CONNECT_TIMEOUT_S = 10
+# Dask settings for workers that run scenarios at the local pool's speed. A worker
+# samples its running task's stack every 10 ms for its profile, and it, its nanny and
+# the scheduler poll memory and system counters several times a second; a sweep keeps
+# every core busy, so each of these takes its time from a scenario. Measured on two
+# cores (bench/sweep_speed.py, four interleaved rounds): local 2.57 s, Dask 2.81 s with
+# the defaults, 2.62 s with these. Set them where the workers start (``dask.config.set``
+# around a LocalCluster, or the DASK_DISTRIBUTED__... environment variables of
+# ``dask worker``, docs/cli.md); plcpred cannot change a running cluster's.
+DASK_WORKER_CONFIG = {"distributed.worker.profile.enabled": False,
+                      "distributed.worker.memory.monitor-interval": "1s",
+                      "distributed.admin.system-monitor.interval": "2s"}
 MACHINE_KEYS = ("supply_bar_g", "scan_ms", "ambient_c", "atmosphere_kpa")
 _FLOAT_FIELDS = {"bore_mm", "rod_mm", "stroke_mm", "tube_id_mm", "switch_delay_s",
                  "pressure_bar_g", "C", "b", "m", "a", "orifice_mm", "Cd", "pulse_ms",
@@ -322,6 +333,20 @@ def run_batch(batch: list) -> list[dict]:
     return [run_scenario(*a) for a in batch]
 
 
+def guided_batches(n: int, threads: int, per_thread: int = 4) -> list[list[int]]:
+    """Scenario indices 0..n-1 in batches of falling size (guided self-scheduling): each
+    batch a ``per_thread * threads``-th of what is left. The scheduler's round trip is
+    paid per batch, so the first batches are large; the last ones hold one scenario
+    each, so no worker is left with a long batch while the others idle at the end.
+    Rows stream back as batches finish."""
+    out, start = [], 0
+    while start < n:
+        size = max(1, (n - start) // (per_thread * max(1, threads)))
+        out.append(list(range(start, min(n, start + size))))
+        start += size
+    return out
+
+
 def _run_dask(args, scheduler, bar):
     try:
         from dask.distributed import Client, as_completed
@@ -343,11 +368,8 @@ def _run_dask(args, scheduler, bar):
                              "is the cluster running and the address right "
                              "(tcp://host:8786)?") from None
     try:
-        # a few batches per worker thread: the scheduler's round trip is paid per batch,
-        # and the batches still balance the load; rows stream back as batches finish
         threads = max(1, sum(client.nthreads().values()))
-        size = max(1, -(-len(args) // (8 * threads)))
-        batches = [list(range(a, min(a + size, len(args)))) for a in range(0, len(args), size)]
+        batches = guided_batches(len(args), threads)
         futures = [client.submit(run_batch, [args[k] for k in b], pure=False)
                    for b in batches]
         index = {f.key: b for f, b in zip(futures, batches)}

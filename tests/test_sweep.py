@@ -110,6 +110,27 @@ def test_a_batch_gives_the_rows_of_its_scenarios_in_order():
     assert rows[0]["total_nl"] < rows[2]["total_nl"]     # more pressure, more air
 
 
+@pytest.mark.parametrize("n, threads", [(64, 2), (1, 4), (7, 2), (500, 16), (3, 1)])
+def test_guided_batches_cover_every_scenario_once_in_falling_sizes(n, threads):
+    from plcpred.sweep import guided_batches
+    batches = guided_batches(n, threads)
+    assert [k for b in batches for k in b] == list(range(n))
+    sizes = [len(b) for b in batches]
+    assert sizes == sorted(sizes, reverse=True) and sizes[-1] == 1
+    # the first batch is a (4 * threads)-th of the work, not all of it
+    assert sizes[0] == max(1, n // (4 * threads))
+
+
+def test_the_dask_worker_settings_are_known_to_dask():
+    dask = pytest.importorskip("dask")
+    pytest.importorskip("dask.distributed")
+    from plcpred.sweep import DASK_WORKER_CONFIG
+    for key, value in DASK_WORKER_CONFIG.items():
+        assert dask.config.get(key) is not None, key       # a key Dask has (no typo)
+        with dask.config.set({key: value}):
+            assert dask.config.get(key) == value
+
+
 def test_the_allocator_setting_applies_once_on_glibc():
     import platform
 
