@@ -138,6 +138,11 @@ class Compiled:
     intervals: dict = None                     # program instance -> task INTERVAL (ns)
     et_thresholds: tuple = ()                  # constants ET is compared with (ns)
     written: frozenset | None = None           # names the program may write (None: any)
+    # class name -> {attribute: (bits, signed) or None} of the variables left out of the
+    # state the executor compares (Compiler._sinks): (bits, signed) for an integer that
+    # only ever adds a step to itself (a count, which grows by the same amount each
+    # period of a repeating machine), None for any other
+    left_out: dict = None
 
 
 class Compiler:
@@ -155,6 +160,7 @@ class Compiler:
         self._jump = None
         self._loop_depth = 0
         self.sinks: dict[str, set] = {}
+        self.left_out: dict[str, dict] = {}
         self.address_slots: dict[str, str] = {}  # undeclared direct address -> global
         self.addr_names: dict[str, str] = {}
         self._et_classes: set = set()
@@ -228,7 +234,8 @@ class Compiler:
         return Compiled("\n".join(self.src.lines) + "\n", self.src.pos, programs, prog_types,
                         self.globals, self.reads_et, self.reads_clock, self.types,
                         dict(self.address_slots), dict(self.intervals),
-                        tuple(sorted(self.et_thresholds)), self._written())
+                        tuple(sorted(self.et_thresholds)), self._written(),
+                        dict(self.left_out))
 
     def _written(self) -> frozenset | None:
         by_name = written_names(self.program)
@@ -576,7 +583,26 @@ class Compiler:
             # a running timer's ET reaches something that matters: the executor must
             # step scan by scan while timers run
             self.reads_et = True
+        self.left_out[fb.cls_name] = {k: self._count_width(k, flow, sinks, scope)
+                                      for k in sinks}
         return sinks
+
+    @staticmethod
+    def _count_width(name: str, flow, sinks: set, scope: Scope):
+        """(bits, signed) when sink ``name`` is an integer whose every write adds to it a
+        step that reads no sink (``n := n + 1``, ``n := n - k``): over a period of a
+        repeating machine it then grows by the same amount, and a repeated period's
+        values are the first period's plus that amount per period (modulo its width).
+        None for any other sink."""
+        t = scope.names[name][1]
+        n, reads = flow.steps.get(name, (0, set()))
+        if not n or n != sum(1 for target, _ in flow.flows if target == name) \
+                or reads & sinks or isinstance(t, ArrayT):
+            return None
+        t = _base_t(t)
+        if t.cat != "int" or (t.bits or 32) > 52:
+            return None                     # a float64 holds no wider count exactly
+        return (t.bits or 32, bool(t.signed))
 
     def _threshold_counters(self, fb: FbT, scope: Scope) -> set:
         """Counters whose count nothing reads, only their Q, which stops changing once
@@ -2082,6 +2108,9 @@ class _Flow:
         self.et_compare = et_compare
         self.et_targets: set = set()  # where timers' ET values go (None: steers the program)
         self._et = False
+        # writes of the form x := x + e / x := e + x / x := x - e: x -> (how many, the
+        # names the e read); a target of as many flows is written in no other way
+        self.steps: dict[str, tuple[int, set]] = {}
 
     def reads(self, e) -> set:
         out = set()
@@ -2149,6 +2178,10 @@ class _Flow:
                 if target is not None:
                     self.used.add(target)
             self.flows.append((target, reads))
+            step = _added_step(s) if s.op == ":=" else None
+            if step is not None:
+                n, names = self.steps.get(target, (0, set()))
+                self.steps[target] = (n + 1, names | names_in(step, ir.Name, "name"))
         elif isinstance(s, ir.CallStmt):
             callee = _root(s.call.func)
             if callee in self.std_fbs and isinstance(s.call.func, (ir.Name, ir.Index)):
@@ -2204,6 +2237,23 @@ class _Flow:
                 self.flows.append((_root(s.catch_var), set()))
             self.stmts(s.catch_body or [])
             self.stmts(s.finally_body or [])
+
+
+def _added_step(s: ir.Assign):
+    """``e`` of ``x := x + e``, ``x := e + x`` or ``x := x - e`` (x a plain name), else
+    None."""
+    v = s.value
+    if not isinstance(s.target, ir.Name) or not isinstance(v, ir.Binary):
+        return None
+    x = ident(s.target.name)
+
+    def is_x(e):
+        return isinstance(e, ir.Name) and ident(e.name) == x
+    if v.op in ("+", "-") and is_x(v.left):
+        return v.right
+    if v.op == "+" and is_x(v.right):
+        return v.left
+    return None
 
 
 def _children(e):

@@ -57,6 +57,101 @@ class FbBase:
     __slots__ = ()
 
 
+class _LeftOut:
+    """The recorded signals that the compared state leaves out (``Compiled.left_out``: a
+    parts count nothing reads, shown because the machine file names it): what a repeated
+    period or a replayed part must do so that they show what execution would. A count
+    that only adds a step to itself shows the first period's values plus the step per
+    period; any other such signal must not have changed, or nothing is repeated."""
+
+    def __init__(self, slots, left_out: dict | None):
+        self.counts: dict = {}       # signal index -> (obj, attr, bits, signed)
+        self.others: list = []       # signal indices
+        for i, slot in enumerate(slots):
+            if slot is None or not left_out:
+                continue
+            obj, attr = slot
+            if isinstance(obj, BitView):        # a bit of a count is no count
+                if _left_out_kind(obj.obj, obj.attr, left_out) is not _KEPT:
+                    self.others.append(i)
+                continue
+            kind = _left_out_kind(obj, attr, left_out)
+            if kind is None:
+                self.others.append(i)
+            elif kind is not _KEPT:
+                self.counts[i] = (obj, attr) + tuple(kind)
+        self.order = self.others + sorted(self.counts)
+
+    def __bool__(self) -> bool:
+        return bool(self.order)
+
+    def values(self, values) -> tuple:
+        return tuple(values[i] for i in self.order)
+
+    def period_drift(self, values, t1: int, tt, ss, vv) -> dict | None:
+        """{signal: (step, bits, signed)} of the counts from ``t1`` to now; None when
+        another left-out signal differs (the period cannot be repeated)."""
+        if not self:
+            return {}
+        t = np.frombuffer(tt, dtype=np.int64)
+        n = int(np.searchsorted(t, t1, side="right"))
+        s = np.frombuffer(ss, dtype=np.int32)[:n]
+        v = np.frombuffer(vv, dtype=np.float64)[:n]
+        drift = {}
+        for i in self.order:
+            before = v[np.flatnonzero(s == i)[-1]]   # the first scan recorded every signal
+            step = float(values[i]) - float(before)
+            if step == 0:
+                continue
+            if i not in self.counts:
+                return None
+            drift[i] = (int(step), self.counts[i][2], self.counts[i][3])
+        return drift
+
+    def replayed(self, now, start, end, cs: bytes, cv: bytes):
+        """A part recorded with these signals at ``start`` and ``end``, copied when they
+        are at ``now``: its values (``cv`` with each count shifted by how far it has
+        grown since), or None when another left-out signal is not where it was or
+        changed in the part."""
+        shifted = None
+        for i, a, b, c in zip(self.order, now, start, end):
+            if i not in self.counts:
+                if a != b or b != c:
+                    return None
+                continue
+            if a == b:
+                continue
+            if shifted is None:
+                sig = np.frombuffer(cs, dtype=np.int32)
+                shifted = np.frombuffer(cv, dtype=np.float64).copy()
+            _, _, bits, signed = self.counts[i]
+            mine = sig == i
+            shifted[mine] = [rtm.wrap(int(x) + int(a) - int(b), bits, signed)
+                             for x in shifted[mine]]
+        return cv if shifted is None else shifted.tobytes()
+
+    def advance(self, now, start, end) -> None:
+        """After a copied part: each count grown by what it grew in the recorded part
+        (the program did not run it)."""
+        for i, a, b, c in zip(self.order, now, start, end):
+            if i in self.counts and b != c:
+                obj, attr, bits, signed = self.counts[i]
+                setattr(obj, attr, rtm.wrap(int(a) + int(c) - int(b), bits, signed))
+
+
+_KEPT = object()
+
+
+def _left_out_kind(obj, attr: str, left_out: dict):
+    """``Compiled.left_out``'s entry for ``obj.attr`` (its class or a base's), or _KEPT
+    when the compared state holds it."""
+    for cls in type(obj).__mro__:
+        kinds = left_out.get(cls.__name__)
+        if kinds and attr in kinds:
+            return kinds[attr]
+    return _KEPT
+
+
 class BitView:
     """One bit of an integer variable as a BOOL signal (``wValves.3`` in a machine file)."""
     __slots__ = ("obj", "attr", "mask")
@@ -797,6 +892,9 @@ class Sequencer:
         values_now = _value_getter([(o, a) for _, o, a, _ in ins]
                                    + [(sfc, i) for _, sfc, i in steps]
                                    + [(o, a) for _, o, a, _ in outs])
+        left = _LeftOut([(o, a) for _, o, a, _ in ins] + [None] * len(steps)
+                        + [(o, a) for _, o, a, _ in outs], self.compiled.left_out)
+        drift = None
         # typed arrays: 8 bytes a change instead of a Python object (--max-events of them)
         tt, ss, vv = array("q"), array("i"), array("d")
 
@@ -919,16 +1017,19 @@ class Sequencer:
                     if key is not None:
                         start = opened.pop(key, None)
                         if start is not None:         # back in a state a part began in
-                            t_s, i0, at = start
+                            t_s, i0, at, shown_at = start
                             parts.setdefault(key, []).append((
                                 self._edges_seen([sch.log[k:] for (sch, _, _), k in
                                                   zip(schedules, at)], t_s, scan),
                                 t - t_s, np.frombuffer(tt, dtype=np.int64)[i0:] - t_s,
                                 np.frombuffer(ss, dtype=np.int32)[i0:].tobytes(),
-                                np.frombuffer(vv, dtype=np.float64)[i0:].tobytes()))
+                                np.frombuffer(vv, dtype=np.float64)[i0:].tobytes(),
+                                shown_at, left.values(values)))
                         done = self._replay(parts.get(key, ()), schedules, t_next, scan,
-                                            horizon_ns, tt, ss, vv)
+                                            horizon_ns, tt, ss, vv, left, values)
                         if done is not None:
+                            if left:
+                                prev_values = values_now()   # counts the part advanced
                             if len(tt) > max_events:
                                 raise SequencerError(_too_many_changes(
                                     signals, ss, done, scan, max_events))
@@ -938,7 +1039,7 @@ class Sequencer:
                         if len(parts.get(key, ())) < MAX_PART_VARIANTS \
                                 and len(parts) < MAX_KEYS and len(opened) < MAX_OPEN_PARTS:
                             opened[key] = (t_next, len(tt), [len(sch.log) for sch, _, _ in
-                                                              schedules])
+                                                              schedules], left.values(values))
                     for k in [k for k, v in opened.items()
                               if len(tt) - v[1] > MAX_PART_CHANGES]:
                         del opened[k]         # not a part that ends: stop recording it
@@ -961,8 +1062,10 @@ class Sequencer:
                     if key is not None:
                         t1 = seen.get(key)
                         if t1 is not None:
-                            tiled_from = (t1, t)
-                            break
+                            drift = left.period_drift(values, t1, tt, ss, vv)
+                            if drift is not None:
+                                tiled_from = (t1, t)
+                                break
                         if len(seen) >= MAX_KEYS:
                             # start over: a machine that repeats only later (a counter
                             # past its threshold) is still found if its period holds
@@ -987,7 +1090,7 @@ class Sequencer:
                 "tiled_from_s": tiled_from[1] / NS if tiled_from else None,
                 "machine_signals": dict(self.signal_names)}
         return Timeline(signals, time_ns, sig, val, horizon_ns, info, tiled=tiled_from,
-                        max_changes=max_events)
+                        max_changes=max_events, drift=drift)
 
     @staticmethod
     def _rest_key(inst, t, cylinders, timeless: set):
@@ -1012,16 +1115,23 @@ class Sequencer:
                             for j, log in enumerate(logs) for e, v in log))
 
     def _replay(self, variants, schedules, t_s: int, scan: int, horizon_ns: int,
-                tt, ss, vv):
+                tt, ss, vv, left: _LeftOut, values):
         """Copy a recorded part starting at scan ``t_s`` if the scheduled edges ahead
-        match one; the time it ends (at rest again), or None."""
-        for edges, dur, ct, cs, cv in variants:
+        match one (and the shown signals the state leaves out allow it); the time it
+        ends (at rest again), or None."""
+        now = left.values(values)
+        for edges, dur, ct, cs, cv, shown_start, shown_end in variants:
             end = t_s + dur
             if end > horizon_ns:
                 continue
             ahead = [sch.upcoming(end) for sch, _, _ in schedules]
             if any(a is None for a in ahead) or self._edges_seen(ahead, t_s, scan) != edges:
                 continue
+            if left:
+                cv = left.replayed(now, shown_start, shown_end, cs, cv)
+                if cv is None:
+                    continue
+                left.advance(now, shown_start, shown_end)
             # the changes as raw bytes: the typed arrays take them without a Python loop
             tt.frombytes((ct + t_s).astype(np.int64).tobytes())
             ss.frombytes(cs)

@@ -48,7 +48,7 @@ class Timeline:
 
     def __init__(self, signals: list[Signal], time_ns, signal_idx, values, horizon_ns: int,
                  info: dict | None = None, tiled: tuple[int, int] | None = None,
-                 max_changes: int = DEFAULT_MAX_CHANGES):
+                 max_changes: int = DEFAULT_MAX_CHANGES, drift: dict | None = None):
         self.signals = list(signals)
         self._base = (np.asarray(time_ns, dtype=np.int64),
                       np.asarray(signal_idx, dtype=np.int32),
@@ -56,6 +56,9 @@ class Timeline:
         self.horizon_ns = int(horizon_ns)
         self.info = dict(info or {})
         self.tiled = tiled
+        # signal index -> (step, bits, signed): a count that each repetition of the period
+        # shows ``step`` higher than the one before, modulo its integer width
+        self.drift = {int(k): v for k, v in (drift or {}).items() if v[0]}
         self.max_changes = int(max_changes)
         self._full = None if tiled is not None else self._base
         self._period = None
@@ -114,7 +117,15 @@ class Timeline:
         k = np.arange(first, last + 1, dtype=np.int64)
         tt = (pt[None, :] + k[:, None] * (self.tiled[1] - self.tiled[0])).ravel()
         keep = tt <= (self.horizon_ns if until_ns is None else until_ns)
-        return tt[keep], np.tile(ps, len(k))[keep], np.tile(pv, len(k))[keep]
+        vv = np.tile(pv, len(k))
+        if self.drift:
+            ss = np.tile(ps, len(k))
+            kk = np.repeat(k, len(pt))
+            for i, (step, bits, signed) in self.drift.items():
+                mine = ss == i
+                vv[mine] = _wrapped(vv[mine].astype(np.int64) + kk[mine] * int(step),
+                                    bits, signed)
+        return tt[keep], np.tile(ps, len(k))[keep], vv[keep]
 
     @property
     def time_ns(self) -> np.ndarray:
@@ -277,6 +288,12 @@ class Timeline:
             pt, ps, pv, reps = self._period_edges()
             if not reps:
                 return
+            if self.drift:          # counts change from one repetition to the next
+                pieces = self.chunks(rows_per_write)
+                next(pieces)        # the executed part, written above
+                for t, s, v in pieces:
+                    f.write(self._rows(t, s, v))
+                return
             t1, t2 = self.tiled
             p = t2 - t1
             # full repetitions k = 1..reps-1 by the fast path; the last one may be cut
@@ -326,6 +343,16 @@ class Timeline:
         whole, frac_k, frac_text = seconds_texts(t)
         return "".join([f"{w}{frac_text[f]},{pair_text[p]}\n" for w, f, p in zip(
             whole, frac_k, pair_k.ravel().tolist())])
+
+
+def _wrapped(values, bits: int, signed: bool) -> np.ndarray:
+    """IEC integer overflow of int64 ``values`` (``runtime.wrap``, vectorised): the low
+    ``bits`` bits, two's complement when signed, as float64 (bits <= 52: exact)."""
+    span = 1 << bits
+    out = np.mod(values, span)
+    if signed:
+        out = np.where(out >= span >> 1, out - span, out)
+    return out.astype(np.float64)
 
 
 def seconds_texts(t_ns) -> tuple[list, list, list]:
