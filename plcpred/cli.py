@@ -696,7 +696,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="search the clock offset within this many seconds of the log's "
                         "first sample (default: half the run, at most 120 s)")
     p.add_argument("--time-col", metavar="NAME|N", help="time column (default time_s); "
-                   "seconds or ISO 8601 date-times")
+                   "seconds, ISO 8601 date-times, a logger's date-times (24.11.2026 "
+                   "13:05:00,5; 2026/11/24 13:05:00; 11/24/2026 1:05:00 PM) or times of "
+                   "day (13:05:00.5). Lines above the header (device, serial) are "
+                   "skipped")
     p.add_argument("--flow-col", metavar="NAME|N", help="flow column (default flow_l_min)")
     p.add_argument("--flow-unit", default="l/min", choices=("l/min", "m3/h", "l/s", "scfm"),
                    help="unit of the flow column (default l/min)")

@@ -87,6 +87,45 @@ def test_iso_timestamps_and_skipped_rows(tmp_path):
     assert run.source["skipped_rows"] == 2 and run.source["time_format"] == "iso8601"
 
 
+@pytest.mark.parametrize("times, steps", [
+    (["24.11.2026 13:05:00,0", "24.11.2026 13:05:00,5", "24.11.2026 13:05:01,5"], [0.5, 1.0]),
+    (["24.11.26 13:05", "24.11.26 13:06", "24.11.26 13:08"], [60.0, 120.0]),
+    (["2026/11/24 23:59:59", "2026/11/25 00:00:01", "2026/11/25 00:00:02"], [2.0, 1.0]),
+    (["11/24/2026 11:59:59 AM", "11/24/2026 12:00:00 PM", "11/24/2026 1:00:00 PM"],
+     [1.0, 3600.0]),
+    (["24/11/2026 13:05:00", "24/11/2026 13:05:02", "24/11/2026 13:05:03"], [2.0, 1.0]),
+    (["23:59:59.5", "00:00:00,5", "00:00:01.5"], [1.0, 1.0]),          # past midnight
+    (["2026-11-24 13:05:00+01:00", "2026-11-24T12:05:01Z", "2026-11-24 13:05:03+01:00"],
+     [1.0, 2.0]),
+])
+def test_logger_date_times(tmp_path, times, steps):
+    p = tmp_path / "log.csv"
+    p.write_text("Zeit;Durchfluss\n" + "".join(f"{t};{k},5\n" for k, t in enumerate(times)))
+    run = read_measured(p, time_col="Zeit", flow_col="Durchfluss")
+    assert np.diff(run.time_s).tolist() == pytest.approx(steps)
+    assert run.flow_l_min.tolist() == [0.5, 1.5, 2.5]
+
+
+def test_a_header_below_the_loggers_own_lines(tmp_path):
+    p = tmp_path / "log.csv"
+    p.write_text("Device;SD6000 flow meter\nSerial;123456\n\nDate/Time;Flow [m3/h];T [C]\n"
+                 "24.11.2026 08:00:00;1,2;21\n24.11.2026 08:00:01;1,5;21\n"
+                 "24.11.2026 08:00:02;1,8;21\n24.11.2026 08:00:03;oops;21\n"
+                 "24.11.2026 08:00:0x;1,8;21\n")
+    with pytest.raises(MeasuredDataError, match="line 9, column 1: cannot read the time"):
+        read_measured(p, time_col="Date/Time", flow_col="Flow [m3/h]", flow_unit="m3/h")
+    p.write_text(p.read_text().replace("0x", "04"))
+    run = read_measured(p, time_col="Date/Time", flow_col="Flow [m3/h]", flow_unit="m3/h")
+    assert run.flow_l_min[:3].tolist() == pytest.approx([20.0, 25.0, 30.0])
+    assert run.source["skipped_rows"] == 1
+    by_number = read_measured(p, time_col=1, flow_col=2, flow_unit="m3/h")
+    assert by_number.flow_l_min.tolist() == run.flow_l_min.tolist()
+    assert by_number.source["flow_column"] == "Flow [m3/h]"
+    # a header that is not there: the error lists the first line's columns
+    with pytest.raises(MeasuredDataError, match="no time column 'Zeit' .*Device"):
+        read_measured(p, time_col="Zeit", flow_col="Flow [m3/h]")
+
+
 @pytest.mark.parametrize("text, message", [
     ("time_s,pressure\n0,1\n1,2\n2,3\n", "no flow column"),
     ("time_s,flow_l_min\n0,1\n2,2\n1,3\n", "line 4, column 1: time 1 does not increase"),

@@ -2,8 +2,10 @@
 
 A flow log is a CSV file with a header row: by default ``time_s,flow_l_min`` with an
 optional ``supply_bar_g``, as ``plcpred emulate`` writes it, or any logger's columns chosen
-with ``time_col``/``flow_col`` (a header name or a 1-based column number). Times are
-seconds or ISO 8601 date-times; flows are in ``l/min``, ``m3/h``, ``l/s`` or ``scfm`` at the
+with ``time_col``/``flow_col`` (a header name or a 1-based column number), below any lines
+the logger writes before its header. Times are seconds, ISO 8601 date-times, a logger's
+date-times (``24.11.2026 13:05:00,5``, ``2026/11/24 13:05:00``, ``11/24/2026 1:05:00
+PM``) or times of day alone (``13:05:00.5``, passing midnight); flows are in ``l/min``, ``m3/h``, ``l/s`` or ``scfm`` at the
 meter's reference condition (ISO 8778, DIN 1343 or ISO 2533), converted here to normal
 litres per minute at the ISO 8778 reference every other part of plcpred uses
 (docs/physics.md: reference conditions: ``V_2 = V_1 * (P_1/P_2) * (T_2/T_1)``). Fields separated by
@@ -115,6 +117,53 @@ def _column(path: str, header: list[str], wanted, default: str | None, what: str
                             f"{', '.join(names)}); name it with {option}")
 
 
+MAX_PREAMBLE_LINES = 50
+
+
+def _header_line(file: str, lines: list[str], time_col, flow_col) -> int:
+    """Index of the header row: the first line, or the first of the first
+    MAX_PREAMBLE_LINES lines that names the time and flow columns (a logger's export
+    often starts with lines about the device); with columns given by number, the line
+    before the first row whose time and flow read as numbers or date-times."""
+    def cells(line):
+        return next(csv.reader([line], delimiter=max((",", ";", "\t"), key=line.count)))
+
+    def names(wanted, default):
+        return [default] if wanted is None else [str(wanted).strip()]
+
+    t_names, f_names = names(time_col, "time_s"), names(flow_col, "flow_l_min")
+    numbered = str(t_names[0]).isdigit() and str(f_names[0]).isdigit()
+    for k, line in enumerate(lines[:MAX_PREAMBLE_LINES]):
+        if not line.strip():
+            continue
+        row = [c.strip().lower() for c in cells(line)]
+        if numbered:
+            ti, fi = int(t_names[0]) - 1, int(f_names[0]) - 1
+            if k and max(ti, fi) < len(row) and _reads_as_sample(row[ti], row[fi]):
+                return max(j for j in range(k) if lines[j].strip())
+        elif (str(t_names[0]).isdigit() or t_names[0].lower() in row) and \
+                (str(f_names[0]).isdigit() or f_names[0].lower() in row):
+            return k
+    # not found: the first line with anything on it, whose columns the error lists
+    return next(k for k, line in enumerate(lines) if line.strip())
+
+
+def _reads_as_sample(time_cell: str, flow_cell: str) -> bool:
+    try:
+        _number(flow_cell, True)
+    except ValueError:
+        return False
+    try:
+        _number(time_cell, True)
+        return True
+    except ValueError:
+        try:
+            _timestamp(time_cell)
+            return True
+        except ValueError:
+            return False
+
+
 def _number(cell: str, decimal_comma: bool) -> float:
     s = cell.strip()
     if decimal_comma:
@@ -122,12 +171,46 @@ def _number(cell: str, decimal_comma: bool) -> float:
     return float(s)
 
 
-def _timestamp(cell: str) -> float:
-    s = cell.strip()
-    if s.endswith("Z"):
-        s = s[:-1] + "+00:00"
-    dt = datetime.fromisoformat(s)
-    return dt.timestamp() if dt.tzinfo else (dt - datetime(1970, 1, 1)).total_seconds()
+# date-times loggers write besides ISO 8601, tried in this order on a log's first time
+# (a log keeps the one that read it): European day.month.year, year/month/day, US
+# month/day/year (12- or 24-hour), then day/month/year; a time of day alone
+_DATE_FORMATS = ("%d.%m.%Y %H:%M:%S.%f", "%d.%m.%Y %H:%M:%S", "%d.%m.%Y %H:%M",
+                 "%d.%m.%y %H:%M:%S.%f", "%d.%m.%y %H:%M:%S", "%d.%m.%y %H:%M",
+                 "%Y/%m/%d %H:%M:%S.%f", "%Y/%m/%d %H:%M:%S", "%Y/%m/%d %H:%M",
+                 "%m/%d/%Y %I:%M:%S.%f %p", "%m/%d/%Y %I:%M:%S %p",
+                 "%m/%d/%Y %H:%M:%S.%f", "%m/%d/%Y %H:%M:%S", "%m/%d/%Y %H:%M",
+                 "%d/%m/%Y %H:%M:%S.%f", "%d/%m/%Y %H:%M:%S", "%d/%m/%Y %H:%M")
+_TIME_OF_DAY = ("%H:%M:%S.%f", "%H:%M:%S", "%H:%M")
+_EPOCH = datetime(1970, 1, 1)
+_FRACTION_COMMA = re.compile(r"(\d{1,2}:\d{2}:\d{2}),(\d+)")
+
+
+def _timestamp(cell: str, fmt: str | None = None) -> tuple[float, str]:
+    """(seconds, the format that read it) of a date-time cell: ISO 8601 (``Z`` or an
+    offset taken into account), a logger's date format (:data:`_DATE_FORMATS`, a decimal
+    comma in the seconds read too) or a time of day alone (seconds since midnight).
+    ``fmt``: the format an earlier row of the log was read with."""
+    s = _FRACTION_COMMA.sub(r"\1.\2", " ".join(cell.split()))
+    if fmt in (None, "iso"):
+        try:
+            dt = datetime.fromisoformat(s[:-1] + "+00:00" if s.endswith("Z") else s)
+        except ValueError:
+            if fmt == "iso":
+                raise
+        else:
+            seconds = dt.timestamp() if dt.tzinfo else (dt - _EPOCH).total_seconds()
+            return seconds, "iso"
+    for f in (fmt,) if fmt is not None else _DATE_FORMATS + _TIME_OF_DAY:
+        try:
+            dt = datetime.strptime(s, f)
+        except ValueError:
+            if fmt is not None:
+                raise
+            continue
+        if f in _TIME_OF_DAY:
+            return dt.hour * 3600.0 + dt.minute * 60.0 + dt.second + dt.microsecond / 1e6, f
+        return (dt - _EPOCH).total_seconds(), f
+    raise ValueError(cell)
 
 
 def _read_text(path: Path) -> str:
@@ -150,15 +233,14 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str = "l/min",
     ref_k = reference_factor(reference)
     text = _read_text(path)
     lines = text.splitlines()
-    while lines and not lines[0].strip():
-        lines.pop(0)
-    if not lines:
+    if not any(line.strip() for line in lines):
         raise MeasuredDataError(f"{file}: empty file (expected a header such as "
                                 "time_s,flow_l_min and rows of samples)")
-    first = lines[0]
+    start = _header_line(file, lines, time_col, flow_col)
+    first = lines[start]
     delimiter = max((",", ";", "\t"), key=first.count)
     decimal_comma = delimiter != ","
-    rows = csv.reader(lines, delimiter=delimiter)
+    rows = csv.reader(lines[start:], delimiter=delimiter)
     header = next(rows)
     t_idx = _column(file, header, time_col, "time_s", "time", "--time-col")
     f_idx = _column(file, header, flow_col, "flow_l_min", "flow", "--flow-col")
@@ -171,8 +253,9 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str = "l/min",
     s_idx = _column(file, header, supply_col, "supply_bar_g", "supply", "--supply-col")
     times, flows, supplies = [], [], []
     skipped = 0
-    iso = None
-    for lineno, row in enumerate(rows, start=2):
+    iso = None          # False: seconds; else the date-time format of the first row
+    day_s = 0.0         # a time of day alone: the days passed midnight adds
+    for lineno, row in enumerate(rows, start=start + 2):
         if not row or not "".join(row).strip():
             continue
         if len(times) >= MAX_ROWS:
@@ -187,14 +270,20 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str = "l/min",
                     t = _number(cell, decimal_comma)
                     iso = False
                 except ValueError:
-                    t = _timestamp(cell)
-                    iso = True
+                    t, iso = _timestamp(cell)
             else:
-                t = _timestamp(cell) if iso else _number(cell, decimal_comma)
+                t = _timestamp(cell, iso)[0] if iso else _number(cell, decimal_comma)
         except (ValueError, OverflowError):
             raise MeasuredDataError(
                 f"{file}: line {lineno}, column {t_idx + 1}: cannot read the time "
-                f"{cell.strip()[:40]!r} (seconds or an ISO 8601 date-time)") from None
+                f"{cell.strip()[:40]!r} (seconds, an ISO 8601 date-time or a logger's "
+                "date-time such as 24.11.2026 13:05:00,5"
+                + (f"; the rows before were read as {iso}" if iso else "") + ")") from None
+        if iso in _TIME_OF_DAY:
+            t += day_s
+            if times and t < times[-1] - 43_200.0:      # past midnight
+                day_s += 86_400.0
+                t += 86_400.0
         try:
             q = _number(row[f_idx], decimal_comma)
         except ValueError:
@@ -227,7 +316,8 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str = "l/min",
         supplies) == len(times) else None
     return MeasuredRun(path.name, time_s, flow, supply,
                        {"path": file, "flow_unit": flow_unit, "reference": reference,
-                        "time_format": "iso8601" if iso else "seconds",
+                        "time_format": ("iso8601" if iso == "iso" else iso) if iso
+                        else "seconds",
                         "time_column": header[t_idx].strip(),
                         "flow_column": header[f_idx].strip(), "skipped_rows": skipped})
 
