@@ -106,6 +106,19 @@ def test_logger_date_times(tmp_path, times, steps):
     assert run.flow_l_min.tolist() == [0.5, 1.5, 2.5]
 
 
+@pytest.mark.parametrize("fmt, offset_s, text", [
+    ("seconds", 12.5, ""),
+    ("iso8601", 1795525499.997, "t = 0 at 2026-11-24 13:04:59.997 on the log's clock"),
+    ("%d.%m.%Y %H:%M:%S.%f", 1795525500.0, "t = 0 at 2026-11-24 13:05:00.000"),
+    ("%H:%M:%S.%f", 47100.25, "t = 0 at 13:05:00.250 on the log's clock"),
+])
+def test_the_report_places_t0_on_a_date_time_logs_clock(fmt, offset_s, text):
+    from plcpred.diagnose.core import _clock_reading
+    run = MeasuredRun("log.csv", np.arange(3.0), np.ones(3), source={"time_format": fmt})
+    reading = _clock_reading(run, offset_s)
+    assert (text in reading) if text else reading == ""
+
+
 def test_a_header_below_the_loggers_own_lines(tmp_path):
     p = tmp_path / "log.csv"
     p.write_text("Device;SD6000 flow meter\nSerial;123456\n\nDate/Time;Flow [m3/h];T [C]\n"

@@ -131,7 +131,8 @@ class Diagnosis:
         for rd in self.runs:
             src = rd.model.timeline.info.get("mode") == "recorded"
             lines.append(f"  {rd.run.name}: {len(rd.end_s)} samples every "
-                         f"{rd.run.interval_s:g} s, clock offset {rd.offset_s:+.3f} s, "
+                         f"{rd.run.interval_s:g} s, clock offset {rd.offset_s:+.3f} s"
+                         f"{_clock_reading(rd.run, rd.offset_s)}, "
                          f"meter lag {rd.meter_tau_s:.2f} s, correlation {rd.correlation:.2f}"
                          f"{', edges from recorded I/O' if src else ''}")
         lines += ["", f"baseline: measured {b.measured_nl:.2f} NL, predicted "
@@ -490,3 +491,20 @@ def write_fixed_machine(d: Diagnosis, path) -> list[str]:
     save_machine(data, machine, path, "\n".join(header))
     d.fixed_machine = str(path)
     return changes
+
+
+def _clock_reading(run, offset_s: float) -> str:
+    """Where the prediction's t = 0 falls on a log whose times are date-times or times
+    of day (its offset in seconds since 1970 or midnight says little to a reader)."""
+    fmt = run.source.get("time_format", "seconds")
+    if fmt == "seconds" or not math.isfinite(offset_s):
+        return ""
+    from datetime import datetime, timedelta
+    try:
+        at = datetime(1970, 1, 1) + timedelta(seconds=offset_s)
+    except OverflowError:
+        return ""
+    day = "" if ":" in fmt and "%d" not in fmt and "%Y" not in fmt else "%Y-%m-%d "
+    text = at.strftime(day + "%H:%M:%S.%f")[:-3]
+    return f" (the prediction's t = 0 at {text} on the log's clock)"
+
