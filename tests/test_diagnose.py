@@ -119,6 +119,17 @@ def test_the_report_places_t0_on_a_date_time_logs_clock(fmt, offset_s, text):
     assert (text in reading) if text else reading == ""
 
 
+def test_gaps_in_a_log_are_measured():
+    t = np.arange(0.0, 30.0, 0.5)
+    run = MeasuredRun("log.csv", t, np.ones(len(t)))
+    assert run.unlogged_s == 0.0
+    kept = (t <= 10.0) | (t >= 15.0)             # 9 readings missing: 4.5 s
+    assert MeasuredRun("log.csv", t[kept], np.ones(kept.sum())).unlogged_s == \
+        pytest.approx(4.5)
+    jittered = t + np.random.default_rng(1).uniform(-0.02, 0.02, len(t))
+    assert MeasuredRun("log.csv", jittered, np.ones(len(t))).unlogged_s < 0.1
+
+
 def test_a_header_below_the_loggers_own_lines(tmp_path):
     p = tmp_path / "log.csv"
     p.write_text("Device;SD6000 flow meter\nSerial;123456\n\nDate/Time;Flow [m3/h];T [C]\n"

@@ -101,6 +101,7 @@ class Diagnosis:
                       "meter_tau_s": rd.meter_tau_s, "correlation": rd.correlation,
                       "samples": int(len(rd.end_s)),
                       "interval_s": rd.run.interval_s,
+                      "unlogged_s": rd.run.unlogged_s,
                       "source": "recorded I/O" if rd.model.timeline.info.get(
                           "mode") == "recorded" else "sequencer"} for rd in self.runs],
             "noise_l_min": self.noise_l_min,
@@ -135,6 +136,10 @@ class Diagnosis:
                          f"{_clock_reading(rd.run, rd.offset_s)}, "
                          f"meter lag {rd.meter_tau_s:.2f} s, correlation {rd.correlation:.2f}"
                          f"{', edges from recorded I/O' if src else ''}")
+            if rd.run.unlogged_s > 0.5 * rd.run.interval_s:
+                lines.append(f"    gaps in the log: {rd.run.unlogged_s:.3g} s without a "
+                             "reading; measured and predicted air both cover only the "
+                             "logged intervals")
         lines += ["", f"baseline: measured {b.measured_nl:.2f} NL, predicted "
                       f"{b.predicted_nl:.2f} NL, error {b.error_pct:+.1f} %, RMSE "
                       f"{b.rmse_l_min:.2f} NL/min", "",

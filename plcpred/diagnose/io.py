@@ -65,6 +65,14 @@ class MeasuredRun:
         return self._interval_starts_s.copy()
 
     @functools.cached_property
+    def unlogged_s(self) -> float:
+        """Time the log has no reading for (its gaps beyond one sampling interval each):
+        totals and errors cover only the intervals the log has."""
+        t = self.time_s
+        covered = np.sum(t - self._interval_starts_s)
+        return max(0.0, float(t[-1] - t[0] + self.interval_s - covered))
+
+    @functools.cached_property
     def _interval_starts_s(self) -> np.ndarray:
         t = self.time_s
         start = np.concatenate([[t[0] - self.interval_s], t[:-1]])
