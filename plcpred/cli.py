@@ -701,6 +701,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "day (13:05:00.5). Lines above the header (device, serial) are "
                    "skipped")
     p.add_argument("--flow-col", metavar="NAME|N", help="flow column (default flow_l_min)")
+    p.add_argument("--supply-col", metavar="NAME|N",
+                   help="supply pressure column, bar(g) (default supply_bar_g when the log "
+                        "has one): its mean is compared with the machine file's supply")
     p.add_argument("--flow-unit", default="l/min", choices=("l/min", "m3/h", "l/s", "scfm"),
                    help="unit of the flow column (default l/min)")
     p.add_argument("--reference", choices=("iso8778", "din1343", "iso2533"),
@@ -941,7 +944,8 @@ def cmd_diagnose(args) -> int:
     machine = load_machine(args.machine)
     reference = args.reference or (machine.meter.reference if machine.meter else "iso8778")
     runs = [read_measured(p, time_col=args.time_col, flow_col=args.flow_col,
-                          flow_unit=args.flow_unit, reference=reference)
+                          flow_unit=args.flow_unit, reference=reference,
+                          supply_col=args.supply_col)
             for p in args.measured]
     io = [read_io_timeline(p, horizon_s=r.span_s) for p, r in zip(args.io, runs)] \
         if args.io else None

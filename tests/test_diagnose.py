@@ -130,6 +130,20 @@ def test_gaps_in_a_log_are_measured():
     assert MeasuredRun("log.csv", jittered, np.ones(len(t))).unlogged_s < 0.1
 
 
+def test_a_logged_supply_pressure_is_compared_with_the_machine_files(tmp_path):
+    rows = (ROOT / "samples" / "prototype_rig" / "seq1_measured.csv").read_text().split()
+    machine = plcpred.load_machine(RIG)
+    for supply, note in ((machine.supply_bar_g + 0.6, "the machine file says"),
+                         (machine.supply_bar_g + 0.05, "(machine file:")):
+        p = tmp_path / "log.csv"
+        p.write_text("time_s,flow_l_min,supply_bar_g\n" + "".join(
+            f"{r},{supply + (0.1 if k % 2 else -0.1):.3f}\n" for k, r in enumerate(rows[1:])))
+        d = diagnose(machine, [read_measured(p)], effects=["leak"])
+        assert d.summary()["runs"][0]["supply_bar_g"] == pytest.approx(supply, abs=0.01)
+        assert f"supply pressure in the log: {supply:.2f} bar(g) on average" in d.report()
+        assert note in d.report()
+
+
 def test_a_header_below_the_loggers_own_lines(tmp_path):
     p = tmp_path / "log.csv"
     p.write_text("Device;SD6000 flow meter\nSerial;123456\n\nDate/Time;Flow [m3/h];T [C]\n"

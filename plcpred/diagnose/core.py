@@ -102,6 +102,7 @@ class Diagnosis:
                       "samples": int(len(rd.end_s)),
                       "interval_s": rd.run.interval_s,
                       "unlogged_s": rd.run.unlogged_s,
+                      "supply_bar_g": _num(_logged_supply(rd.run)),
                       "source": "recorded I/O" if rd.model.timeline.info.get(
                           "mode") == "recorded" else "sequencer"} for rd in self.runs],
             "noise_l_min": self.noise_l_min,
@@ -136,6 +137,13 @@ class Diagnosis:
                          f"{_clock_reading(rd.run, rd.offset_s)}, "
                          f"meter lag {rd.meter_tau_s:.2f} s, correlation {rd.correlation:.2f}"
                          f"{', edges from recorded I/O' if src else ''}")
+            logged = _logged_supply(rd.run)
+            if logged is not None:
+                said = self.machine.supply_bar_g
+                lines.append(f"    supply pressure in the log: {logged:.2f} bar(g) on average"
+                             + (f", the machine file says {said:g}: compare the verdict "
+                                "supply_pressure below" if abs(logged - said) >
+                                SUPPLY_NOTE_BAR else f" (machine file: {said:g})"))
             if rd.run.unlogged_s > 0.5 * rd.run.interval_s:
                 lines.append(f"    gaps in the log: {rd.run.unlogged_s:.3g} s without a "
                              "reading; measured and predicted air both cover only the "
@@ -512,4 +520,16 @@ def _clock_reading(run, offset_s: float) -> str:
     day = "" if ":" in fmt and "%d" not in fmt and "%Y" not in fmt else "%Y-%m-%d "
     text = at.strftime(day + "%H:%M:%S.%f")[:-3]
     return f" (the prediction's t = 0 at {text} on the log's clock)"
+
+
+SUPPLY_NOTE_BAR = 0.2   # a logged supply this far from the machine file's is pointed out
+
+
+def _logged_supply(run) -> float | None:
+    """The mean supply pressure a log records (its supply_bar_g column), None without."""
+    p = run.supply_bar_g
+    if p is None:
+        return None
+    p = p[np.isfinite(p)]
+    return float(np.mean(p)) if len(p) else None
 
