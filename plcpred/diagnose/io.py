@@ -128,7 +128,7 @@ def _column(path: str, header: list[str], wanted, default: str | None, what: str
 MAX_PREAMBLE_LINES = 50
 
 
-def _header_line(file: str, lines: list[str], time_col, flow_col) -> int:
+def _header_line(lines: list[str], time_col, flow_col) -> int:
     """Index of the header row: the first line, or the first of the first
     MAX_PREAMBLE_LINES lines that names the time and flow columns (a logger's export
     often starts with lines about the device); with columns given by number, the line
@@ -244,7 +244,7 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str = "l/min",
     if not any(line.strip() for line in lines):
         raise MeasuredDataError(f"{file}: empty file (expected a header such as "
                                 "time_s,flow_l_min and rows of samples)")
-    start = _header_line(file, lines, time_col, flow_col)
+    start = _header_line(lines, time_col, flow_col)
     first = lines[start]
     delimiter = max((",", ";", "\t"), key=first.count)
     decimal_comma = delimiter != ","

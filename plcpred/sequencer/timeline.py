@@ -117,15 +117,14 @@ class Timeline:
         k = np.arange(first, last + 1, dtype=np.int64)
         tt = (pt[None, :] + k[:, None] * (self.tiled[1] - self.tiled[0])).ravel()
         keep = tt <= (self.horizon_ns if until_ns is None else until_ns)
-        vv = np.tile(pv, len(k))
+        ss, vv = np.tile(ps, len(k)), np.tile(pv, len(k))
         if self.drift:
-            ss = np.tile(ps, len(k))
             kk = np.repeat(k, len(pt))
             for i, (step, bits, signed) in self.drift.items():
                 mine = ss == i
                 vv[mine] = _wrapped(vv[mine].astype(np.int64) + kk[mine] * int(step),
                                     bits, signed)
-        return tt[keep], np.tile(ps, len(k))[keep], vv[keep]
+        return tt[keep], ss[keep], vv[keep]
 
     @property
     def time_ns(self) -> np.ndarray:
