@@ -8,6 +8,7 @@ harmless oddities are collected in ``Machine.warnings``.
 from __future__ import annotations
 
 import math
+import re
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -688,12 +689,25 @@ def check_against_program(machine: Machine, program) -> list[str]:
         if dot and bit.isdigit() and base.upper() in names:
             name = base  # one bit of a WORD/BYTE variable
         if name.upper() not in names:
+            # a path into a variable (aValve[3], fbCyl[2].q, PRG.stCell.xOut): its
+            # variable is checked here, the path itself when the program is compiled
+            path = re.match(r"\s*([A-Za-z_][A-Za-z0-9_]*)\s*(?:\.\s*([A-Za-z_][A-Za-z0-9_]*))?"
+                            r"\s*[.\[]", name + ".", re.ASCII)
+            if path:
+                first, second = path.group(1).upper(), (path.group(2) or "").upper()
+                if first in names:
+                    return first
+                if first in programs and second in names:
+                    return second
             raise MachineError(file, where, f"{key} '{signal}' is not a variable of "
                                             f"{program_file}")
         return name.upper()
 
     from .sequencer.compiler import names_in
     from .parser import ir
+    programs = {p.name.upper() for p in program.pous if p.kind == "PROGRAM"}
+    programs |= {i.name.upper() for c in program.configurations for r in c.resources
+                 for i in r.programs}
     used_addresses = {a.upper() for a in names_in(program, ir.DirectAddress, "address")}
     names |= used_addresses
     read = set(read) | used_addresses

@@ -31,6 +31,7 @@ import numpy as np
 
 from ..errors import PlcpredError
 from ..parser import ir
+from ..parser.names import ident
 from . import runtime as rtm
 from . import types
 from .compiler import CompileError, Compiled, compile_program
@@ -71,8 +72,8 @@ class _LeftOut:
             if slot is None or not left_out:
                 continue
             obj, attr = slot
-            if isinstance(obj, BitView):        # a bit of a count is no count
-                if _left_out_kind(obj.obj, obj.attr, left_out) is not _KEPT:
+            if isinstance(obj, (BitView, ItemView)):   # a bit or an element: no count
+                if _left_out_kind(*_root_slot(obj, attr), left_out) is not _KEPT:
                     self.others.append(i)
                 continue
             kind = _left_out_kind(obj, attr, left_out)
@@ -81,12 +82,17 @@ class _LeftOut:
             elif kind is not _KEPT:
                 self.counts[i] = (obj, attr) + tuple(kind)
         self.order = self.others + sorted(self.counts)
+        self._in_order = frozenset(self.order)
 
     def __bool__(self) -> bool:
         return bool(self.order)
 
     def values(self, values) -> tuple:
         return tuple(values[i] for i in self.order)
+
+    def kept(self, values) -> tuple:
+        """The values of the other signals."""
+        return tuple(v for i, v in enumerate(values) if i not in self._in_order)
 
     def period_drift(self, values, t1: int, tt, ss, vv) -> dict | None:
         """{signal: (step, bits, signed)} of the counts from ``t1`` to now; None when
@@ -142,6 +148,16 @@ class _LeftOut:
 _KEPT = object()
 
 
+def _root_slot(obj, attr):
+    """The (object, attribute) of the variable a slot is part of (a bit's word, an
+    element's array, the slot itself otherwise)."""
+    if isinstance(obj, BitView):
+        return _root_slot(obj.obj, obj.attr)
+    if isinstance(obj, ItemView):
+        return obj.root
+    return obj, attr
+
+
 def _left_out_kind(obj, attr: str, left_out: dict):
     """``Compiled.left_out``'s entry for ``obj.attr`` (its class or a base's), or _KEPT
     when the compared state holds it."""
@@ -150,6 +166,23 @@ def _left_out_kind(obj, attr: str, left_out: dict):
         if kinds and attr in kinds:
             return kinds[attr]
     return _KEPT
+
+
+class ItemView:
+    """One element of an array as a signal (``aValves[3]``, ``fbCyl[2].q`` in a machine
+    file): ``root`` is the (object, attribute) of the variable the path starts from."""
+    __slots__ = ("items", "k", "root")
+
+    def __init__(self, items, k, root):
+        self.items, self.k, self.root = items, k, root
+
+    @property
+    def V(self):
+        return self.items[self.k]
+
+    @V.setter
+    def V(self, value) -> None:
+        self.items[self.k] = value
 
 
 class BitView:
@@ -682,7 +715,11 @@ class Sequencer:
 
         def add(lst, name, hit):
             obj, attr, t = hit
-            k = (id(obj), attr)
+            # one signal per variable, however often and however spelt it is named
+            # (aSw[1,2] and aSw[1, 2] are one element)
+            k = (id(obj.items), obj.k) if isinstance(obj, ItemView) else \
+                (id(obj.obj), obj.attr, obj.mask) if isinstance(obj, BitView) else \
+                (id(obj), attr)
             if k in seen:
                 return
             seen.add(k)
@@ -758,15 +795,86 @@ class Sequencer:
         slot = (self.compiled.address_slots or {}).get(name.upper())
         if hit is None and slot is not None:
             hit = (inst.g, slot, self.compiled.globals_types[slot][1])
-        base, dot, bit = name.rpartition(".")
-        if hit is None and dot and bit.isdigit():
-            word = inst.locate(base)
-            if word is not None and word[2].cat == "int":
-                hit = (BitView(word[0], word[1], int(bit)), "V", types.BOOL)
+        where = f"{self.machine.path}: " if self.machine is not None else ""
         if hit is None:
-            where = f"{self.machine.path}: " if self.machine is not None else ""
+            hit = self._locate_path(inst, name, f"{where}signal '{signal}'")
+        if hit is None:
             raise SequencerError(f"{where}signal '{signal}' is not a variable of the program")
         return hit
+
+    def _locate_path(self, inst, name: str, what: str):
+        """A signal given as a path into a variable: members (``fbCyl.q``,
+        ``PRG.stCell.xOut``), array elements (``aValve[3]``, ``fbCyl[2, 1].q``) and bits of
+        an integer (``wValves.3``). Each step is looked up in the declared types (no name
+        from the machine file reaches generated code but a declared one); None when the
+        first name is no variable."""
+        name = name.strip()
+        m = _PATH_ROOT.match(name)
+        if m is None:
+            return None
+        hit, at = inst.locate(m.group(0)), m.end()
+        if hit is None and m.group(0).upper() in (n.upper() for n in inst.names):
+            step = _PATH_STEP.match(name, at)      # PRG.var: the program's own variable
+            if step is not None and step.group(1):
+                hit = inst.locate(f"{m.group(0)}.{step.group(1)}")
+                at = step.end()
+        if hit is None:
+            return None
+        root = hit[:2]
+        while at < len(name):
+            step = _PATH_STEP.match(name, at)
+            if step is None:
+                raise SequencerError(f"{what}: cannot read '{name[at:]}' (a path is "
+                                     "name.member, name[index] or name.bit)")
+            at = step.end()
+            obj, attr, t = hit
+            member, indices, bit = step.groups()
+            if bit is not None:
+                if t.cat != "int" or at != len(name):
+                    raise SequencerError(f"{what}: bit {bit} of something that is not an "
+                                         "integer, or not at the end")
+                hit = (BitView(obj, attr, int(bit)), "V", types.BOOL)
+            elif member is not None:
+                hit = (getattr(obj, attr),) + self._member(t, member.upper(), what)
+            else:
+                hit = self._element(getattr(obj, attr), t, indices, root, what)
+        if hit[2].cat not in ("bool", "int", "real", "time"):
+            raise SequencerError(f"{what} is a {hit[2].cat}, not a BOOL, number or TIME")
+        return hit
+
+    def _member(self, t, key: str, what: str) -> tuple:
+        """(attribute, type) of member ``key`` of a value of type ``t``."""
+        if isinstance(t, types.FbT):
+            d = t.var(key)
+            if d is not None:
+                return ident(d.name), self.compiled.types.resolve(d.type, d.pos)
+        elif isinstance(t, types.StructT):
+            if key in t.members:
+                return key, t.members[key]
+        elif isinstance(t, types.StdFbT):
+            from .compiler import _stdfb_member
+            pin, pt = _stdfb_member(t, key)
+            if pin:
+                return pin, pt
+        raise SequencerError(f"{what}: no member '{key}' in {getattr(t, 'name', t.cat)}")
+
+    @staticmethod
+    def _element(items, t, indices: str, root, what: str) -> tuple:
+        """(ItemView, "V", type) of element ``indices`` ("3" or "2, 1") of an array."""
+        if not isinstance(t, types.ArrayT):
+            raise SequencerError(f"{what}: [{indices}] of something that is not an array")
+        ks = [int(x) for x in indices.split(",")]
+        if len(ks) > len(t.dims):
+            raise SequencerError(f"{what}: {len(ks)} indices for an array of "
+                                 f"{len(t.dims)} dimensions")
+        for n, ((lo, hi), k) in enumerate(zip(t.dims, ks)):
+            if not lo <= k <= hi:
+                raise SequencerError(f"{what}: index {k} outside [{lo}..{hi}]")
+            if n < len(ks) - 1:
+                items = items[k - lo]
+        rest = t.dims[len(ks):]
+        return (ItemView(items, ks[-1] - t.dims[len(ks) - 1][0], root), "V",
+                types.ArrayT(rest, t.elem) if rest else t.elem)
 
     # ------------------------------------------------------------------ run
     def run(self, horizon_ns: int, scan_stepping: bool = False,
@@ -836,7 +944,8 @@ class Sequencer:
         # inputs the program never writes keep what was written: the image is written
         # again only when it changed (else every scan, as a PLC does)
         written = self.compiled.written
-        rewrite = written is None or any(attr.upper() in written for _, attr in drive_slots)
+        rewrite = written is None or any(_root_slot(obj, attr)[1].upper() in written
+                                         for obj, attr in drive_slots)
         image = {"stale": True}
         # when each cylinder's switches change next (a heap of (time, cylinder), stale
         # entries left in it until they surface: ``due`` holds the live time of each),
@@ -1051,7 +1160,9 @@ class Sequencer:
                     # key (costly on a wide machine) is made only at fixed points whose
                     # signal values an earlier one had (a count shown on an output then
                     # costs nothing; a repeating machine is found a period later)
-                    shown = hash(values)
+                    # (a count the compared state leaves out changes from one cycle to
+                    # the next: the values shown without it)
+                    shown = hash(values if not left else left.kept(values))
                     key = None
                     if shown in seen_values:
                         key = _digest(self._state_key(inst, t, schedules, cylinders))
@@ -1168,6 +1279,10 @@ def _digest(key):
 
 
 _ATTR = re.compile(r"[A-Za-z_][A-Za-z0-9_]*", re.ASCII)
+_PATH_ROOT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*", re.ASCII)
+# .member | [i] or [i, j] | .bit
+_PATH_STEP = re.compile(r"\s*(?:\.\s*([A-Za-z_][A-Za-z0-9_]*)"
+                        r"|\[\s*(-?\d+(?:\s*,\s*-?\d+)*)\s*\]|\.\s*(\d+))", re.ASCII)
 
 
 def _too_many_changes(signals, sig_idx, t_ns, scan_ns, limit) -> str:
