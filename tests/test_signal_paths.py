@@ -151,3 +151,16 @@ def test_a_count_inside_an_element_counts_on_when_the_run_repeats(tmp_path):
     assert tiled == run(m, "2min", tiling=False)
     assert list(tiled.edge_times_ns("fbCyl[2].nParts")[1]) == list(range(31))
 
+
+def test_a_two_dimensional_element_survives_timeline_csv(tmp_path):
+    from plcpred.diagnose import read_io_timeline
+    tl = run(load(tmp_path), "10s")
+    assert "aSw[1,2]" in tl.names             # spelt without spaces, whatever the file says
+    tl.to_csv(tmp_path / "timeline.csv")
+    assert '"aSw[1,2]"' in (tmp_path / "timeline.csv").read_text()
+    back = read_io_timeline(tmp_path / "timeline.csv", horizon_s=10)
+    for name in ("aSw[1,2]", "aValve[3]", "wBlow[2].3"):
+        t, v = tl.edge_times_ns(name)
+        t2, v2 = back.edge_times_ns(name)
+        assert list(t) == list(t2) and list(v) == list(v2)
+

@@ -769,7 +769,7 @@ class Sequencer:
                 if slot == attr:
                     return addr
             return inst.compiled.globals_types[attr][0]
-        return self._resolve(signal)
+        return "".join(self._resolve(signal).split())    # aSw[1, 2] shown as aSw[1,2]
 
     def _machine_inputs(self):
         names = [s.signal for s in self.machine.inputs]

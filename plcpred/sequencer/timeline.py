@@ -327,7 +327,7 @@ class Timeline:
         t = np.asarray(t, dtype=np.int64)
         if not len(t):
             return ""
-        names = self.names
+        names = [_csv_field(n) for n in self.names]
         real = [s.dtype == "real" for s in self.signals]
         # (signal, value) pairs as one integer code: sorting codes is fast, rows are not
         vals, val_k = np.unique(np.asarray(val, dtype=np.float64), return_inverse=True)
@@ -342,6 +342,13 @@ class Timeline:
         whole, frac_k, frac_text = seconds_texts(t)
         return "".join([f"{w}{frac_text[f]},{pair_text[p]}\n" for w, f, p in zip(
             whole, frac_k, pair_k.ravel().tolist())])
+
+
+def _csv_field(text: str) -> str:
+    """A CSV field: quoted when it holds a comma or a quote (a signal aSw[1,2])."""
+    if any(c in text for c in ',"\n\r'):
+        return '"' + text.replace('"', '""') + '"'
+    return text
 
 
 def _wrapped(values, bits: int, signed: bool) -> np.ndarray:
