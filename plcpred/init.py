@@ -179,4 +179,32 @@ def machine_skeleton(program: ir.Program, program_path: Path, out_path: Path | N
     if not inputs and not outputs:
         lines += ["# The program declares no located variables (%I, %Q) and its PROGRAMs",
                   "# no VAR_INPUT / VAR_OUTPUT: name any of its variables as a signal.", ""]
+    arrays = bool_arrays(program)
+    if arrays:
+        lines.append("# BOOL arrays (valves and switches of many drives): name an element as "
+                     "a signal,")
+        lines += [f"#   {name}: {dims} -> {name}[{first}]" for name, dims, first in arrays]
+        lines.append("")
     return "\n".join(lines)
+
+
+def bool_arrays(program: ir.Program) -> list[tuple[str, str, str]]:
+    """(name, ``ARRAY[..] OF BOOL`` text, first element's index text) of the BOOL arrays
+    a program's globals and PROGRAMs declare (with literal bounds), in declaration
+    order."""
+    blocks = [g.block for g in program.globals]
+    blocks += [b for p in program.pous if p.kind == "PROGRAM" for b in p.var_blocks]
+    out = []
+    for b in blocks:
+        for d in b.decls:
+            t = d.type
+            if not isinstance(t, ir.ArrayType) or not isinstance(t.element, ir.NamedType) \
+                    or t.element.name.upper() != "BOOL":
+                continue
+            bounds = [(lo.value, hi.value) for lo, hi in t.dims
+                      if isinstance(lo, ir.Literal) and isinstance(hi, ir.Literal)]
+            if len(bounds) != len(t.dims):
+                continue
+            dims = ", ".join(f"{lo}..{hi}" for lo, hi in bounds)
+            out.append((d.name, f"ARRAY[{dims}] OF BOOL", ", ".join(str(lo) for lo, _ in bounds)))
+    return out

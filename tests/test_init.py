@@ -71,3 +71,19 @@ def test_a_file_name_cannot_write_toml_of_its_own(tmp_path, capsys):
     from plcpred.machine import MachineError
     with pytest.raises(MachineError, match=r"\[machine\]: program must be printable"):
         load_machine(out)
+
+
+def test_init_names_the_elements_of_bool_arrays(tmp_path, capsys):
+    program = tmp_path / "line.st"
+    program.write_text("VAR_GLOBAL aValve : ARRAY[1..200] OF BOOL; aSw : ARRAY[0..1, 1..200] "
+                       "OF BOOL; nCount : ARRAY[1..3] OF INT; END_VAR\n"
+                       "PROGRAM Line VAR aLocal : ARRAY[5..6] OF BOOL; END_VAR\n"
+                       "aValve[1] := aSw[1, 1]; aLocal[5] := TRUE; END_PROGRAM\n")
+    out = tmp_path / "line.toml"
+    assert main(["init", str(program), "--out", str(out)]) == 0
+    text = out.read_text()
+    assert "aValve: ARRAY[1..200] OF BOOL -> aValve[1]" in text
+    assert "aSw: ARRAY[0..1, 1..200] OF BOOL -> aSw[0, 1]" in text
+    assert "aLocal: ARRAY[5..6] OF BOOL -> aLocal[5]" in text
+    assert "nCount" not in text                       # not BOOL
+    load_machine(out)
