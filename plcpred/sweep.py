@@ -333,12 +333,15 @@ def run_batch(batch: list) -> list[dict]:
     return [run_scenario(*a) for a in batch]
 
 
-def guided_batches(n: int, threads: int, per_thread: int = 4) -> list[list[int]]:
+def guided_batches(n: int, threads: int, per_thread: int = 2) -> list[list[int]]:
     """Scenario indices 0..n-1 in batches of falling size (guided self-scheduling): each
-    batch a ``per_thread * threads``-th of what is left. The scheduler's round trip is
-    paid per batch, so the first batches are large; the last ones hold one scenario
-    each, so no worker is left with a long batch while the others idle at the end.
-    Rows stream back as batches finish."""
+    batch a ``per_thread * threads``-th of what is left. Every batch costs the
+    scheduler, the client and the worker some CPU, taken from the scenarios when a sweep
+    keeps every core busy, so the first batches are large; the last ones hold one
+    scenario each, so no worker is left with a long batch while the others idle at the
+    end. Rows stream back as batches finish. Measured on two cores (64 scenarios, five
+    interleaved rounds, Dask over local): 1.035x with a quarter per thread of what is
+    left, 0.995x with half, 1.087x with an eighth."""
     out, start = [], 0
     while start < n:
         size = max(1, (n - start) // (per_thread * max(1, threads)))

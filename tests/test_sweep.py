@@ -117,8 +117,8 @@ def test_guided_batches_cover_every_scenario_once_in_falling_sizes(n, threads):
     assert [k for b in batches for k in b] == list(range(n))
     sizes = [len(b) for b in batches]
     assert sizes == sorted(sizes, reverse=True) and sizes[-1] == 1
-    # the first batch is a (4 * threads)-th of the work, not all of it
-    assert sizes[0] == max(1, n // (4 * threads))
+    # the first batch is a (2 * threads)-th of the work, not all of it
+    assert sizes[0] == max(1, n // (2 * threads))
 
 
 def test_the_dask_worker_settings_are_known_to_dask():
