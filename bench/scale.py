@@ -3,12 +3,15 @@
 The line is written here from a plain description of such a machine, not from plcpred's
 code: stations of five double-acting cylinders, each station extending its cylinders one
 after the other (each waits for its own end switch), blowing the part off with a nozzle
-while the last one is out, then retracting them in reverse order. Three layouts:
+while the last one is out, then retracting them in reverse order. Four layouts:
 
 * ``parallel``: every station starts on the part sensor (a part every 4 s);
 * ``sequential``: station k starts when station k-1 has finished (a wave down the line);
 * ``jittered``: parallel, with the part arrivals jittered by 0.2 s (nothing repeats, so
-  the run cannot tile and every scan is executed).
+  the run cannot tile and every scan is executed);
+* ``arrays``: parallel, written as large machines often are: the I/O in two-dimensional
+  arrays (station, cylinder) that the machine file names element by element
+  (``aQ[3,1]``), one loop over the stations.
 
 Each case runs ``predict`` and writes its files in a child process (peak memory is the
 child's own) and prints the time per stage, the peak resident memory, and a hand check
@@ -17,7 +20,7 @@ here from bore, rod, stroke and tube (air after the horizon is cut, so the model
 be a stroke's air below). Then the ratios of N = 200 to N = 10 and the issue's targets
 against samples/pick_place.toml run in the same invocation.
 
-    python bench/scale.py [--sizes 10,50,200] [--horizons 1h,24h] [--layouts parallel,sequential,jittered]
+    python bench/scale.py [--sizes 10,50,200] [--horizons 1h,24h] [--layouts parallel,sequential,jittered,arrays]
     python bench/scale.py --quick        # N = 10, 50 over 1 h only
 """
 from __future__ import annotations
@@ -44,6 +47,8 @@ TUBE_ID_MM, TUBE_M = 4.0, 1.0
 
 def line_program(n: int, layout: str) -> str:
     """IEC 61131-3 ST of the line."""
+    if layout == "arrays":
+        return array_line_program(n)
     stations = math.ceil(n / PER_STATION)
     g = ["VAR_GLOBAL", "    xPart : BOOL;"]
     body = []
@@ -77,6 +82,48 @@ def line_program(n: int, layout: str) -> str:
     return "\n".join(g + [""] + decl + body + ["END_PROGRAM", ""])
 
 
+def array_line_program(n: int) -> str:
+    """The parallel line as large machines are written: I/O in arrays indexed by station
+    and cylinder, one loop over the stations, each a step counter; what a step does
+    found from its number (extend cylinder k, then retract them in reverse)."""
+    assert n % PER_STATION == 0, "the arrays layout takes whole stations"
+    s_hi, k = n // PER_STATION - 1, PER_STATION
+    return f"""VAR_GLOBAL
+    xPart : BOOL;
+    aQ, aOut, aIn : ARRAY[0..{s_hi}, 0..{k - 1}] OF BOOL;
+    aBlow : ARRAY[0..{s_hi}] OF BOOL;
+END_VAR
+
+PROGRAM Line
+VAR
+    nStep : ARRAY[0..{s_hi}] OF INT;
+    xReq : ARRAY[0..{s_hi}] OF BOOL;
+    trig : ARRAY[0..{s_hi}] OF R_TRIG;
+    s, n, c : INT;
+END_VAR
+FOR s := 0 TO {s_hi} DO
+    trig[s](CLK := xPart);
+    IF trig[s].Q THEN xReq[s] := TRUE; END_IF
+    n := nStep[s];
+    IF n = 0 THEN
+        IF xReq[s] THEN xReq[s] := FALSE; nStep[s] := 1; END_IF
+    ELSIF n <= {k} THEN
+        c := n - 1;
+        aQ[s, c] := TRUE;
+        IF aOut[s, c] THEN nStep[s] := n + 1; END_IF
+    ELSIF n <= {2 * k} THEN
+        c := {2 * k} - n;
+        aQ[s, c] := FALSE;
+        IF aIn[s, c] THEN nStep[s] := n + 1; END_IF
+    ELSE
+        nStep[s] := 0;
+    END_IF
+    aBlow[s] := nStep[s] = {k + 1};
+END_FOR
+END_PROGRAM
+"""
+
+
 def line_machine(n: int, layout: str, program: str) -> str:
     stations = math.ceil(n / PER_STATION)
     out = ["[machine]", f'name = "line-{n}-{layout}"', f'program = "{program}"',
@@ -85,17 +132,21 @@ def line_machine(n: int, layout: str, program: str) -> str:
            "pulse_ms = 500"]
     if layout == "jittered":
         out += ["jitter_s = 0.2", "seed = 7"]
+    arrays = layout == "arrays"
     for s in range(stations):
         for c in range(min(PER_STATION, n - s * PER_STATION)):
             bore, rod, stroke, te, tr = SIZES[c]
+            q, x_in, x_out = ((f"aQ[{s},{c}]", f"aIn[{s},{c}]", f"aOut[{s},{c}]") if arrays
+                              else (f"q_{s}_{c}", f"xIn_{s}_{c}", f"xOut_{s}_{c}"))
             out += ["", "[[consumer]]", f'name = "S{s}C{c}"', 'kind = "double_acting"',
                     f"bore_mm = {bore}", f"rod_mm = {rod}", f"stroke_mm = {stroke}",
                     f"tube_id_mm = {TUBE_ID_MM}", f"tube_length_m = [{TUBE_M}, {TUBE_M}]",
-                    f'valve = "q_{s}_{c}"', f"stroke_time_s = [{te}, {tr}]",
+                    f'valve = "{q}"', f"stroke_time_s = [{te}, {tr}]",
                     "switch_delay_s = 0.012",
-                    f'switches = {{ retracted = "xIn_{s}_{c}", extended = "xOut_{s}_{c}" }}']
+                    f'switches = {{ retracted = "{x_in}", extended = "{x_out}" }}']
         out += ["", "[[consumer]]", f'name = "blow S{s}"', 'kind = "nozzle"',
-                f'valve = "qBlow_{s}"', "orifice_mm = 1.0", "Cd = 0.8"]
+                f'valve = "{f"aBlow[{s}]" if arrays else f"qBlow_{s}"}"', "orifice_mm = 1.0",
+                "Cd = 0.8"]
     out += ["", "[[consumer]]", 'name = "line leaks"', 'kind = "leak"', "orifice_mm = 1.0",
             "Cd = 0.6", ""]
     return "\n".join(out)
@@ -182,7 +233,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", default="10,50,200")
     ap.add_argument("--horizons", default="1h,24h")
-    ap.add_argument("--layouts", default="parallel,sequential,jittered")
+    ap.add_argument("--layouts", default="parallel,sequential,jittered,arrays")
     ap.add_argument("--quick", action="store_true", help="N = 10, 50 over 1 h")
     args = ap.parse_args(argv)
     if args.quick:
