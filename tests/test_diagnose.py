@@ -119,6 +119,20 @@ def test_the_report_places_t0_on_a_date_time_logs_clock(fmt, offset_s, text):
     assert (text in reading) if text else reading == ""
 
 
+def test_readings_stamped_to_the_second_spread_over_it(tmp_path):
+    p = tmp_path / "log.csv"
+    p.write_text("Zeit;Durchfluss\n" + "".join(
+        f"24.11.2026 13:05:{s:02d};{q}\n" for s, q in
+        [(0, 1), (0, 2), (1, 3), (1, 4), (2, 5), (2, 6), (3, 7), (3, 8)]))
+    run = read_measured(p, time_col="Zeit", flow_col="Durchfluss")
+    assert np.diff(run.time_s).tolist() == pytest.approx([0.5] * 7)
+    assert run.source["spread_rows"] == 4 and run.interval_s == pytest.approx(0.5)
+    # a time with fractions that repeats is a fault of the log, not a stamp's resolution
+    p.write_text("time_s,flow_l_min\n0.5,1\n1.0,2\n1.0,3\n1.5,4\n")
+    with pytest.raises(MeasuredDataError, match="line 4, column 1: time 1.0 does not increase"):
+        read_measured(p)
+
+
 def test_gaps_in_a_log_are_measured():
     t = np.arange(0.0, 30.0, 0.5)
     run = MeasuredRun("log.csv", t, np.ones(len(t)))

@@ -144,6 +144,10 @@ class Diagnosis:
                              + (f", the machine file says {said:g}: compare the verdict "
                                 "supply_pressure below" if abs(logged - said) >
                                 SUPPLY_NOTE_BAR else f" (machine file: {said:g})"))
+            spread = rd.run.source.get("spread_rows")
+            if spread:
+                lines.append(f"    times stamped to the whole second: {spread} readings "
+                             "spread evenly over their second")
             if rd.run.unlogged_s > 0.5 * rd.run.interval_s:
                 lines.append(f"    gaps in the log: {rd.run.unlogged_s:.3g} s without a "
                              "reading; measured and predicted air both cover only the "

@@ -5,11 +5,13 @@ optional ``supply_bar_g``, as ``plcpred emulate`` writes it, or any logger's col
 with ``time_col``/``flow_col`` (a header name or a 1-based column number), below any lines
 the logger writes before its header. Times are seconds, ISO 8601 date-times, a logger's
 date-times (``24.11.2026 13:05:00,5``, ``2026/11/24 13:05:00``, ``11/24/2026 1:05:00
-PM``) or times of day alone (``13:05:00.5``, passing midnight); flows are in ``l/min``, ``m3/h``, ``l/s`` or ``scfm`` at the
-meter's reference condition (ISO 8778, DIN 1343 or ISO 2533), converted here to normal
-litres per minute at the ISO 8778 reference every other part of plcpred uses
-(docs/physics.md: reference conditions: ``V_2 = V_1 * (P_1/P_2) * (T_2/T_1)``). Fields separated by
-``,``, ``;`` or tabs; with ``;`` a decimal comma is read too (European loggers).
+PM``) or times of day alone (``13:05:00.5``, passing midnight); readings stamped to the
+whole second by a logger that samples faster are spread evenly over their second. Flows
+are in ``l/min``, ``m3/h``, ``l/s`` or ``scfm`` at the meter's reference condition
+(ISO 8778, DIN 1343 or ISO 2533), converted here to normal litres per minute at the
+ISO 8778 reference every other part of plcpred uses (docs/physics.md: reference
+conditions: ``V_2 = V_1 * (P_1/P_2) * (T_2/T_1)``). Fields separated by ``,``, ``;`` or
+tabs; with ``;`` a decimal comma is read too (European loggers).
 """
 from __future__ import annotations
 
@@ -262,6 +264,7 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str = "l/min",
     times, flows, supplies = [], [], []
     skipped = 0
     iso = None          # False: seconds; else the date-time format of the first row
+    repeated = None     # (line, time) of the first time equal to the one before
     day_s = 0.0         # a time of day alone: the days passed midnight adds
     for lineno, row in enumerate(rows, start=start + 2):
         if not row or not "".join(row).strip():
@@ -303,9 +306,11 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str = "l/min",
             raise MeasuredDataError(f"{file}: line {lineno}, column {t_idx + 1}: the time "
                                     "is not a finite number")
         if times and t <= times[-1]:
-            raise MeasuredDataError(f"{file}: line {lineno}, column {t_idx + 1}: time "
-                                    f"{cell.strip()} does not increase (previous row "
-                                    "is later or equal)")
+            if t < times[-1] or t != math.floor(t):
+                raise MeasuredDataError(f"{file}: line {lineno}, column {t_idx + 1}: time "
+                                        f"{cell.strip()} does not increase (previous row "
+                                        "is later or equal)")
+            repeated = repeated or (lineno, cell.strip())
         times.append(t)
         flows.append(q)
         if s_idx is not None and s_idx < len(row):
@@ -319,6 +324,11 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str = "l/min",
                                 + (f" ({skipped} rows without a number in the flow "
                                    "column)" if skipped else ""))
     time_s = np.asarray(times, dtype=float)
+    if repeated and np.any(time_s != np.floor(time_s)):
+        raise MeasuredDataError(f"{file}: line {repeated[0]}, column {t_idx + 1}: time "
+                                f"{repeated[1]} does not increase (previous row is later "
+                                "or equal)")
+    time_s, spread = _spread_whole_seconds(time_s)
     flow = np.asarray(flows, dtype=float) * unit_k * ref_k
     supply = np.asarray(supplies, dtype=float) if s_idx is not None and len(
         supplies) == len(times) else None
@@ -327,7 +337,23 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str = "l/min",
                         "time_format": ("iso8601" if iso == "iso" else iso) if iso
                         else "seconds",
                         "time_column": header[t_idx].strip(),
-                        "flow_column": header[f_idx].strip(), "skipped_rows": skipped})
+                        "flow_column": header[f_idx].strip(), "skipped_rows": skipped,
+                        "spread_rows": spread})
+
+
+def _spread_whole_seconds(t: np.ndarray) -> tuple[np.ndarray, int]:
+    """Times stamped to the whole second by a logger that samples faster (12:00:01 twice
+    at 2 Hz): the k readings of one second spread evenly over it (t, t + 1/k, ...), as
+    a steady logger took them. (times, how many readings were moved)."""
+    if len(t) < 2 or not np.any(t[1:] == t[:-1]):
+        return t, 0
+    start = np.concatenate([[True], t[1:] != t[:-1]])
+    first = np.flatnonzero(start)
+    counts = np.diff(np.append(first, len(t)))
+    run = np.repeat(np.arange(len(first)), counts)
+    j = np.arange(len(t)) - first[run]
+    out = t + j / counts[run]
+    return out, int(np.count_nonzero(j))
 
 
 def read_io_timeline(path, horizon_s: float | None = None):
