@@ -25,6 +25,7 @@ import copy
 import itertools
 import os
 import sys
+from pathlib import Path
 from dataclasses import dataclass
 
 from .errors import PlcpredError
@@ -245,7 +246,7 @@ def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
 
     data = read_machine_data(machine_path)
     base = machine_from_data(data, machine_path)
-    program = base.read_program(program_path)
+    program = _program_of(base, program_path)
     machine, program = apply_settings(data, machine_path, program, scenario)
     result = predict(machine, horizon_s, dt=dt_s, program=program)
     if _blowoff(scenario) == "cycle":
@@ -263,6 +264,40 @@ def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
     for name, v in zip(result.profile.names, result.profile.consumer_nl):
         row[f"{name}_nl"] = float(v)
     return row
+
+
+_PROGRAMS: dict = {}       # per process: the state of a program's files -> its IR
+MAX_CACHED_PROGRAMS = 4
+
+
+def _program_of(base, program_path: str | None):
+    """``base``'s program, parsed once per process while its files stay as they are (a
+    sweep's scenarios share it: parsing was a quarter of a pick-and-place scenario). The
+    IR is shared read-only: settings that change it work on a copy (apply_settings)."""
+    path = Path(base.program_path if program_path is None else program_path)
+    key = (str(path.resolve()), _files_state(path),
+           tuple((str(p), _files_state(Path(p))) for p in base.library_paths))
+    if not path.is_dir() and path.suffix.lower() not in (".st", ".seq", ".xml", ".txt"):
+        key += (_files_state(path.parent),)     # a project file names files beside it
+    program = _PROGRAMS.get(key)
+    if program is None:
+        program = base.read_program(program_path)
+        if len(_PROGRAMS) >= MAX_CACHED_PROGRAMS:
+            _PROGRAMS.pop(next(iter(_PROGRAMS)))
+        _PROGRAMS[key] = program
+    return program
+
+
+def _files_state(path: Path) -> tuple:
+    """(name, size, modification time) of a file, or of every file under a folder."""
+    try:
+        if path.is_dir():
+            return tuple((str(f.relative_to(path)), f.stat().st_size, f.stat().st_mtime_ns)
+                         for f in sorted(path.rglob("*")) if f.is_file())
+        st = path.stat()
+        return (st.st_size, st.st_mtime_ns)
+    except OSError:
+        return ("unreadable",)
 
 
 class _Progress:

@@ -270,3 +270,31 @@ Cd = 0.8
     assert s.idle_hours_per_year > 0 and s.idle_flow_l_min > 0
     for key in ("air_nm3_per_year", "energy_kwh_per_year", "cost_per_year"):
         assert row[key] == pytest.approx(getattr(s, key), rel=1e-12), key
+
+
+def test_a_process_parses_a_program_once_and_again_when_it_changes(tmp_path):
+    import os
+    import shutil
+
+    from plcpred import sweep as sweep_module
+    from plcpred.sweep import run_scenario
+    rig = tmp_path / "rig.toml"
+    shutil.copy(RIG, rig)
+    shutil.copy(RIG.parent / "rig.st", tmp_path / "rig.st")
+    sweep_module._PROGRAMS.clear()
+    plain = run_scenario(str(rig), {}, 20.0, 0.05)
+    # a setting that changes the program works on a copy: the cached IR stays as read
+    longer = run_scenario(str(rig), {"program.BLOW_TIME": "T#6s"}, 20.0, 0.05)
+    assert longer["total_nl"] > plain["total_nl"]
+    assert run_scenario(str(rig), {}, 20.0, 0.05) == plain
+    assert len(sweep_module._PROGRAMS) == 1
+    # the file changed (the knives blow as long as the setting made them): parsed again
+    text = (tmp_path / "rig.st").read_text()
+    assert "BLOW_TIME : TIME := T#3700ms;" in text
+    (tmp_path / "rig.st").write_text(text.replace("BLOW_TIME : TIME := T#3700ms;",
+                                                  "BLOW_TIME : TIME := T#6s;"))
+    st = (tmp_path / "rig.st").stat()
+    os.utime(tmp_path / "rig.st", ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    changed = run_scenario(str(rig), {}, 20.0, 0.05)
+    assert changed["total_nl"] == pytest.approx(longer["total_nl"])
+    assert len(sweep_module._PROGRAMS) == 2
