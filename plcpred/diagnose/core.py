@@ -26,7 +26,7 @@ import numpy as np
 from .effects import CLOSED_LOOP_EFFECTS, EFFECTS, Effect
 from .fit import (DiagnosisError, FitResult, RunData, Score, align, fit_effects, folds,
                   heldout, score)
-from .io import MeasuredRun
+from .io import TIME_OF_DAY_FORMATS, MeasuredRun
 from .locate import contexts, sample_contexts, step_contexts, windows
 from .meter import noise_level_l_min
 from .model import MachineModel, RunModel
@@ -521,7 +521,7 @@ def _clock_reading(run, offset_s: float) -> str:
         at = datetime(1970, 1, 1) + timedelta(seconds=offset_s)
     except OverflowError:
         return ""
-    day = "" if ":" in fmt and "%d" not in fmt and "%Y" not in fmt else "%Y-%m-%d "
+    day = "" if fmt in TIME_OF_DAY_FORMATS else "%Y-%m-%d "
     text = at.strftime(day + "%H:%M:%S.%f")[:-3]
     return f" (the prediction's t = 0 at {text} on the log's clock)"
 

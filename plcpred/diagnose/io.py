@@ -136,7 +136,7 @@ def _header_line(lines: list[str], time_col, flow_col) -> int:
     often starts with lines about the device); with columns given by number, the line
     before the first row whose time and flow read as numbers or date-times."""
     def cells(line):
-        return next(csv.reader([line], delimiter=max((",", ";", "\t"), key=line.count)))
+        return next(csv.reader([line], delimiter=_delimiter(line)))
 
     def names(wanted, default):
         return [default] if wanted is None else [str(wanted).strip()]
@@ -156,6 +156,11 @@ def _header_line(lines: list[str], time_col, flow_col) -> int:
             return k
     # not found: the first line with anything on it, whose columns the error lists
     return next(k for k, line in enumerate(lines) if line.strip())
+
+
+def _delimiter(line: str) -> str:
+    """The field separator a CSV line uses the most of: ``,``, ``;`` or a tab."""
+    return max((",", ";", "\t"), key=line.count)
 
 
 def _reads_as_sample(time_cell: str, flow_cell: str) -> bool:
@@ -190,7 +195,7 @@ _DATE_FORMATS = ("%d.%m.%Y %H:%M:%S.%f", "%d.%m.%Y %H:%M:%S", "%d.%m.%Y %H:%M",
                  "%m/%d/%Y %I:%M:%S.%f %p", "%m/%d/%Y %I:%M:%S %p",
                  "%m/%d/%Y %H:%M:%S.%f", "%m/%d/%Y %H:%M:%S", "%m/%d/%Y %H:%M",
                  "%d/%m/%Y %H:%M:%S.%f", "%d/%m/%Y %H:%M:%S", "%d/%m/%Y %H:%M")
-_TIME_OF_DAY = ("%H:%M:%S.%f", "%H:%M:%S", "%H:%M")
+TIME_OF_DAY_FORMATS = ("%H:%M:%S.%f", "%H:%M:%S", "%H:%M")
 _EPOCH = datetime(1970, 1, 1)
 _FRACTION_COMMA = re.compile(r"(\d{1,2}:\d{2}:\d{2}),(\d+)")
 
@@ -210,14 +215,14 @@ def _timestamp(cell: str, fmt: str | None = None) -> tuple[float, str]:
         else:
             seconds = dt.timestamp() if dt.tzinfo else (dt - _EPOCH).total_seconds()
             return seconds, "iso"
-    for f in (fmt,) if fmt is not None else _DATE_FORMATS + _TIME_OF_DAY:
+    for f in (fmt,) if fmt is not None else _DATE_FORMATS + TIME_OF_DAY_FORMATS:
         try:
             dt = datetime.strptime(s, f)
         except ValueError:
             if fmt is not None:
                 raise
             continue
-        if f in _TIME_OF_DAY:
+        if f in TIME_OF_DAY_FORMATS:
             return dt.hour * 3600.0 + dt.minute * 60.0 + dt.second + dt.microsecond / 1e6, f
         return (dt - _EPOCH).total_seconds(), f
     raise ValueError(cell)
@@ -248,7 +253,7 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str = "l/min",
                                 "time_s,flow_l_min and rows of samples)")
     start = _header_line(lines, time_col, flow_col)
     first = lines[start]
-    delimiter = max((",", ";", "\t"), key=first.count)
+    delimiter = _delimiter(first)
     decimal_comma = delimiter != ","
     rows = csv.reader(lines[start:], delimiter=delimiter)
     header = next(rows)
@@ -290,7 +295,7 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str = "l/min",
                 f"{cell.strip()[:40]!r} (seconds, an ISO 8601 date-time or a logger's "
                 "date-time such as 24.11.2026 13:05:00,5"
                 + (f"; the rows before were read as {iso}" if iso else "") + ")") from None
-        if iso in _TIME_OF_DAY:
+        if iso in TIME_OF_DAY_FORMATS:
             t += day_s
             if times and t < times[-1] - 43_200.0:      # past midnight
                 day_s += 86_400.0
@@ -307,9 +312,7 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str = "l/min",
                                     "is not a finite number")
         if times and t <= times[-1]:
             if t < times[-1] or t != math.floor(t):
-                raise MeasuredDataError(f"{file}: line {lineno}, column {t_idx + 1}: time "
-                                        f"{cell.strip()} does not increase (previous row "
-                                        "is later or equal)")
+                raise _not_increasing(file, lineno, t_idx, cell.strip())
             repeated = repeated or (lineno, cell.strip())
         times.append(t)
         flows.append(q)
@@ -325,9 +328,7 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str = "l/min",
                                    "column)" if skipped else ""))
     time_s = np.asarray(times, dtype=float)
     if repeated and np.any(time_s != np.floor(time_s)):
-        raise MeasuredDataError(f"{file}: line {repeated[0]}, column {t_idx + 1}: time "
-                                f"{repeated[1]} does not increase (previous row is later "
-                                "or equal)")
+        raise _not_increasing(file, repeated[0], t_idx, repeated[1])
     time_s, spread = _spread_whole_seconds(time_s)
     flow = np.asarray(flows, dtype=float) * unit_k * ref_k
     supply = np.asarray(supplies, dtype=float) if s_idx is not None and len(
@@ -339,6 +340,11 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str = "l/min",
                         "time_column": header[t_idx].strip(),
                         "flow_column": header[f_idx].strip(), "skipped_rows": skipped,
                         "spread_rows": spread})
+
+
+def _not_increasing(file: str, lineno: int, t_idx: int, text: str) -> MeasuredDataError:
+    return MeasuredDataError(f"{file}: line {lineno}, column {t_idx + 1}: time {text} does "
+                             "not increase (previous row is later or equal)")
 
 
 def _spread_whole_seconds(t: np.ndarray) -> tuple[np.ndarray, int]:

@@ -159,8 +159,7 @@ class Compiler:
         self.gvl_names = {ident(g.name) for g in program.globals if g.name}
         self._jump = None
         self._loop_depth = 0
-        self.sinks: dict[str, set] = {}
-        self.left_out: dict[str, dict] = {}
+        self.left_out: dict[str, dict] = {}     # class -> its sinks (Compiled.left_out)
         self.address_slots: dict[str, str] = {}  # undeclared direct address -> global
         self.addr_names: dict[str, str] = {}
         self._et_classes: set = set()
@@ -470,7 +469,6 @@ class Compiler:
                 e(2, "pass")
         e(1, "def _snap(self, rel):")
         sinks = self._sinks(fb, scope)
-        self.sinks[fb.name] = sinks
         counted = self._threshold_counters(fb, scope) - sinks
         parts = [f"self.{ident(d.name)}.key_counted(rel)" if ident(d.name) in counted else
                  self._snap_code(f"self.{ident(d.name)}", scope.names[ident(d.name)][1])

@@ -38,7 +38,7 @@ from .compiler import CompileError, Compiled, compile_program
 from .plant import CylinderPlant, valve_command
 from .sfc import ActionSpec, SfcRuntime, SfcSpec
 from .stdfb import TON, TOF, TP, TONR, make_standard_fb
-from .timeline import DEFAULT_MAX_CHANGES, NS, Signal, Timeline
+from .timeline import DEFAULT_MAX_CHANGES, NS, Signal, Timeline, wrap_array
 
 _TIMERS = (TON, TOF, TP, TONR)
 NEVER = 1 << 62      # "no event" in integer nanoseconds
@@ -82,7 +82,8 @@ class _LeftOut:
             elif kind is not _KEPT:
                 self.counts[i] = (obj, attr) + tuple(kind)
         self.order = self.others + sorted(self.counts)
-        self._in_order = frozenset(self.order)
+        left = set(self.order)
+        self._kept = [i for i in range(len(slots)) if i not in left]
 
     def __bool__(self) -> bool:
         return bool(self.order)
@@ -92,7 +93,7 @@ class _LeftOut:
 
     def kept(self, values) -> tuple:
         """The values of the other signals."""
-        return tuple(v for i, v in enumerate(values) if i not in self._in_order)
+        return tuple([values[i] for i in self._kept])
 
     def period_drift(self, values, t1: int, tt, ss, vv) -> dict | None:
         """{signal: (step, bits, signed)} of the counts from ``t1`` to now; None when
@@ -132,8 +133,8 @@ class _LeftOut:
                 shifted = np.frombuffer(cv, dtype=np.float64).copy()
             _, _, bits, signed = self.counts[i]
             mine = sig == i
-            shifted[mine] = [rtm.wrap(int(x) + int(a) - int(b), bits, signed)
-                             for x in shifted[mine]]
+            shifted[mine] = wrap_array(shifted[mine].astype(np.int64) + (int(a) - int(b)),
+                                     bits, signed)
         return cv if shifted is None else shifted.tobytes()
 
     def advance(self, now, start, end) -> None:

@@ -122,7 +122,7 @@ class Timeline:
             kk = np.repeat(k, len(pt))
             for i, (step, bits, signed) in self.drift.items():
                 mine = ss == i
-                vv[mine] = _wrapped(vv[mine].astype(np.int64) + kk[mine] * int(step),
+                vv[mine] = wrap_array(vv[mine].astype(np.int64) + kk[mine] * int(step),
                                     bits, signed)
         return tt[keep], ss[keep], vv[keep]
 
@@ -351,7 +351,7 @@ def _csv_field(text: str) -> str:
     return text
 
 
-def _wrapped(values, bits: int, signed: bool) -> np.ndarray:
+def wrap_array(values, bits: int, signed: bool) -> np.ndarray:
     """IEC integer overflow of int64 ``values`` (``runtime.wrap``, vectorised): the low
     ``bits`` bits, two's complement when signed, as float64 (bits <= 52: exact)."""
     span = 1 << bits
