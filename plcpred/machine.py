@@ -69,6 +69,7 @@ class Consumer:
     Cd: float | None = None
     flow_model: str = "iso6358"
     exhaust_tau_s: float | None = None  # air-model option: incomplete exhaust (off)
+    partial_strokes: bool = False       # air-model option: strokes cut short (off)
     line: str | None = None             # the [[line]] it hangs on (plant only)
     # (supply Pa, atmosphere Pa, ambient K, file) for stroke times from the plant
     supply_context: tuple = (701_325.0, 101_325.0, 293.15, "")
@@ -189,7 +190,7 @@ _INPUT_KEYS = {"signal", "pulses_s", "pulse_ms", "period_s", "offset_s", "jitter
 _CONSUMER_KEYS = {"name", "kind", "valve", "bore_mm", "rod_mm", "stroke_mm", "tube_id_mm",
                   "tube_length_m", "stroke_time_s", "switch_delay_s", "switches", "initial",
                   "pressure_bar_g", "C", "b", "m", "a", "orifice_mm", "Cd", "flow_model",
-                  "exhaust_tau_s", "line"}
+                  "exhaust_tau_s", "partial_strokes", "line"}
 # plant-only keys of a drive (emulate; the activation model ignores them): name -> kind
 PLANT_DRIVE_KEYS = {
     "payload_kg": "number", "mount_angle_deg": "number", "moving_mass_kg": "number",
@@ -363,6 +364,13 @@ def _consumer(file: str, index: int, table: dict, warnings: list) -> Consumer:
         c.switches = {k: _signal_name(r, f"switches.{k}", v) for k, v in sw.items()}
         c.initial = r.string("initial", "retracted", choices=("retracted", "extended"))
         c.exhaust_tau_s = r.number("exhaust_tau_s", positive=True)
+        if "partial_strokes" in table:
+            if not isinstance(table["partial_strokes"], bool):
+                raise r.error("partial_strokes must be true or false")
+            if table["partial_strokes"] and c.stroke_time_s is None:
+                raise r.error("partial_strokes needs stroke_time_s (how far a piston gets "
+                              "before the next edge)")
+            c.partial_strokes = table["partial_strokes"]
         c.plant = _plant_keys(r, table, kind)
         for key in ("C", "b", "m", "a", "orifice_mm", "Cd", "pressure_bar_g", "flow_model"):
             if key in table:
@@ -370,7 +378,7 @@ def _consumer(file: str, index: int, table: dict, warnings: list) -> Consumer:
     else:
         for key in ("bore_mm", "rod_mm", "stroke_mm", "stroke_time_s", "switches",
                     "tube_length_m", "tube_id_mm", "switch_delay_s", "initial",
-                    "exhaust_tau_s", *PLANT_DRIVE_KEYS):
+                    "exhaust_tau_s", "partial_strokes", *PLANT_DRIVE_KEYS):
             if key in table:
                 raise r.error(f"'{key}' applies to cylinders, not to a {kind}")
         c.C = r.number("C", positive=True)

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from plcpred.air import activation_matrix, consumer_models, default_dt, demand_profile
-from plcpred.air.demand import ConsumerModel, valve_transitions
+from plcpred.air.demand import (ConsumerModel, cut_stroke_volumes_nl, residual_fill_nl,
+                                 stroke_cuts, stroke_rectangles, valve_transitions)
 from plcpred.air.flow import (P0_PA, P_ATM_PA, flow_nl_min, orifice_conductance, phi)
 from plcpred.air.volumes import consumer_stroke_volumes_nl
 from plcpred.machine import Consumer, load_machine
@@ -277,6 +278,82 @@ def test_predict_says_when_the_instantaneous_peak_leaves_steps_out(tmp_path, cap
                  "--no-plot"]) == 0
     out = capsys.readouterr().out
     assert "(instantaneous)" in out and "left out" not in out
+
+
+def test_cut_strokes_by_hand():
+    # delay 0.01 s, strokes 0.2 / 0.3 s, tau 0.1 s; D1 5.0 / 4.0 NL of which the swept
+    # volumes are 4.0 / 3.0 (holding 3.4 / 2.6 above atmosphere), dead volumes hold 2.0 / 3.0
+    t = np.array([0.0, 0.3, 0.36, 1.0])
+    ext = np.array([True, False, True, False])
+    args = (t, ext, 5.0, 4.0, 0.01, (0.2, 0.3), 0.1, (2.0, 3.0), (4.0, 3.0), (3.4, 2.6),
+            True)
+    assert stroke_cuts(t, ext, 0.01, (0.2, 0.3)).tolist() == [False, True, False, False]
+    start, dur, vol = stroke_rectangles(*args)
+    # the retract at 0.3 moves from 0.31 until the extend's valve opens at 0.37: a fifth
+    # of its stroke, into a rod chamber exhausting since 0.21
+    retract = 4.0 - 3.0 * 0.8 - 3.0 * math.exp(-0.09 / 0.1)
+    # the extend at 0.36 finds the cap chamber still full (its exhaust had not ended):
+    # its dead volume and the 80 % of swept volume the piston left open
+    extend = 5.0 - (2.0 + 3.4 * 0.8)
+    assert vol.tolist() == pytest.approx([5.0, retract, extend,
+                                          4.0 - 3.0 * math.exp(-0.59 / 0.1)])
+    assert dur.tolist() == pytest.approx([0.2, 0.06, 0.04, 0.3])
+    assert start.tolist() == pytest.approx((t + 0.01).tolist())
+    # without the option the transition rule books full strokes (D1), less the exhaust's
+    # residual when that option is on
+    _, _, d1 = stroke_rectangles(t, ext, 5.0, 4.0, 0.01, (0.2, 0.3), None, (2.0, 3.0),
+                                 (4.0, 3.0), (3.4, 2.6))
+    assert d1.tolist() == [5.0, 4.0, 5.0, 4.0]
+    _, _, residual = stroke_rectangles(*args[:-1])
+    assert residual.tolist() == pytest.approx(
+        (d1 - residual_fill_nl(t, ext, 0.01, (0.2, 0.3), 0.1, (2.0, 3.0))).tolist())
+    # strokes cut short without an exhaust option: every exhaust complete at once, so
+    # only the retract the extend cut short takes less
+    _, _, cut = stroke_rectangles(t, ext, 5.0, 4.0, 0.01, (0.2, 0.3), None, (2.0, 3.0),
+                                  (4.0, 3.0), (3.4, 2.6), True)
+    assert cut.tolist() == pytest.approx([5.0, 4.0 - 3.0 * 0.8, 5.0, 4.0])
+
+
+def test_cut_strokes_agree_with_residual_when_none_is_cut():
+    t = np.array([0.0, 1.0, 1.5, 3.0])
+    ext = np.array([True, False, True, False])
+    vol, dur = cut_stroke_volumes_nl(t, ext, 5.0, 4.0, 0.01, (0.2, 0.3), 0.1, (2.0, 3.0),
+                                     (4.0, 3.0), (3.4, 2.6))
+    saved = residual_fill_nl(t, ext, 0.01, (0.2, 0.3), 0.1, (2.0, 3.0))
+    assert vol.tolist() == pytest.approx((np.array([5.0, 4.0, 5.0, 4.0]) - saved).tolist())
+    assert dur.tolist() == pytest.approx([0.2, 0.3, 0.2, 0.3])
+
+
+def test_a_pulse_shorter_than_the_stroke_with_partial_strokes(tmp_path):
+    """A 50 ms pulse on a 0.2 s stroke: with ``partial_strokes`` the extend opens a
+    quarter of the cap chamber's swept volume (after the 10 ms switching delay until the
+    retract's valve opens 50 ms later); every exhaust completes at once without
+    ``exhaust_tau_s``, so the retract refills the rod chamber whole (D1b)."""
+    from plcpred import predict
+    (tmp_path / "p.st").write_text(
+        "PROGRAM P\nVAR go AT %IX0.0 : BOOL; v AT %QX0.0 : BOOL; t : TP; END_VAR\n"
+        "t(IN := go, PT := T#50ms);\nv := t.Q;\nEND_PROGRAM\n")
+    text = ('[machine]\nname = "m"\nprogram = "p.st"\nscan_ms = 5\nsupply_bar_g = 6\n'
+            '[[input]]\nsignal = "go"\nperiod_s = 1\npulse_ms = 200\n[[consumer]]\n'
+            'name = "cyl"\nkind = "double_acting"\nbore_mm = 20\nrod_mm = 8\n'
+            'stroke_mm = 50\ntube_id_mm = 4\ntube_length_m = 0.5\nvalve = "v"\n'
+            'stroke_time_s = [0.2, 0.2]\nswitch_delay_s = 0.01\n')
+    (tmp_path / "d1.toml").write_text(text)
+    (tmp_path / "cut.toml").write_text(text + "partial_strokes = true\n")
+    full = predict(tmp_path / "d1.toml", "10s", dt=0.01)
+    cut = predict(tmp_path / "cut.toml", "10s", dt=0.01)
+    model = cut.models[0]
+    # D1 at ISO 8778 (100 kPa, 20 degC) with the supply at the 20 degC default: P_s/P0
+    d1_per_litre = (6e5 + P_ATM_PA) / P0_PA
+    swept_cap_nl = math.pi / 4 * 20 ** 2 * 50 * 1e-6 * d1_per_litre
+    assert model.swept_nl[0] == pytest.approx(swept_cap_nl, rel=1e-9)
+    assert model.swept_nl[1] == pytest.approx(swept_cap_nl * (1 - 8 ** 2 / 20 ** 2), rel=1e-9)
+    n = full.timeline.count_rising("v")
+    assert n == 10
+    assert full.profile.consumer_nl[0] == pytest.approx(
+        n * (model.extend_nl + model.retract_nl), rel=1e-9)
+    assert cut.profile.consumer_nl[0] == pytest.approx(
+        n * (model.extend_nl - 0.75 * swept_cap_nl + model.retract_nl), rel=1e-6)
 
 
 MACHINES = sorted(SAMPLES.glob("*.toml")) + sorted((SAMPLES / "prototype_rig").glob("*.toml"))

@@ -112,6 +112,12 @@ def test_unknown_signal_is_an_error_naming_table_and_key(tmp_path):
     (('name = "blow-off"', 'name = "clamp"'), 'consumer "clamp": name is used twice'),
     (("[[input]]", "[input]"), "[[input]]: write it as [[input]]"),
     (("scan_ms = 5", "scan_ms = 'fast'"), "scan_ms must be a number"),
+    (("switch_delay_s = 0.015", "switch_delay_s = 0.015\npartial_strokes = 1"),
+     'consumer "clamp": partial_strokes must be true or false'),
+    (("stroke_time_s = [0.2, 0.25]", "partial_strokes = true"),
+     'consumer "clamp": partial_strokes needs stroke_time_s'),
+    (("Cd = 0.8", "Cd = 0.8\npartial_strokes = true"),
+     "'partial_strokes' applies to cylinders, not to a nozzle"),
 ])
 def test_bad_files_name_table_and_key(tmp_path, edit, message):
     f = write(tmp_path, GOOD.replace(*edit, 1))

@@ -38,7 +38,7 @@ from ..machine import CYLINDER_KINDS
 from ..output import SHOWN_CONSUMERS, atomic_writer, write_json
 from ..sequencer.timeline import NS, seconds_texts
 from .flow import bar_g_to_pa, celsius_to_k, flow_nl_min, orifice_conductance
-from .volumes import consumer_stroke_volumes_nl, dead_fill_volumes_nl
+from .volumes import consumer_stroke_volumes_nl, dead_fill_volumes_nl, swept_volumes_nl
 
 
 @dataclass
@@ -59,6 +59,11 @@ class ConsumerModel:
     # chamber's dead volume holds above atmosphere when filled at supply, cap and rod end
     exhaust_tau_s: float | None = None
     dead_fill_nl: tuple[float, float] = (0.0, 0.0)
+    # (cap, rod) D1 air of the swept volumes alone and what they hold above atmosphere:
+    # what a stroke cut short does not take (partial_strokes)
+    swept_nl: tuple[float, float] = (0.0, 0.0)
+    swept_held_nl: tuple[float, float] = (0.0, 0.0)
+    partial_strokes: bool = False     # option: strokes cut short by the next edge
 
 
 def consumer_models(machine) -> list[ConsumerModel]:
@@ -72,13 +77,16 @@ def consumer_models(machine) -> list[ConsumerModel]:
             p_pa = bar_g_to_pa(machine.supply_bar_g, machine.atmosphere_kpa)
             v_ext, v_ret = consumer_stroke_volumes_nl(c, p_pa, t_supply_k)
             st = c.stroke_times()
+            swept, swept_held = swept_volumes_nl(c, p_pa, p_atm_pa, t_supply_k)
             out.append(ConsumerModel(c.name, c.kind, list(c.valve), "active", v_ext, v_ret,
                                      pressure_bar_g=machine.supply_bar_g,
                                      delay_s=c.switch_delay_s, stroke_time_s=st,
                                      initial_extended=c.initial == "extended",
                                      exhaust_tau_s=getattr(c, "exhaust_tau_s", None),
                                      dead_fill_nl=dead_fill_volumes_nl(
-                                         c, p_pa, p_atm_pa, t_supply_k)))
+                                         c, p_pa, p_atm_pa, t_supply_k),
+                                     swept_nl=swept, swept_held_nl=swept_held,
+                                     partial_strokes=c.partial_strokes))
         else:
             p_bar_g = c.pressure_bar_g if c.pressure_bar_g is not None else machine.supply_bar_g
             q = float(flow_nl_min(sonic_conductance(c), c.b, c.m, c.a, bar_g_to_pa(p_bar_g, machine.atmosphere_kpa),
@@ -227,23 +235,91 @@ def residual_fill_nl(t_s, extend, delay_s: float, stroke_time_s, exhaust_tau_s: 
 
 def stroke_cells(edges_s, t_s, extend, extend_nl: float, retract_nl: float,
                  delay_s: float = 0.0, stroke_time_s=None, exhaust_tau_s=None,
-                 dead_fill_nl=(0.0, 0.0)) -> np.ndarray:
+                 dead_fill_nl=(0.0, 0.0), swept_nl=None, swept_held_nl=None,
+                 partial_strokes: bool = False) -> np.ndarray:
     """(D1, transition rule) normal litres per grid cell of one drive's strokes: each
     transition's volume spread evenly over its stroke time after its switching delay (see
     the module docstring), less the residual of an incomplete exhaust when
-    ``exhaust_tau_s`` is given (:func:`residual_fill_nl`)."""
+    ``exhaust_tau_s`` is given (:func:`residual_fill_nl`), strokes cut short by the next
+    edge taking their share with ``partial_strokes`` (:func:`cut_stroke_volumes_nl`)."""
     return _cell_volumes(edges_s, *stroke_rectangles(
         t_s, extend, extend_nl, retract_nl, delay_s, stroke_time_s, exhaust_tau_s,
-        dead_fill_nl))
+        dead_fill_nl, swept_nl, swept_held_nl, partial_strokes))
+
+
+def stroke_cuts(t_s, extend, delay_s: float, stroke_time_s) -> np.ndarray:
+    """Per transition: does the next one come before its stroke has ended (the valve
+    reversed while the piston still moves)? Assumes each stroke starts from its end."""
+    t_s = np.asarray(t_s, dtype=float)
+    st = np.where(np.asarray(extend, dtype=bool), stroke_time_s[0], stroke_time_s[1])
+    cut = np.zeros(len(t_s), bool)
+    cut[:-1] = t_s[1:] < t_s[:-1] + st[:-1]
+    return cut
+
+
+def cut_stroke_volumes_nl(t_s, extend, extend_nl: float, retract_nl: float, delay_s: float,
+                          stroke_time_s, exhaust_tau_s: float, dead_fill_nl, swept_nl,
+                          swept_held_nl):
+    """(NL, duration s) of each transition when strokes may be cut short (the
+    ``partial_strokes`` option, docs/physics.md: "strokes cut short"): the piston moves at
+    its stroke's mean speed from a switching delay after the edge until its end stop or
+    the next transition. A
+    fill takes D1's dead-volume air plus the swept air of the share of the chamber the
+    piston opened, less what the chamber still held: its dead volume's air and the air of
+    the swept share the opposite (cut) stroke left in it, decaying as
+    ``exp(-t / exhaust_tau_s)`` from the end of the opposite stroke's motion (nothing
+    without ``exhaust_tau_s``: exhausts complete at once). With every stroke complete this
+    is D1 less :func:`residual_fill_nl`."""
+    n = len(t_s)
+    times = np.asarray(t_s, dtype=float).tolist()       # floats: the loop runs per edge
+    exts = np.asarray(extend, dtype=bool).tolist()
+    d1 = (float(extend_nl), float(retract_nl))
+    swept = (float(swept_nl[0]), float(swept_nl[1]))
+    swept_held = (float(swept_held_nl[0]), float(swept_held_nl[1]))
+    dead_held = (float(dead_fill_nl[0]), float(dead_fill_nl[1]))
+    strokes = (float(stroke_time_s[0]), float(stroke_time_s[1]))
+    vol = [0.0] * n
+    dur = [0.0] * n
+    y = 0.0 if (n and exts[0]) else 1.0            # share extended: starts at an end
+    prev_end = -math.inf                           # the previous motion's end
+    for i in range(n):
+        e = 0 if exts[i] else 1
+        start = times[i] + delay_s
+        stroke_s = strokes[e]
+        to_go = (1.0 - y) if e == 0 else y
+        end = start + stroke_s * to_go
+        if i + 1 < n:
+            end = min(end, times[i + 1] + delay_s)
+        moved = max(min(to_go, (end - start) / stroke_s) if stroke_s > 0 else to_go, 0.0)
+        open_before = y if e == 0 else 1.0 - y     # the filled chamber's swept share
+        y = y + moved if e == 0 else y - moved
+        open_after = y if e == 0 else 1.0 - y
+        held = 0.0
+        if i > 0 and exhaust_tau_s:
+            since = max(0.0, times[i] - prev_end)
+            held = (dead_held[e] + swept_held[e] * open_before) * math.exp(
+                -since / exhaust_tau_s)
+        vol[i] = max(d1[e] - swept[e] * (1.0 - open_after) - held, 0.0)
+        dur[i] = max(end - start, 0.0)
+        prev_end = max(end, start)
+    return np.array(vol), np.array(dur)
 
 
 def stroke_rectangles(t_s, extend, extend_nl: float, retract_nl: float,
                       delay_s: float = 0.0, stroke_time_s=None, exhaust_tau_s=None,
-                      dead_fill_nl=(0.0, 0.0)):
+                      dead_fill_nl=(0.0, 0.0), swept_nl=None, swept_held_nl=None,
+                      partial_strokes: bool = False):
     """(D1, transition rule) each transition's (start s, duration s, NL): the air of
     :func:`stroke_cells` before it meets a grid (a duration of 0 is a step)."""
     t_s = np.asarray(t_s, dtype=float)
     extend = np.asarray(extend, dtype=bool)
+    if (partial_strokes and stroke_time_s is not None and swept_nl is not None
+            and stroke_cuts(t_s, extend, delay_s, stroke_time_s).any()):
+        vol, dur = cut_stroke_volumes_nl(
+            t_s, extend, extend_nl, retract_nl, delay_s, stroke_time_s, exhaust_tau_s,
+            dead_fill_nl, swept_nl, swept_held_nl if swept_held_nl is not None else
+            (0.0, 0.0))
+        return t_s + delay_s, dur, vol
     vol = np.where(extend, extend_nl, retract_nl)
     if exhaust_tau_s:
         vol = np.clip(vol - residual_fill_nl(t_s, extend, delay_s, stroke_time_s,
@@ -874,7 +950,8 @@ def demand_profile(timeline, models: list[ConsumerModel], dt_s: float = 0.01,
         if m.role == "active":
             t_ns, ext = valve_transitions(timeline, m, signal_map, until_ns)
             rect = stroke_rectangles(t_ns / NS, ext, m.extend_nl, m.retract_nl, m.delay_s,
-                                     m.stroke_time_s, m.exhaust_tau_s, m.dead_fill_nl)
+                                     m.stroke_time_s, m.exhaust_tau_s, m.dead_fill_nl,
+                                     m.swept_nl, m.swept_held_nl, m.partial_strokes)
             if until_ns is None:
                 strokes[m.name] = (int(ext.sum()), int((~ext).sum()))
             else:

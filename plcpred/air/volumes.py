@@ -60,6 +60,22 @@ def consumer_stroke_volumes_nl(consumer, supply_pa: float, supply_temp_k: float 
     return v_ext, v_ret
 
 
+def swept_volumes_nl(consumer, supply_pa: float, atmosphere_pa: float,
+                     supply_temp_k: float = T0_K) -> tuple[tuple, tuple]:
+    """((cap, rod) D1 normal litres of the swept volumes alone, (cap, rod) the air they
+    hold above atmosphere at supply): what a stroke cut short does not open, and what a
+    chamber a cut stroke left open still holds (the ``exhaust_tau_s`` option). A
+    single-acting cylinder's spring side takes no air."""
+    a_ext, a_ret = swept_areas_mm2(consumer.kind, consumer.bore_mm, consumer.rod_mm or 0.0)
+    if consumer.kind == "single_acting":
+        a_ret = 0.0
+    d1 = tuple(stroke_volume_nl(a, consumer.stroke_mm, 0.0, 0.0, supply_pa, supply_temp_k)
+               for a in (a_ext, a_ret))
+    held = tuple(held_air_nl(a * consumer.stroke_mm / 1000.0, supply_pa, atmosphere_pa,
+                             supply_temp_k) for a in (a_ext, a_ret))
+    return d1, held
+
+
 INNER_DEAD_STROKE_MM = 1.0   # a cylinder's own dead volume when not given: 1 mm of stroke
 
 
