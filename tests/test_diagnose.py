@@ -16,6 +16,7 @@ from plcpred.cli import main
 from plcpred.diagnose import (EFFECTS, MeasuredDataError, MeasuredRun, diagnose,
                               read_io_timeline, read_measured)
 from plcpred.diagnose.core import write_fixed_machine
+from plcpred.diagnose.effects import CUT_STROKE_EFFECTS
 from plcpred.diagnose.fit import DiagnosisError
 from plcpred.diagnose.meter import first_order_lag, noise_level_l_min
 from plcpred.diagnose.model import MachineModel, RunModel
@@ -338,6 +339,38 @@ def test_incomplete_exhaust_option_in_the_machine_file(tmp_path):
     assert with_option.consumer_nl[a] == pytest.approx(without.consumer_nl[a], rel=1e-6)
 
 
+SORTER = ROOT / "samples" / "sorter.toml"
+
+
+@pytest.mark.parametrize("meter_tau_s,verdict,combination", [
+    (0.3, "incomplete_exhaust", ["incomplete_exhaust"]),
+    (2.0, "sensor_lag", ["incomplete_exhaust", "sensor_lag"])])
+def test_a_fault_is_named_beyond_the_exhaust_a_chattering_drive_shows(
+        tmp_path, meter_tau_s, verdict, combination):
+    # the sorter's pusher valve toggles twice in 0.1 s each cycle: with its exhaust and
+    # strokes cut short, it takes about half of D1's air. Through a normal meter that is
+    # the finding; through a slow one (2 s) the slow meter is the fault beyond it
+    text = SORTER.read_text().replace(
+        'switch_delay_s = 0.015\nswitches = { retracted = "pusher_home"',
+        'switch_delay_s = 0.015\nexhaust_tau_s = 0.1\npartial_strokes = true\n'
+        'switches = { retracted = "pusher_home"')
+    assert "exhaust_tau_s" in text
+    f = tmp_path / "sorter.toml"
+    f.write_text(text.replace('program = "openplc_sorter.st"',
+                              f'program = "{SORTER.parent / "openplc_sorter.st"}"'))
+    cut = plcpred.predict(f, 20).profile
+    full = plcpred.predict(SORTER, 20).profile
+    k = full.names.index("pusher")
+    assert cut.consumer_nl[k] < 0.6 * full.consumer_nl[k]
+    runs = [run_of(f, 40, rate_hz=2.0, tau_s=meter_tau_s, noise=0.5, offset_s=5.0 + 3 * s,
+                   seed=s, name=f"run{s}.csv") for s in range(2)]
+    d = diagnose(SORTER, runs)
+    assert d.baseline.error_pct > 50.0          # D1 books a full stroke per toggle
+    assert d.verdict == verdict, d.report()
+    assert d.combination["effects"] == combination
+    assert d.combination["heldout"].rmse_l_min < 2.0 * d.noise_l_min
+
+
 # ---------------------------------------------------------------------- alignment
 
 def test_alignment_finds_a_known_offset():
@@ -555,7 +588,9 @@ def test_every_effect_writes_a_machine_file_that_loads_and_carries_it(tmp_path, 
     m = plcpred.load_machine(machine_file)
     mm = MachineModel.of(m)
     ctx = {"mean_l_min": 50.0, "meter_tau_s": None, "fitted_tau_s": 0.3}
-    for name, effect in EFFECTS.items():
+    forms = list(EFFECTS.items()) + [(f"{n} (strokes cut short)", e)
+                                     for n, e in CUT_STROKE_EFFECTS.items()]
+    for name, effect in forms:
         if not effect.applies(mm) or not effect.expressible:
             continue
         params = effect.params(mm, ctx)

@@ -210,8 +210,12 @@ class SupplyPressure(Effect):
         ratio = new_pa / _supply_pa(m)                                   # D1: V ~ P_s
         q.extend_nl = p.extend_nl * ratio
         q.retract_nl = p.retract_nl * ratio
+        q.swept_nl = p.swept_nl * ratio
         t_k = celsius_to_k(m.ambient_c)
         p_atm = m.atmosphere_kpa * 1000.0
+        gauge_ratio = max(new_pa - p_atm, 0.0) / max(_supply_pa(m) - p_atm, 1.0)
+        q.held_nl = p.held_nl * gauge_ratio          # what the chambers hold above P_atm
+        q.swept_held_nl = p.swept_held_nl * gauge_ratio
         for k, row in enumerate(mm.passives):
             c = m.consumers[row]
             model = mm.models[row]
@@ -338,8 +342,18 @@ class IncompleteExhaust(Effect):
     it sets how much an exhaust cut short can keep)."""
     name, title = "incomplete_exhaust", "chambers not fully exhausted"
 
+    def __init__(self, partial: bool = False):
+        # the form for valves reversed before their drive arrived: strokes cut short
+        # take the share the piston covered (the air model's partial_strokes option)
+        self.partial = partial
+        if partial:
+            self.title = "chambers not fully exhausted, strokes cut short"
+
     def applies(self, mm):
         return bool(mm.drives)
+
+    def _timed(self, mm) -> list[int]:
+        return [k for k, row in enumerate(mm.drives) if mm.models[row].stroke_time_s]
 
     def _inner(self, mm, k) -> tuple[float, float]:
         return inner_dead_volumes_cm3(mm.machine.consumers[mm.drives[k]])
@@ -371,20 +385,29 @@ class IncompleteExhaust(Effect):
             q.exhaust_tau_s[k] = float(tau)
             q.held_nl[k] = [held_air_nl(t + float(inner), *state)     # the air it keeps
                             for t in _tube_volumes_cm3(m.consumers[row])]
+        if self.partial:
+            q.partial_strokes[self._timed(mm)] = True
         return q
 
     def physical(self, mm, theta):
-        return {mm.models[r].name: {"exhaust_tau_s": float(theta[2 * k + 1]),
-                                    "dead_volume_cm3": float(theta[2 * k])}
-                for k, r in enumerate(mm.drives)}
+        out = {mm.models[r].name: {"exhaust_tau_s": float(theta[2 * k + 1]),
+                                   "dead_volume_cm3": float(theta[2 * k])}
+               for k, r in enumerate(mm.drives)}
+        for k in self._timed(mm) if self.partial else ():
+            out[mm.models[mm.drives[k]].name]["partial_strokes"] = True
+        return out
 
     def to_machine(self, mm, data, theta):
         changes = []
+        timed = set(self._timed(mm)) if self.partial else set()
         for k, r in enumerate(mm.drives):
             inner, tau = float(theta[2 * k]), float(theta[2 * k + 1])
+            name = mm.models[r].name
+            if k in timed:
+                _consumer_table(data, name)["partial_strokes"] = True
+                changes.append(f'consumer "{name}": partial_strokes = true')
             if tau < MIN_WRITTEN_TAU_S:
                 continue            # off: the drive's exhausts are complete
-            name = mm.models[r].name
             t = _consumer_table(data, name)
             t["exhaust_tau_s"] = float(f"{tau:.6g}")
             change = f'consumer "{name}": exhaust_tau_s = {tau:.3g}'
@@ -557,3 +580,5 @@ VOCABULARY = ("none",) + tuple(EFFECTS)
 # beside the forms above when the machine's runs come from the sequencer
 CLOSED_LOOP_EFFECTS: dict[str, Effect] = {e.name: e for e in (
     ValveDelay(closed_loop=True), StrokeTime(closed_loop=True))}
+# the form tried beside the above where a run's valves reverse before their drive arrived
+CUT_STROKE_EFFECTS: dict[str, Effect] = {e.name: e for e in (IncompleteExhaust(partial=True),)}

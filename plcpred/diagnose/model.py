@@ -33,6 +33,11 @@ class ModelParams:
     # (drives, 2): the air the cap and rod dead volumes hold above atmosphere at supply
     # (what an exhaust cut short keeps)
     held_nl: np.ndarray
+    # (drives, 2): cap and rod swept volumes' D1 air and the air they hold above
+    # atmosphere at supply (what a stroke cut short does not open, or leaves full)
+    swept_nl: np.ndarray
+    swept_held_nl: np.ndarray
+    partial_strokes: np.ndarray       # bool per drive: strokes cut short take their share
     passive_l_min: np.ndarray         # D2 flow while on (nozzles) or always (leaks)
     extra_leak_l_min: float = 0.0     # an always-on flow the machine file does not have
     refill_fraction: float = 0.0      # shared supply: share of each stroke refilled later
@@ -50,7 +55,8 @@ class ModelParams:
 
 
 _ARRAYS = ("extend_nl", "retract_nl", "delay_s", "stroke_ext_s", "stroke_ret_s",
-           "exhaust_tau_s", "held_nl", "passive_l_min")
+           "exhaust_tau_s", "held_nl", "swept_nl", "swept_held_nl", "partial_strokes",
+           "passive_l_min")
 
 
 @dataclass
@@ -90,6 +96,9 @@ class MachineModel:
             stroke_ret_s=np.array([s[1] for s in st], dtype=float),
             exhaust_tau_s=np.array([m.exhaust_tau_s or 0.0 for m in d], dtype=float),
             held_nl=np.array([m.dead_fill_nl for m in d], dtype=float).reshape(-1, 2),
+            swept_nl=np.array([m.swept_nl for m in d], dtype=float).reshape(-1, 2),
+            swept_held_nl=np.array([m.swept_held_nl for m in d], dtype=float).reshape(-1, 2),
+            partial_strokes=np.array([m.partial_strokes for m in d], dtype=bool),
             passive_l_min=np.array([m.flow_l_min for m in p], dtype=float),
             meter_tau_s=meter_tau_s)
 
@@ -134,7 +143,9 @@ class RunModel:
         one drive at most)."""
         st = (params.stroke_ext_s[k], params.stroke_ret_s[k])
         key = (k, params.extend_nl[k], params.retract_nl[k], params.delay_s[k], st,
-               params.exhaust_tau_s[k], tuple(params.held_nl[k]), params.refill_fraction,
+               params.exhaust_tau_s[k], tuple(params.held_nl[k]), tuple(params.swept_nl[k]),
+               tuple(params.swept_held_nl[k]), bool(params.partial_strokes[k]),
+               params.refill_fraction,
                params.refill_tau_s)
         cells = self._drive_cache.get(key)
         if cells is None:
@@ -146,7 +157,9 @@ class RunModel:
             cells = stroke_cells(self.edges_s, t_s, ext, share * params.extend_nl[k],
                                  share * params.retract_nl[k], float(params.delay_s[k]),
                                  stroke, float(params.exhaust_tau_s[k]) or None,
-                                 tuple(params.held_nl[k]))
+                                 tuple(params.held_nl[k]), tuple(share * params.swept_nl[k]),
+                                 tuple(params.swept_held_nl[k]),
+                                 bool(params.partial_strokes[k]))
             if params.refill_fraction > 0:
                 cells = cells + self._refill_cells(params, k, stroke)
             self._drive_cache[key] = cells
