@@ -286,6 +286,11 @@ def test_dead_volume_adds_its_air_per_stroke(rig_model):
     # A strokes once each way over 20 s: 2 * 10 cm3 * (P_s / P0) at 20 C
     extra = 2 * 0.010 * (m.supply_bar_g * 1e5 + 101325) / 1e5
     assert rm.total_cells(p).sum() - base == pytest.approx(extra, rel=1e-9)
+    # and the longer tube holds 10 cm3 * (P_s - P_atm) / P0 more when an exhaust is cut
+    # short, both ends; the other drives' as before
+    held = 0.010 * m.supply_bar_g * 1e5 / 1e5
+    assert (p.held_nl - mm.nominal().held_nl).ravel().tolist() == pytest.approx(
+        [held, held, 0.0, 0.0, 0.0, 0.0], rel=1e-9)
 
 
 def _centroid(cells, edges):

@@ -305,6 +305,13 @@ class DeadVolume(Effect):
         single = np.array([mm.models[r].kind == "single_acting" for r in mm.drives])
         q.retract_nl = np.where(single, p.retract_nl, np.clip(p.retract_nl + extra, 0.0,
                                                               None))
+        # a longer tube also holds more air when an exhaust is cut short (only the
+        # exhaust options read it)
+        m = mm.machine
+        held = np.array([held_air_nl(float(v), _supply_pa(m), m.atmosphere_kpa * 1000.0,
+                                     celsius_to_k(m.ambient_c)) for v in theta])
+        q.held_nl = np.clip(p.held_nl + held[:, None] * np.stack(
+            [np.ones(len(single)), ~single], axis=1), 0.0, None)
         return q
 
     def physical(self, mm, theta):
