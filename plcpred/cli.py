@@ -202,6 +202,20 @@ def cmd_timeline(args) -> int:
     return 0
 
 
+def _cut_stroke_warnings(machine, profile) -> list[str]:
+    """Drives whose valve reverses before they arrive, booked in full by D1."""
+    out = []
+    for name, n in profile.cut_strokes.items():
+        if n and not machine.consumer(name).partial_strokes:
+            total = sum(profile.strokes.get(name, (0, 0)))
+            out.append(f'consumer "{name}": {n} of its {total} strokes are cut short by the '
+                       "next edge (the valve reverses before the drive arrives, as a short "
+                       "pulse or a chattering valve does); D1 books each in full. "
+                       "partial_strokes = true (with exhaust_tau_s) counts the share the "
+                       "piston covers (docs/physics.md)")
+    return out
+
+
 def cmd_predict(args) -> int:
     from .air import predict
     from .machine import load_machine
@@ -218,7 +232,7 @@ def cmd_predict(args) -> int:
         return 1
     with output_dir(out, _command_line(args)) as staging:
         written = [out / f.name for f in result.write(staging, plot=not args.no_plot)]
-    for w in machine.warnings:
+    for w in machine.warnings + _cut_stroke_warnings(machine, result.profile):
         print(f"warning: {w}", file=sys.stderr)
     prof = result.profile
     split = prof.by_role_nl()

@@ -356,6 +356,30 @@ def test_a_pulse_shorter_than_the_stroke_with_partial_strokes(tmp_path):
         n * (model.extend_nl - 0.75 * swept_cap_nl + model.retract_nl), rel=1e-6)
 
 
+def test_strokes_cut_short_are_counted_and_predict_warns(tmp_path, capsys):
+    """The sorter's pusher chatters: counted over a tiled minute as over every edge, and
+    ``predict`` says that D1 books them in full (not once the drive has the option)."""
+    from plcpred import predict
+    from plcpred.cli import main
+    res = predict(SAMPLES / "sorter.toml", "60s", dt=0.01)
+    model = res.models[res.profile.names.index("pusher")]
+    t_ns, ext = valve_transitions(res.timeline, model)
+    every = int(stroke_cuts(t_ns / 1e9, ext, model.delay_s, model.stroke_time_s).sum())
+    assert res.timeline.tiled is not None and every > 20
+    assert res.profile.cut_strokes["pusher"] == every
+    assert main(["predict", str(SAMPLES / "sorter.toml"), "--horizon", "60s", "--out",
+                 str(tmp_path / "o"), "--no-plot"]) == 0
+    err = capsys.readouterr().err
+    assert f'consumer "pusher": {every} of its' in err and "partial_strokes" in err
+    text = (SAMPLES / "sorter.toml").read_text().replace(
+        "switch_delay_s = 0.015\n", "switch_delay_s = 0.015\npartial_strokes = true\n", 1)
+    (tmp_path / "sorter.toml").write_text(text.replace(
+        'program = "openplc_sorter.st"', f'program = "{SAMPLES / "openplc_sorter.st"}"'))
+    assert main(["predict", str(tmp_path / "sorter.toml"), "--horizon", "60s", "--out",
+                 str(tmp_path / "p"), "--no-plot"]) == 0
+    assert "cut short" not in capsys.readouterr().err
+
+
 MACHINES = sorted(SAMPLES.glob("*.toml")) + sorted((SAMPLES / "prototype_rig").glob("*.toml"))
 
 

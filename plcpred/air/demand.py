@@ -263,15 +263,15 @@ def cut_stroke_volumes_nl(t_s, extend, extend_nl: float, retract_nl: float, dela
     """(NL, duration s) of each transition when strokes may be cut short (the
     ``partial_strokes`` option, docs/physics.md: "strokes cut short"): the piston moves at
     its stroke's mean speed from a switching delay after the edge until its end stop or
-    the next transition. A
-    fill takes D1's dead-volume air plus the swept air of the share of the chamber the
-    piston opened, less what the chamber still held: its dead volume's air and the air of
-    the swept share the opposite (cut) stroke left in it, decaying as
+    the next transition. A fill takes D1's dead-volume air plus the swept air of the share
+    of the chamber the piston opened, less what the chamber still held: its dead volume's
+    air and the air of the swept share the opposite (cut) stroke left in it, decaying as
     ``exp(-t / exhaust_tau_s)`` from the end of the opposite stroke's motion (nothing
     without ``exhaust_tau_s``: exhausts complete at once). With every stroke complete this
-    is D1 less :func:`residual_fill_nl`."""
+    is D1 less :func:`residual_fill_nl`. The loop runs per edge (each position depends on
+    the last); only drives with a cut stroke take it."""
     n = len(t_s)
-    times = np.asarray(t_s, dtype=float).tolist()       # floats: the loop runs per edge
+    times = np.asarray(t_s, dtype=float).tolist()       # Python floats: faster per item
     exts = np.asarray(extend, dtype=bool).tolist()
     d1 = (float(extend_nl), float(retract_nl))
     swept = (float(swept_nl[0]), float(swept_nl[1]))
@@ -591,6 +591,9 @@ class DemandProfile:
     dt_s: float
     horizon_s: float
     strokes: dict = field(default_factory=dict)   # name -> (extend, retract) counts
+    # name -> strokes the next edge cut short (drives with stroke times; D1 books them in
+    # full unless the drive has partial_strokes)
+    cut_strokes: dict = field(default_factory=dict)
     models: list = field(default_factory=list)
     # a machine that repeats: per consumer the rectangles of one period (those whose
     # edge lies in (t2, t2 + period]), repeated every period_s up to the horizon on top
@@ -935,7 +938,7 @@ def demand_profile(timeline, models: list[ConsumerModel], dt_s: float = 0.01,
         p = t2 - t1
         if horizon_ns > t2 + 2 * p:
             until_ns = t2 + 2 * p
-    strokes, rects, templates = {}, [], []
+    strokes, cut_strokes, rects, templates = {}, {}, [], []
 
     def split(origin_ns, rect):
         """(base, template, repetitions of each template item within the horizon)."""
@@ -952,13 +955,17 @@ def demand_profile(timeline, models: list[ConsumerModel], dt_s: float = 0.01,
             rect = stroke_rectangles(t_ns / NS, ext, m.extend_nl, m.retract_nl, m.delay_s,
                                      m.stroke_time_s, m.exhaust_tau_s, m.dead_fill_nl,
                                      m.swept_nl, m.swept_held_nl, m.partial_strokes)
+            cut = (stroke_cuts(t_ns / NS, ext, m.delay_s, m.stroke_time_s)
+                   if m.stroke_time_s else np.zeros(len(t_ns), bool))
             if until_ns is None:
                 strokes[m.name] = (int(ext.sum()), int((~ext).sum()))
+                cut_strokes[m.name] = int(cut.sum())
             else:
                 rect, template, base, tmpl, reps = split(t_ns, rect)
                 e = ext[tmpl]
                 strokes[m.name] = (int(ext[base].sum() + reps[e].sum()),
                                    int((~ext[base]).sum() + reps[~e].sum()))
+                cut_strokes[m.name] = int(cut[base].sum() + reps[cut[tmpl]].sum())
         elif m.role == "leak":
             rect = interval_rectangles(np.array([0.0]), np.array([horizon_s]), m.flow_l_min)
         else:
@@ -971,7 +978,7 @@ def demand_profile(timeline, models: list[ConsumerModel], dt_s: float = 0.01,
         templates.append(template)
     periodic = until_ns is not None
     return DemandProfile([m.name for m in models], [m.role for m in models], rects, dt_s,
-                         horizon_s, strokes, list(models),
+                         horizon_s, strokes, cut_strokes, list(models),
                          templates if periodic else None, p / NS if periodic else None)
 
 
