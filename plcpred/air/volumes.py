@@ -64,7 +64,7 @@ def swept_volumes_nl(consumer, supply_pa: float, atmosphere_pa: float,
                      supply_temp_k: float = T0_K) -> tuple[tuple, tuple]:
     """((cap, rod) D1 normal litres of the swept volumes alone, (cap, rod) the air they
     hold above atmosphere at supply): what a stroke cut short does not open, and what a
-    chamber a cut stroke left open still holds (the ``exhaust_tau_s`` option). A
+    chamber a cut stroke left open still holds (the ``partial_strokes`` option). A
     single-acting cylinder's spring side takes no air."""
     a_ext, a_ret = swept_areas_mm2(consumer.kind, consumer.bore_mm, consumer.rod_mm or 0.0)
     if consumer.kind == "single_acting":
