@@ -343,10 +343,12 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                                                            ctx["mean_l_min"])
 
     exhaust = next((e for e in results if e.name == IncompleteExhaust.name), None)
+    # a first whose values no plant has (a drive with most of its tube gone: what an
+    # exhaust cut short does to a fill)
+    first_implausible = bool(results) and _implausible(results[0], mm) is not None
     pairs = []
     if exhaust is not None and (exhaust is results[0] or (
-            _implausible(results[0], mm) is not None
-            and finding(base_heldout, exhaust.heldout_score))):
+            first_implausible and finding(base_heldout, exhaust.heldout_score))):
         pairs = _with_exhaust(exhaust, results, mm, rds, bases, ctx, fold_masks)
         if pairs:
             # an exhaust's mismatch with D1 (a sorter's chatter) left in every single
@@ -379,11 +381,9 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                                             noise)]
         chosen = list(results[0].fit.effects)
         best = results[0]
-        # the exhaust first, or a first whose values no plant has (a drive with most of
-        # its tube gone: what an exhaust cut short does to a fill)
+        # the exhaust first, or an implausible first
         past = bool(pairs) and (verdict == IncompleteExhaust.name or (
-            _implausible(results[0], mm) is not None
-            and finding(base_heldout, exhaust.heldout_score)))
+            first_implausible and finding(base_heldout, exhaust.heldout_score)))
         beyond = [p for p in pairs if finding(exhaust.heldout_score, p.heldout_score)
                   and _implausible(p, mm) is None]
         if past and beyond:

@@ -308,8 +308,8 @@ class DeadVolume(Effect):
         # a longer tube also holds more air when an exhaust is cut short (only the
         # exhaust options read it)
         m = mm.machine
-        held = np.array([held_air_nl(float(v), _supply_pa(m), m.atmosphere_kpa * 1000.0,
-                                     celsius_to_k(m.ambient_c)) for v in theta])
+        held = held_air_nl(np.asarray(theta, dtype=float), _supply_pa(m),
+                           m.atmosphere_kpa * 1000.0, celsius_to_k(m.ambient_c))
         q.held_nl = np.clip(p.held_nl + held[:, None] * np.stack(
             [np.ones(len(single)), ~single], axis=1), 0.0, None)
         return q
