@@ -16,7 +16,7 @@ from plcpred.cli import main
 from plcpred.diagnose import (EFFECTS, MeasuredDataError, MeasuredRun, diagnose,
                               read_io_timeline, read_measured)
 from plcpred.diagnose.core import write_fixed_machine
-from plcpred.diagnose.effects import CUT_STROKE_EFFECTS
+from plcpred.diagnose.effects import CUT_STROKE_EFFECTS, StrokeTime
 from plcpred.diagnose.fit import DiagnosisError
 from plcpred.diagnose.meter import first_order_lag, noise_level_l_min
 from plcpred.diagnose.model import MachineModel, RunModel
@@ -58,6 +58,12 @@ def run_of(machine, horizon_s, rate_hz=2.0, tau_s=0.3, noise=1.0, offset_s=0.0, 
     total = flow.sum(axis=0) if transform is None else transform(pred, flow)
     t, q = meter_log(total, 0.01, rate_hz, tau_s, noise, offset_s, seed)
     return MeasuredRun(name, t, q)
+
+
+def two_runs(machine, horizon_s, first_offset_s, **meter):
+    """Two logs of ``machine`` (seeds 0 and 1), the second's clock 3 s further on."""
+    return [run_of(machine, horizon_s, offset_s=first_offset_s + 3 * s, seed=s,
+                   name=f"r{s}.csv", **meter) for s in range(2)]
 
 
 # ---------------------------------------------------------------------- reading logs
@@ -367,8 +373,7 @@ def test_a_fault_is_named_beyond_the_exhaust_a_chattering_drive_shows(
     full = plcpred.predict(SORTER, 20).profile
     k = full.names.index("pusher")
     assert cut.consumer_nl[k] < 0.6 * full.consumer_nl[k]
-    runs = [run_of(f, 40, rate_hz=2.0, tau_s=meter_tau_s, noise=0.5, offset_s=5.0 + 3 * s,
-                   seed=s, name=f"run{s}.csv") for s in range(2)]
+    runs = two_runs(f, 40, 5.0, rate_hz=2.0, tau_s=meter_tau_s, noise=0.5)
     d = diagnose(SORTER, runs)
     assert d.baseline.error_pct > 50.0          # D1 books a full stroke per toggle
     assert d.verdict == verdict, d.report()
@@ -594,7 +599,9 @@ def test_every_effect_writes_a_machine_file_that_loads_and_carries_it(tmp_path, 
     mm = MachineModel.of(m)
     ctx = {"mean_l_min": 50.0, "meter_tau_s": None, "fitted_tau_s": 0.3}
     forms = list(EFFECTS.items()) + [(f"{n} (strokes cut short)", e)
-                                     for n, e in CUT_STROKE_EFFECTS.items()]
+                                     for n, e in CUT_STROKE_EFFECTS.items()] + [
+        ("stroke_time (slower, cut short)",
+         StrokeTime(partial_drives=tuple(range(len(mm.drives)))))]
     for name, effect in forms:
         if not effect.applies(mm) or not effect.expressible:
             continue
@@ -685,8 +692,7 @@ def test_slower_stroke_in_a_closed_loop_is_found_with_its_drive_and_factor():
     # prediction is out of step with the log; painting slower strokes onto the
     # predicted edges cannot follow it, running the program again can
     real = _slower(PICK, "X slide", 1.8)
-    runs = [run_of(real, 60, rate_hz=5.0, tau_s=0.3, noise=0.5, offset_s=4.0 + 3 * s,
-                   seed=s, name=f"r{s}.csv") for s in range(2)]
+    runs = two_runs(real, 60, 4.0, rate_hz=5.0, tau_s=0.3, noise=0.5)
     d = diagnose(PICK, runs, effects=["stroke_time", "valve_delay", "leak"])
     assert d.verdict == "stroke_time", d.report()
     best = d.effects[0]
@@ -695,6 +701,47 @@ def test_slower_stroke_in_a_closed_loop_is_found_with_its_drive_and_factor():
     assert best.physical["Z lift"]["factor"] == 1.0
     assert best.heldout_score.rmse_l_min < 0.3 * d.baseline_heldout.rmse_l_min
     assert abs(best.heldout_score.error_pct) < 2.0
+
+
+def test_slower_strokes_on_a_timer_are_cut_short_and_found(rig_model):
+    # drive C of sequence 2 follows a timer (0.6 s each way) with 0.60/0.55 s strokes
+    _, mm, rm = rig_model
+    form = StrokeTime(partial_drives=(0, 1, 2))
+    k = [mm.models[r].name for r in mm.drives].index("A")
+    nominal = rm.drive_cells(mm.nominal(), k)
+    # at the file's stroke times the form is the nominal model
+    assert rm.drive_cells(form.apply(mm, mm.nominal(), [1.0, 1.0, 1.0]), k) == \
+        pytest.approx(nominal)
+    q = form.apply(mm, mm.nominal(), [2.0, 1.0, 1.0])
+    # the flow control that slowed A by 0.32 s (mean of 0.40/0.25 s) throttles its
+    # exhaust on that time scale; the others are as they were
+    assert q.exhaust_tau_s[k] == pytest.approx(0.325)
+    assert list(q.exhaust_tau_s[1:]) == [0.0, 0.0]
+    assert q.partial_strokes.all()
+
+    # the real machine: C 1.9x slower through a meter-out flow control, so each 0.6 s
+    # half-cycle reverses C about half way, its exhausting chamber still near supply
+    # (written with its own exhaust time constant, 0.3 s, not the form's 0.54 s)
+    data = read_machine_data(RIG_SEQ2)
+    data["machine"]["program"] = str(RIG_SEQ2.parent / data["machine"]["program"])
+    for c in data["consumer"]:
+        if c["name"] == "C":
+            c["stroke_time_s"] = [x * 1.9 for x in c["stroke_time_s"]]
+            c["partial_strokes"] = True
+            c["exhaust_tau_s"] = 0.3
+    real = machine_from_data(data, RIG_SEQ2)
+    c = plcpred.predict(real, 20).profile
+    full = plcpred.predict(RIG_SEQ2, 20).profile
+    i = full.names.index("C")
+    assert c.consumer_nl[i] < 0.65 * full.consumer_nl[i]    # D1 books every stroke whole
+    runs = two_runs(real, 40, 2.0, rate_hz=2.0, tau_s=0.3, noise=0.5)
+    d = diagnose(RIG_SEQ2, runs, effects=["stroke_time", "supply_pressure", "leak"])
+    assert d.verdict == "stroke_time", d.report()
+    best = d.effects[0]
+    assert "cut short" in best.title
+    assert best.physical["C"]["factor"] == pytest.approx(1.9, rel=0.2)
+    assert best.physical["C"]["partial_strokes"] is True
+    assert abs(best.heldout_score.error_pct) < 2.0 < abs(d.baseline.error_pct)
 
 
 def test_golden_refinement_finds_a_minimum_between_grid_values():

@@ -247,13 +247,18 @@ def stroke_cells(edges_s, t_s, extend, extend_nl: float, retract_nl: float,
         dead_fill_nl, swept_nl, swept_held_nl, partial_strokes))
 
 
+# a stroke that ends within this of the next edge ends with it: a 0.6 s timer on a 0.6 s
+# stroke is not cut, whatever the rounding of edge times summed over many cycles says
+CUT_TOLERANCE_S = 1e-6
+
+
 def stroke_cuts(t_s, extend, delay_s: float, stroke_time_s) -> np.ndarray:
     """Per transition: does the next one come before its stroke has ended (the valve
     reversed while the piston still moves)? Assumes each stroke starts from its end."""
     t_s = np.asarray(t_s, dtype=float)
     st = np.where(np.asarray(extend, dtype=bool), stroke_time_s[0], stroke_time_s[1])
     cut = np.zeros(len(t_s), bool)
-    cut[:-1] = t_s[1:] < t_s[:-1] + st[:-1]
+    cut[:-1] = t_s[1:] < t_s[:-1] + st[:-1] - CUT_TOLERANCE_S
     return cut
 
 

@@ -25,7 +25,7 @@ import numpy as np
 
 from ..air.demand import stroke_cuts
 from .effects import (CLOSED_LOOP_EFFECTS, CUT_STROKE_EFFECTS, EFFECTS, Effect,
-                      IncompleteExhaust)
+                      IncompleteExhaust, StrokeTime)
 from .fit import (DiagnosisError, FitResult, RunData, Score, align, fit_effects, folds,
                   heldout, score)
 from .io import TIME_OF_DAY_FORMATS, MeasuredRun
@@ -299,9 +299,11 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
         rds.append(rd)
         bases.append(base)
         residuals.append(rd.measured_l_min - predicted)
+    waiting: set[int] = set()      # drives whose valve edges wait on the drives' timing
     if mm.drives and sequenced and set(CLOSED_LOOP_EFFECTS) & set(names):
         reseq = Resequencer(mm, rds, horizons, windows_s, offsets, program, meter_tau)
-        if reseq.closed_loop():
+        waiting = reseq.waiting_drives()
+        if waiting:
             mm.resequencer = reseq
     base_score = score(rds, bases)
     noise = float(np.median([noise_level_l_min(r) for r in residuals]))
@@ -319,11 +321,19 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     base_all = fit_effects([], mm, rds, [np.ones(len(rd.end_s), bool) for rd in rds],
                            bases, ctx)
     base_heldout = heldout([], mm, rds, bases, ctx, fold_masks, start=base_all.theta)
-    cut = _strokes_cut(mm, rds)
+    cut_drives = _cut_drives(mm, rds)
+    cut = bool(cut_drives)
+    # a slower stroke on a drive whose strokes all complete may be cut short by an edge
+    # that does not wait for it (a valve on a timer); where the program waits on the
+    # drive (its edges move with the strokes) the edge comes after the slower stroke
+    uncut = tuple(k for k, m in enumerate(mm.drive_models())
+                  if m.stroke_time_s and k not in cut_drives | waiting)
+    slowed = {StrokeTime.name: StrokeTime(partial_drives=uncut)} if uncut else {}
     results = []
     for name in names:
         forms = [e for e in (EFFECTS[name], CLOSED_LOOP_EFFECTS.get(name),
-                             CUT_STROKE_EFFECTS.get(name) if cut else None)
+                             CUT_STROKE_EFFECTS.get(name) if cut else None,
+                             slowed.get(name))
                  if e is not None and e.applies(mm)]
         # a timing effect painted on the predicted edges, or with the program waiting
         # on the drives (every later edge moved): whichever holds on held-out samples
@@ -421,16 +431,19 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                      bases=bases, machine_model=mm, alternatives=alternatives)
 
 
-def _strokes_cut(mm, rds) -> bool:
-    """Does any run reverse a valve before its drive has arrived (a pulse shorter than
-    the stroke, a valve that chatters)?"""
+def _cut_drives(mm, rds) -> set[int]:
+    """The drives (indices into mm.drives) whose valve some run reverses before the drive
+    has arrived (a pulse shorter than the stroke, a valve that chatters), where the file
+    books their strokes whole."""
+    out = set()
     for k, m in enumerate(mm.drive_models()):
         if m.stroke_time_s and not m.partial_strokes:
             for rd in rds:
                 t_s, ext = rd.model.transitions[k]
                 if stroke_cuts(t_s, ext, m.delay_s, m.stroke_time_s).any():
-                    return True
-    return False
+                    out.add(k)
+                    break
+    return out
 
 
 def _with_exhaust(exhaust: EffectResult, results: list[EffectResult], mm, rds, bases, ctx,

@@ -510,6 +510,17 @@ class StrokeTime(_Timing):
     shape in time changes."""
     name, title = "stroke_time", "different stroke times"
 
+    def __init__(self, closed_loop: bool = False, partial_drives: tuple[int, ...] = ()):
+        super().__init__(closed_loop)
+        # the form for a slower stroke that the next edge now reverses before it arrives
+        # (a valve on a timer): such a stroke takes the share of its swept air the piston
+        # covered (the air model's partial_strokes option). Only for drives whose strokes
+        # all complete at the file's times (``partial_drives``, indices into mm.drives):
+        # on the others the option would change the air at any factor, which is the
+        # exhaust's form for strokes cut short, not a stroke time
+        self.partial_drives = tuple(partial_drives)
+        if self.partial_drives:
+            self.title += ", strokes cut short"
 
     def _reference(self, mm, k):
         m = mm.models[mm.drives[k]]
@@ -530,7 +541,23 @@ class StrokeTime(_Timing):
             ext, ret = self._reference(mm, k)
             q.stroke_ext_s[k] = ext * float(f)
             q.stroke_ret_s[k] = ret * float(f)
+        if self.partial_drives:
+            rows = list(self.partial_drives)
+            q.partial_strokes[rows] = True      # a stroke that is not cut takes D1
+            q.exhaust_tau_s[rows] = np.maximum(q.exhaust_tau_s[rows],
+                                               self._throttled_tau_s(mm, theta)[rows])
         return q
+
+    def _throttled_tau_s(self, mm, theta) -> np.ndarray:
+        """The exhaust time constant a slower stroke brings: strokes are slowed by the
+        meter-out flow control, which throttles the exhausting chamber too, so that it
+        empties on about the time the stroke gained (0 at the file's stroke time: the
+        nominal model). A chamber reversed mid-stroke then keeps its air, as the plant's
+        does, rather than being refilled from atmosphere."""
+        out = np.zeros(len(theta))
+        for k, f in enumerate(theta):
+            out[k] = max(0.0, (float(f) - 1.0) * float(np.mean(self._reference(mm, k))))
+        return out
 
     def physical(self, mm, theta):
         out = {}
@@ -538,6 +565,12 @@ class StrokeTime(_Timing):
             ext, ret = self._reference(mm, k)
             out[mm.models[mm.drives[k]].name] = {"factor": float(f),
                                                  "stroke_time_s": [ext * f, ret * f]}
+        taus = self._throttled_tau_s(mm, theta)
+        for k in self.partial_drives:
+            if abs(theta[k] - 1.0) >= 1e-3:
+                out[mm.models[mm.drives[k]].name]["partial_strokes"] = True
+            if taus[k] > 0:
+                out[mm.models[mm.drives[k]].name]["exhaust_tau_s"] = float(taus[k])
         return out
 
     def to_machine(self, mm, data, theta):
@@ -550,6 +583,15 @@ class StrokeTime(_Timing):
             name = mm.models[mm.drives[k]].name
             _consumer_table(data, name)["stroke_time_s"] = new
             changes.append(f'consumer "{name}": stroke_time_s = {new}')
+            if k in self.partial_drives:
+                t = _consumer_table(data, name)
+                t["partial_strokes"] = True
+                change = f'consumer "{name}": partial_strokes = true'
+                tau = float(self._throttled_tau_s(mm, theta)[k])
+                if tau > max(MIN_WRITTEN_TAU_S, mm.models[mm.drives[k]].exhaust_tau_s or 0.0):
+                    t["exhaust_tau_s"] = float(f"{tau:.6g}")
+                    change += f", exhaust_tau_s = {tau:.3g}"
+                changes.append(change)
         return changes
 
 
@@ -589,3 +631,5 @@ CLOSED_LOOP_EFFECTS: dict[str, Effect] = {e.name: e for e in (
     ValveDelay(closed_loop=True), StrokeTime(closed_loop=True))}
 # the form tried beside the above where a run's valves reverse before their drive arrived
 CUT_STROKE_EFFECTS: dict[str, Effect] = {e.name: e for e in (IncompleteExhaust(partial=True),)}
+# beside those, for the drives none of whose strokes is cut (diagnose makes it per run):
+# StrokeTime(partial_drives=...), a slower stroke cut short by an edge that does not wait

@@ -125,28 +125,37 @@ class Resequencer:
                 rd.variants.pop(old, None)
 
     def closed_loop(self) -> bool:
-        """Whether the drives' timing moves the valve edges (end switches start steps):
-        with every stroke PROBE_FACTOR slower and every valve 50 ms later, do the valve
-        transitions of the first run differ from its nominal ones?"""
+        """Whether the drives' timing moves the valve edges (end switches start steps)."""
+        return bool(self.waiting_drives())
+
+    def waiting_drives(self) -> set[int]:
+        """The drives (indices into mm.drives) whose valve edges wait on the drives' timing:
+        with every stroke PROBE_FACTOR slower and every valve 50 ms later, do its valve
+        transitions in the first run differ from the nominal ones?"""
         probe = self.key(factors=[PROBE_FACTOR] * len(self.neutral),
                          delays=[0.05] * len(self.neutral))
         self.ensure(probe)
         rd = self.rds[0]
-        return _edges_moved_s(rd.model, rd.variants[probe][0], rd.model.horizon_s) > 1e-3
+        return {k for k, (t0, t1) in enumerate(zip(rd.model.transitions,
+                                                   rd.variants[probe][0].transitions))
+                if _times_moved_s(t0[0], t1[0], rd.model.horizon_s) > 1e-3}
 
 
 def _edges_moved_s(nominal, variant, until_s: float) -> float:
     """How far the variant moves the valve edges of the nominal run (RunModels), edge by
     edge in order, up to ``until_s`` (the run's last sample)."""
-    moved = 0.0
-    for (t0, _), (t1, _) in zip(nominal.transitions, variant.transitions):
-        t0, t1 = t0[t0 <= until_s], t1[t1 <= until_s]
-        n = min(len(t0), len(t1))
-        if n:
-            moved = max(moved, float(np.max(np.abs(t1[:n] - t0[:n]))))
-        if len(t0) != len(t1):
-            moved = max(moved, until_s - float(min(t0[n:].min(initial=until_s),
-                                                   t1[n:].min(initial=until_s))))
+    return max((_times_moved_s(t0, t1, until_s) for (t0, _), (t1, _) in
+                zip(nominal.transitions, variant.transitions)), default=0.0)
+
+
+def _times_moved_s(t0, t1, until_s: float) -> float:
+    """How far one drive's edge times ``t1`` move from the nominal ``t0``."""
+    t0, t1 = t0[t0 <= until_s], t1[t1 <= until_s]
+    n = min(len(t0), len(t1))
+    moved = float(np.max(np.abs(t1[:n] - t0[:n]))) if n else 0.0
+    if len(t0) != len(t1):
+        moved = max(moved, until_s - float(min(t0[n:].min(initial=until_s),
+                                               t1[n:].min(initial=until_s))))
     return moved
 
 
