@@ -774,6 +774,13 @@ def test_interval_means_on_a_uniform_grid_match_the_searched_ones():
     end = start + rng.uniform(0.01, 2.0, len(start))
     np.testing.assert_allclose(interval_means_l_min(cum, edges, start, end, 0.02),
                                interval_means_l_min(cum, edges, start, end), rtol=1e-12)
+    # a fit's sampler (cells found once) gives the same numbers for any volumes
+    from plcpred.diagnose.meter import IntervalSampler
+
+    sampler = IntervalSampler(edges, start, end, 0.02)
+    for other in (cum, 3.0 * cum + 1.0):
+        assert np.array_equal(sampler(other),
+                              interval_means_l_min(other, edges, start, end, 0.02))
 
 
 # ---------------------------------------------------------------------- incomplete exhaust

@@ -245,7 +245,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     None: aligned by correlation within ``max_offset_s``, default half the run up to
     120 s); ``effects``: names to try (default: all that apply)."""
     from ..machine import Machine, load_machine
-    from ..sequencer import unfold
+    from ..sequencer import compile_program, unfold
 
     if not isinstance(machine, Machine):
         machine = load_machine(machine)
@@ -274,6 +274,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     if sequenced and not hasattr(program, "pous"):
         # parsed once for every unfold (timing effects run the sequencer again)
         program = machine.read_program(program)
+    compiled = compile_program(program) if sequenced else None
     for run, tl, off in zip(runs, io, offsets):
         window = max_offset_s if max_offset_s is not None else min(
             120.0, max(2.0, 0.5 * run.span_s))
@@ -284,7 +285,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
         horizons.append(horizon)
         windows_s.append(window)
         if tl is None:
-            tl = unfold(machine, horizon, program=program)
+            tl = unfold(machine, horizon, program=program, compiled=compiled)
             if tl.info.get("period_s"):
                 period_s = float(tl.info["period_s"])
                 if run.span_s < period_s:
@@ -302,6 +303,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     waiting: set[int] = set()      # drives whose valve edges wait on the drives' timing
     if mm.drives and sequenced and set(CLOSED_LOOP_EFFECTS) & set(names):
         reseq = Resequencer(mm, rds, horizons, windows_s, offsets, program, meter_tau)
+        reseq.compiled = compiled
         waiting = reseq.waiting_drives()
         if waiting:
             mm.resequencer = reseq

@@ -23,8 +23,12 @@ import numpy as np
 from ..errors import PlcpredError
 from .effects import NUISANCE_METER_TAU_S, Effect, Param
 from .io import MeasuredRun
-from .meter import cumulative_nl, first_order_lag
+from .meter import IntervalSampler, cumulative_nl, first_order_lag
 from .model import MachineModel, ModelParams, RunModel
+
+
+# samplers kept per run (a grid sweep's clocks, a fit's current and perturbed clock)
+MAX_SAMPLERS = 64
 
 
 class DiagnosisError(PlcpredError):
@@ -52,17 +56,36 @@ class RunData:
 
     def __post_init__(self):
         self.weight_s = self.end_s - self.start_s
+        # (timing, clock) -> IntervalSampler: the samples' cells at that clock
+        self._samplers: dict = {}
 
     def readings(self, params: ModelParams) -> np.ndarray:
+        """What the meter logs for this run's samples under ``params`` (RunModel.readings
+        at the run's own or its timing variant's clock)."""
         if params.timing is None:
-            return self.model.readings(params, self.start_s, self.end_s)
-        rm, shift_s, lag_s = self.variants[params.timing]
-        # the samples stay this run's; the variant's own alignment moves its clock and
-        # its meter lag (the fit's nuisances move both further)
-        if lag_s:
-            params = dataclasses.replace(params, meter_tau_s=max(0.0, params.meter_tau_s
-                                                                 + lag_s))
-        return rm.readings(params, self.start_s - shift_s, self.end_s - shift_s)
+            rm, shift_s = self.model, 0.0
+        else:
+            rm, shift_s, lag_s = self.variants[params.timing]
+            # the samples stay this run's; the variant's own alignment moves its clock and
+            # its meter lag (the fit's nuisances move both further)
+            if lag_s:
+                params = dataclasses.replace(params, meter_tau_s=max(
+                    0.0, params.meter_tau_s + lag_s))
+        key = (params.timing, shift_s, params.clock_adjust_s)
+        sampler = self._samplers.get(key)
+        if sampler is None:
+            if len(self._samplers) >= MAX_SAMPLERS:
+                self._samplers.pop(next(iter(self._samplers)))
+            shift = params.clock_adjust_s
+            sampler = IntervalSampler(rm.edges_s, (self.start_s - shift_s) - shift,
+                                      (self.end_s - shift_s) - shift, rm.dt_s)
+            self._samplers[key] = sampler
+        return sampler(rm.metered_cumulative_nl(params))
+
+    def forget_samplers(self, timing) -> None:
+        """Drop the samplers of a timing variant that is no longer kept."""
+        for key in [k for k in self._samplers if k[0] == timing]:
+            del self._samplers[key]
 
 
 def _common_samples(run: MeasuredRun, lo_s: float, hi_s: float,

@@ -53,6 +53,7 @@ class Resequencer:
         self.program = program
         self.drive_consumers = [mm.machine.consumer(mm.models[r].name) for r in mm.drives]
         self.made = 0                   # variants made so far (each a sequencer run per run)
+        self.compiled = None            # the program compiled, on the first variant
         self._kept: OrderedDict = OrderedDict()
         self.neutral = tuple((1.0, 0.0) for _ in mm.drives)
 
@@ -88,17 +89,19 @@ class Resequencer:
         if key in self._kept:
             self._kept.move_to_end(key)
             return
-        from ..sequencer import unfold
+        from ..sequencer import compile_program, unfold
         from .effects import NUISANCE_METER_TAU_S
         from .fit import DiagnosisError, align
         from .model import MachineModel, RunModel
 
         self.made += 1
+        if self.compiled is None:       # once: every variant runs the same program
+            self.compiled = compile_program(self.program)
         machine = self.machine(key)
         mm = MachineModel.of(machine)
         for rd, horizon, window, off in zip(self.rds, self.horizons_s, self.windows_s,
                                             self.offsets):
-            tl = unfold(machine, horizon, program=self.program)
+            tl = unfold(machine, horizon, program=self.program, compiled=self.compiled)
             rm = RunModel(mm, tl, rd.model.dt_s)
             shift = lag = 0.0
             if off is None and _edges_moved_s(rd.model, rm, float(rd.end_s[-1])) > rm.dt_s:
@@ -123,6 +126,7 @@ class Resequencer:
             old, _ = self._kept.popitem(last=False)
             for rd in self.rds:
                 rd.variants.pop(old, None)
+                rd.forget_samplers(old)
 
     def closed_loop(self) -> bool:
         """Whether the drives' timing moves the valve edges (end switches start steps)."""

@@ -20,11 +20,13 @@ __all__ = ["CompileError", "ExecutionError", "Sequencer", "SequencerError", "Sig
 
 def unfold(machine, horizon="60s", scan_stepping: bool = False, tiling: bool = True,
            program=None, max_events: int = DEFAULT_MAX_CHANGES,
-           replay: bool = True) -> Timeline:
+           replay: bool = True, compiled=None) -> Timeline:
     """Run ``machine``'s program (or ``program``, an IR or a path, instead) over
     ``horizon`` (``"90s"``, ``"T#1m30s"``, ``"8h"`` or seconds) and return its timeline.
     ``tiling`` and ``replay`` (repeating states and parts copied instead of executed,
     :meth:`Sequencer.run`) can be turned off to check them against full execution.
+    ``compiled``: :func:`compile_program` of the IR ``program``, for callers that run
+    one program many times (the diagnosis' timing variants).
 
     Raises :class:`~plcpred.parser.ProgramError` (program text), :class:`CompileError`
     (constructs the executor cannot run), :class:`ExecutionError` (run-time faults such as
@@ -37,7 +39,7 @@ def unfold(machine, horizon="60s", scan_stepping: bool = False, tiling: bool = T
     if program is None or not hasattr(program, "pous"):
         program = machine.read_program(program)
     check_against_program(machine, program)
-    timeline = Sequencer(program, machine).run(horizon_ns, scan_stepping=scan_stepping,
+    timeline = Sequencer(program, machine, compiled=compiled).run(horizon_ns, scan_stepping=scan_stepping,
                                                tiling=tiling, max_events=max_events,
                                                replay=replay)
     machine.warnings.extend(lint_timeline(machine, timeline))
