@@ -631,5 +631,6 @@ CLOSED_LOOP_EFFECTS: dict[str, Effect] = {e.name: e for e in (
     ValveDelay(closed_loop=True), StrokeTime(closed_loop=True))}
 # the form tried beside the above where a run's valves reverse before their drive arrived
 CUT_STROKE_EFFECTS: dict[str, Effect] = {e.name: e for e in (IncompleteExhaust(partial=True),)}
-# beside those, for the drives none of whose strokes is cut (diagnose makes it per run):
-# StrokeTime(partial_drives=...), a slower stroke cut short by an edge that does not wait
+# and StrokeTime(partial_drives=...), a slower stroke cut short by an edge that does not
+# wait for it: diagnose makes it for each diagnosis, since which drives' strokes all
+# complete and which drives the program waits on depend on the runs
