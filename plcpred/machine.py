@@ -277,6 +277,14 @@ class _Reader:
                              f"{low:g}..{high:g}")
         return float(v)
 
+    def flag(self, key, default=False) -> bool:
+        """A true/false key (TOML's booleans only: 1 or "yes" are errors)."""
+        if key not in self.table:
+            return default
+        if not isinstance(self.table[key], bool):
+            raise self.error(f"{key} must be true or false")
+        return self.table[key]
+
     def string(self, key, default=None, *, required=False, choices=None):
         if key not in self.table:
             if required:
@@ -364,13 +372,10 @@ def _consumer(file: str, index: int, table: dict, warnings: list) -> Consumer:
         c.switches = {k: _signal_name(r, f"switches.{k}", v) for k, v in sw.items()}
         c.initial = r.string("initial", "retracted", choices=("retracted", "extended"))
         c.exhaust_tau_s = r.number("exhaust_tau_s", positive=True)
-        if "partial_strokes" in table:
-            if not isinstance(table["partial_strokes"], bool):
-                raise r.error("partial_strokes must be true or false")
-            if table["partial_strokes"] and c.stroke_time_s is None:
-                raise r.error("partial_strokes needs stroke_time_s (how far a piston gets "
-                              "before the next edge)")
-            c.partial_strokes = table["partial_strokes"]
+        c.partial_strokes = r.flag("partial_strokes")
+        if c.partial_strokes and c.stroke_time_s is None:
+            raise r.error("partial_strokes needs stroke_time_s (how far a piston gets "
+                          "before the next edge)")
         c.plant = _plant_keys(r, table, kind)
         for key in ("C", "b", "m", "a", "orifice_mm", "Cd", "pressure_bar_g", "flow_model"):
             if key in table:
@@ -414,9 +419,7 @@ def _plant_keys(r: _Reader, table: dict, kind: str) -> dict:
         if key not in table:
             continue
         if form == "bool":
-            if not isinstance(table[key], bool):
-                raise r.error(f"{key} must be true or false")
-            out[key] = table[key]
+            out[key] = r.flag(key)
         elif form == "pair":
             out[key] = r.pair(key, None, positive=key.endswith("_C"), nonneg=True) \
                 if not key.endswith("_b") else r.pair(key, None)
@@ -444,10 +447,7 @@ def _line(file: str, index: int, table: dict) -> Line:
                 droop_bar=r.number("droop_bar", 0.3, positive=True))
     if not -1.0 < line.b < 1.0:
         raise r.error("b must lie between -1 and 1")
-    if "check_valves" in table:
-        if not isinstance(table["check_valves"], bool):
-            raise r.error("check_valves must be true or false")
-        line.check_valves = table["check_valves"]
+    line.check_valves = r.flag("check_valves", line.check_valves)
     return line
 
 
@@ -469,10 +469,7 @@ def _input(file: str, index: int, table: dict) -> InputSchedule:
                 0 <= table["seed"] < 2**63):
             raise r.error("seed must be a whole number 0..2^63-1")
         s.seed = table["seed"]
-    if "initial" in table:
-        if not isinstance(table["initial"], bool):
-            raise r.error("initial must be true or false")
-        s.initial = table["initial"]
+    s.initial = r.flag("initial", s.initial)
     if s.pulses_s and s.period_s is not None:
         raise r.error("give pulses_s or period_s, not both")
     if s.period_s is not None and s.pulse_ms / 1000.0 >= s.period_s:
