@@ -575,19 +575,20 @@ class StrokeTime(_Timing):
 
     def to_machine(self, mm, data, theta):
         changes = []
+        taus = self._throttled_tau_s(mm, theta)
         for k, f in enumerate(theta):
             if abs(f - 1.0) < 1e-3:
                 continue
             ext, ret = self._reference(mm, k)
             new = [round(max(1e-4, ext * float(f)), 6), round(max(1e-4, ret * float(f)), 6)]
             name = mm.models[mm.drives[k]].name
-            _consumer_table(data, name)["stroke_time_s"] = new
+            t = _consumer_table(data, name)
+            t["stroke_time_s"] = new
             changes.append(f'consumer "{name}": stroke_time_s = {new}')
             if k in self.partial_drives:
-                t = _consumer_table(data, name)
                 t["partial_strokes"] = True
                 change = f'consumer "{name}": partial_strokes = true'
-                tau = float(self._throttled_tau_s(mm, theta)[k])
+                tau = float(taus[k])
                 if tau > max(MIN_WRITTEN_TAU_S, mm.models[mm.drives[k]].exhaust_tau_s or 0.0):
                     t["exhaust_tau_s"] = float(f"{tau:.6g}")
                     change += f", exhaust_tau_s = {tau:.3g}"
