@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from plcpred.air.predict import predict
 from plcpred.cli import main
 from plcpred.machine import MachineError, load_machine
 from plcpred.plant import emulate, merge_truth
@@ -18,6 +19,8 @@ from plcpred.plant import physics
 from plcpred.plant.drive import drive_params
 from plcpred.plant.group import Group, Supply
 from plcpred.plant.model import PlantModel
+from plcpred.plant.replay import (closed_loop_total_cells_nl, replay,
+                                  replay_total_cells_nl)
 from plcpred.sequencer import unfold
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -292,6 +295,57 @@ def test_shared_supply_pushback_refill_and_slower_stroke(tmp_path):
         pos = e.plant.drive_states("A", grid_s)["position_mm"]
         return grid_s[np.argmax(pos >= 99.99)]
     assert arrival_s(em) > arrival_s(ideal) + 0.002
+
+
+def test_replaying_a_closed_loop_run_open_loop_draws_the_same_air():
+    """The plant driven open loop by the edges a closed-loop run recorded draws what that
+    run drew, consumer by consumer (drives on their own supply, a shared line with its
+    regulator). Each command comes straight after the last here, with no switch queries
+    in between: a command must not wait for the piece the plant integrated past it."""
+    for path, horizon in ((PICK, "9s"), (DATA / "shared.toml", "3s")):
+        em = emulate(path, horizon)
+        plant = replay(em.machine, em.timeline)
+        cum = plant.cumulative_nl(em.edges_s)
+        for name, nl in em.consumer_nl().items():
+            assert cum[name][-1] == pytest.approx(nl, rel=1e-6, abs=1e-9), (path, name)
+        assert set(plant.metered_names()) == set(em.plant.metered_names())
+
+
+def test_replay_cells_are_the_metered_air_on_the_grid():
+    m = load_machine(RIG)
+    tl = unfold(m, "8s")
+    edges = np.linspace(0.0, 8.0, 801)
+    cells = replay_total_cells_nl(m, tl, edges)
+    plant = replay(m, tl)
+    assert len(cells) == 800 and np.all(cells >= -1e-12)
+    assert cells.sum() == pytest.approx(sum(plant.cumulative_nl(np.array([0.0, 8.0]))[n][-1]
+                                            for n in plant.metered_names()), rel=1e-9)
+    # every stroke of the rig takes a little less than its D1 air (domain.md section 7)
+    d1 = float(np.sum(predict(m, timeline=tl, dt=0.01).profile.consumer_nl))
+    assert 0.85 * d1 < cells.sum() < d1
+
+
+def test_closed_loop_cells_are_emulate_without_its_meter():
+    m = load_machine(PICK)
+    tl = unfold(m, "12s")
+    edges = np.linspace(0.0, 12.0, 1201)
+    cells = closed_loop_total_cells_nl(m, tl, edges, m.read_program())
+    em = emulate(m, "12s")
+    true = np.interp(edges, em.edges_s, em.true_total_cum_nl())
+    assert np.abs(np.cumsum(cells) - np.diff(true).cumsum()).max() < 1e-6
+
+
+def test_replay_of_a_repeating_timeline_repeats_the_settled_plant():
+    """A tiled timeline's plant is run a few periods past the tiling's start and its cells
+    repeated: the same air, cell by cell, as integrating the whole horizon."""
+    m = load_machine(PICK)
+    tl = unfold(m, "60s")
+    assert tl.info["period_s"] and tl.info["tiled_from_s"] < 10.0
+    edges = np.linspace(0.0, 60.0, 6001)
+    repeated = replay_total_cells_nl(m, tl, edges)
+    tl.info["period_s"] = None          # no period: the plant runs to the horizon
+    whole = replay_total_cells_nl(m, tl, edges)
+    assert np.abs(np.cumsum(repeated) - np.cumsum(whole)).max() < 1e-6
 
 
 # ---------------------------------------------------------------------- truth files

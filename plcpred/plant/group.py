@@ -540,10 +540,11 @@ class Group:
         self.control.at_rest = False
 
     def _move_frontier(self, t: float) -> None:
+        if self.t < t:
+            self.advance(t)
+        # advancing integrates whole pieces (to a boundary or an event), often past t
         if self.t > t:
             self.truncate(t)
-        elif self.t < t:
-            self.advance(t)
         # commands only come later than this one: pieces that end by now are never
         # truncated into again, so their control state (most of their memory) can go
         k = self._settled_upto

@@ -1,0 +1,112 @@
+"""The physics plant driven open loop by an I/O timeline.
+
+``emulate`` runs the program against the plant, so the plant's end switches move the
+program's edges. :func:`replay` takes the edges as given (a prediction's, or a recorded
+trace's) and only asks what air the machine draws when its valves switch then: the
+dynamic model (D4, docs/physics.md) on the air model's own valve edges. The diagnosis
+uses it, or the program run against the plant without a meter
+(:func:`closed_loop_total_cells_nl`), as the nominal machine's dynamic reference (what
+D1 leaves out by design: the air a tube still holds at atmospheric pressure, heat,
+exhausts and strokes cut short).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..air.demand import consumer_models, passive_intervals, valve_transitions
+from .model import PlantModel
+
+
+def replay(machine, timeline, horizon_s: float | None = None) -> PlantModel:
+    """The plant of ``machine`` with every valve switched when ``timeline`` switches it
+    (the air model's mapping of signals to valves: single and double solenoids, a
+    consumer's initial position), integrated to ``horizon_s`` (default the timeline's).
+    Read it with :meth:`PlantModel.cumulative_nl` and :meth:`PlantModel.metered_names`.
+
+    Raises :class:`~plcpred.plant.group.PlantError` where the plant cannot integrate."""
+    horizon_s = timeline.horizon_ns / 1e9 if horizon_s is None else float(horizon_s)
+    plant = PlantModel(machine)
+    signal_map = timeline.info.get("machine_signals", {})
+    commands: list[tuple[int, int, object, bool]] = []   # (t ns, order, adapter, on)
+    for consumer, model in zip(machine.consumers, consumer_models(machine)):
+        if model.role == "leak" or not model.valve:
+            continue
+        adapter = plant.adapter(consumer)
+        if model.role == "active":
+            t_ns, extend = valve_transitions(timeline, model, signal_map)
+            commands += [(int(t), len(commands) + i, adapter, bool(e))
+                         for i, (t, e) in enumerate(zip(t_ns, extend))]
+        else:
+            starts, ends = passive_intervals(timeline, model, signal_map)
+            for s, e in zip(starts, ends):
+                commands.append((int(s), len(commands), adapter, True))
+                commands.append((int(e), len(commands), adapter, False))
+    # a group takes its commands in time order (several drives may share one)
+    commands.sort(key=lambda c: (c[0], c[1]))
+    limit_ns = round(horizon_s * 1e9)
+    for t_ns, _, adapter, on in commands:
+        if t_ns <= limit_ns:
+            adapter.command(t_ns, on)
+    plant.finish(horizon_s)
+    return plant
+
+
+# periods the plant runs past the start of a repeating timeline before its cells are
+# repeated: a chamber's temperature and a line's pressure settle within a cycle or two
+SETTLE_PERIODS = 3
+
+
+def _stop_cell(timeline, edges_s: np.ndarray) -> tuple[int, int]:
+    """(cells to integrate, period in cells): all of them, or where a timeline that
+    repeats one period from some time on (the sequencer's tiling) has repeated
+    SETTLE_PERIODS times, when the period is a whole number of cells."""
+    n = len(edges_s) - 1
+    info = timeline.info
+    period_s, tiled_s = info.get("period_s"), info.get("tiled_from_s")
+    if period_s and tiled_s is not None and n > 1:
+        dt_s = float(edges_s[1] - edges_s[0])
+        period_cells = round(period_s / dt_s)
+        if period_cells and abs(period_s / dt_s - period_cells) < 1e-6:
+            stop = int(np.ceil((tiled_s + SETTLE_PERIODS * period_s) / dt_s))
+            if stop < n:
+                return stop, period_cells
+    return n, 0
+
+
+def _metered_cells(plant, edges_s, n: int, period_cells: int) -> np.ndarray:
+    cumulative = plant.cumulative_nl(edges_s)
+    cells = np.diff(sum(cumulative[name] for name in plant.metered_names()))
+    if len(cells) < n:
+        cells = np.concatenate([cells, np.resize(cells[len(cells) - period_cells:],
+                                                 n - len(cells))])
+    return cells
+
+
+def replay_total_cells_nl(machine, timeline, edges_s: np.ndarray) -> np.ndarray:
+    """Normal litres per grid cell (between ``edges_s``, uniform) through the machine's
+    meter point when the plant is driven by ``timeline`` (:func:`replay`). A timeline
+    that repeats one period from some time on (the sequencer's tiling) is run
+    SETTLE_PERIODS periods past that time and its cells repeated from there, when the
+    period is a whole number of cells: an hour's log costs a minute of plant."""
+    edges_s = np.asarray(edges_s, dtype=float)
+    stop, period_cells = _stop_cell(timeline, edges_s)
+    plant = replay(machine, timeline, float(edges_s[stop]))
+    return _metered_cells(plant, edges_s[:stop + 1], len(edges_s) - 1, period_cells)
+
+
+def closed_loop_total_cells_nl(machine, timeline, edges_s: np.ndarray, program,
+                               compiled=None) -> np.ndarray:
+    """As :func:`replay_total_cells_nl`, but with the program running against the plant
+    (as ``emulate`` does, without a meter): its end switches move the edges where the
+    program waits on them. ``timeline`` is the sequencer's own prediction, for its
+    period; ``program`` the parsed program (``compiled``: its compiled form)."""
+    from ..sequencer import Sequencer
+
+    edges_s = np.asarray(edges_s, dtype=float)
+    stop, period_cells = _stop_cell(timeline, edges_s)
+    stop_s = float(edges_s[stop])
+    plant = PlantModel(machine)
+    Sequencer(program, machine, compiled=compiled, plant=plant).run(
+        round(stop_s * 1e9), tiling=False)
+    plant.finish(stop_s)
+    return _metered_cells(plant, edges_s[:stop + 1], len(edges_s) - 1, period_cells)
