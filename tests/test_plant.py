@@ -27,6 +27,7 @@ ROOT = Path(__file__).resolve().parent.parent
 DATA = ROOT / "tests" / "data" / "plant"
 RIG = ROOT / "samples" / "prototype_rig" / "rig.toml"
 PICK = ROOT / "samples" / "pick_place.toml"
+SORTER = ROOT / "samples" / "sorter.toml"
 P_ATM, T_AMB = 101_325.0, 293.15
 RHO0, P0, T0 = 1.185, 100_000.0, 293.15
 
@@ -461,6 +462,36 @@ def test_diagnose_names_a_leak_hidden_in_the_plant(tmp_path, capsys):
     assert best["name"] == "leak" and abs(best["heldout_error_pct_after"]) < 2.0
     # 8e-10 at 5 bar absolute, all but choked (phi 0.997): C P = 24.0 NL/min
     assert best["parameters"]["flow_l_min"] == pytest.approx(8e-10 * 5e5 * 60_000, rel=0.05)
+
+
+def test_a_healthy_machine_in_the_plant_is_none_beyond_what_d1_leaves_out(tmp_path):
+    """The sorter's pusher chatters (its valve reverses mid-stroke): with nothing wrong,
+    the plant draws far less than D1 books. Each effect painted on D1 takes that gap for
+    a fault; the nominal machine through the physics plant explains it without a
+    parameter, so the verdict is none."""
+    from plcpred.diagnose import MeasuredRun, diagnose
+
+    truth = tmp_path / "meter.toml"
+    truth.write_text("[meter]\ntau_s = 0.3\nrate_hz = 2\nnoise_l_min = 0.5\n")
+    runs, traces = [], []
+    for seed in (1, 2):
+        em = emulate(SORTER, "24s", truth=truth, seed=seed)
+        runs.append(MeasuredRun(f"r{seed}", em.measured_time_s + 5.0 * seed,
+                                em.measured_flow_l_min))
+        traces.append(em.timeline)
+    m = load_machine(SORTER)
+    tried = ["leak", "incomplete_exhaust", "dead_volume"]
+    d1_only = diagnose(m, runs, effects=tried, dynamic=False)
+    assert d1_only.verdict != "none"            # D1 is far above the plant
+    d = diagnose(m, runs, effects=tried)
+    assert d.baseline.error_pct > 30.0
+    assert d.verdict == "none" and d.dynamics_explain
+    assert abs(d.reference.heldout_score.error_pct) < 3.0
+    assert d.summary()["dynamic_reference"]["explains_the_gap"] is True
+    assert "(plant, nominal)" in d.report()
+    # with the recorded I/O the plant follows the recorded edges (open loop)
+    recorded = diagnose(m, runs, io=traces, effects=tried)
+    assert recorded.verdict == "none" and recorded.dynamics_explain
 
 
 def test_friction_differs_by_direction():

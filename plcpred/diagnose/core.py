@@ -18,6 +18,7 @@
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -85,6 +86,13 @@ class Diagnosis:
     bases: list = field(default_factory=list)       # per run: the aligned nominal model
     alternatives: list[str] = field(default_factory=list)   # as good as the verdict
     machine_model: MachineModel | None = None
+    # the nominal machine through the physics plant (no parameter; its nuisances
+    # fitted), None where it was not made; whether it explains a real part of the gap
+    # (then an effect must beat it too), and whether it explains the gap as well as the
+    # best effects (then the verdict is none)
+    reference: "EffectResult | None" = None
+    on_plant: bool = False
+    dynamics_explain: bool = False
 
     def best_params(self):
         """Per run: the model parameters of the combination (which starts with the
@@ -123,6 +131,15 @@ class Diagnosis:
             "fixed_machine": self.fixed_machine,
             "warnings": self.warnings,
         }
+        if self.reference is not None:
+            r = self.reference
+            out["dynamic_reference"] = {
+                "error_pct": _num(r.fit_score.error_pct),
+                "rmse_l_min": _num(r.fit_score.rmse_l_min),
+                "heldout_error_pct": _num(r.heldout_score.error_pct),
+                "heldout_rmse_l_min": _num(r.heldout_score.rmse_l_min),
+                "explains_part_of_the_gap": self.on_plant,
+                "explains_the_gap": self.dynamics_explain}
         if self.step_contexts:
             out["step_contexts"] = [c.summary() for c in self.step_contexts]
         return out
@@ -173,7 +190,20 @@ class Diagnosis:
             lines.append(f"  {e.name:<20} {e.fit_score.error_pct:>+10.1f}% "
                          f"{e.heldout_score.error_pct:>+8.1f}% "
                          f"{e.heldout_score.rmse_l_min:>14.2f}  {_short(e.physical)}")
+        if self.reference is not None:
+            r = self.reference
+            lines.append(f"  {'(plant, nominal)':<20} {r.fit_score.error_pct:>+10.1f}% "
+                         f"{r.heldout_score.error_pct:>+8.1f}% "
+                         f"{r.heldout_score.rmse_l_min:>14.2f}  the machine file through "
+                         "the physics plant, no parameter")
+        if self.on_plant:
+            lines.append("  (the plant explains part of the gap that D1 leaves out by "
+                         "design: an effect must beat it too)")
         lines += ["", f"verdict: {self.verdict}"]
+        if self.dynamics_explain:
+            lines.append("  the nominal machine through the physics plant explains the gap "
+                         "as well as any effect: it is what D1 leaves out by design (air "
+                         "a tube holds at atmosphere, heat, exhausts cut short), no fault")
         if self.alternatives:
             lines.append(f"  as good on held-out samples (the data cannot tell them apart): "
                          f"{', '.join(self.alternatives)}")
@@ -237,13 +267,16 @@ def material(base: Score, new: Score, noise_l_min: float, mean_l_min: float) -> 
 
 def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
              max_offset_s: float | None = None, effects=None,
-             max_combination: int = MAX_COMBINATION, program=None) -> Diagnosis:
+             max_combination: int = MAX_COMBINATION, program=None,
+             dynamic: bool = True) -> Diagnosis:
     """Diagnose the gap between ``machine``'s prediction and measured ``runs``.
 
     ``io``: per run a recorded I/O :class:`~plcpred.sequencer.Timeline` (or None: the
     sequencer's); ``offsets``: per run the logger's clock at the machine's start (or
     None: aligned by correlation within ``max_offset_s``, default half the run up to
-    120 s); ``effects``: names to try (default: all that apply)."""
+    120 s); ``effects``: names to try (default: all that apply); ``dynamic``: also score
+    the nominal machine through the physics plant, and call the gap ``none`` where that
+    explains it as well as the best effects (:func:`_dynamic_reference`)."""
     from ..machine import Machine, load_machine
     from ..sequencer import compile_program, unfold
 
@@ -323,6 +356,9 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     base_all = fit_effects([], mm, rds, [np.ones(len(rd.end_s), bool) for rd in rds],
                            bases, ctx)
     base_heldout = heldout([], mm, rds, bases, ctx, fold_masks, start=base_all.theta)
+    reference = _dynamic_reference(machine, mm, rds, bases, ctx, fold_masks, warnings,
+                                   program if compiled is not None else None, compiled) \
+        if dynamic and mm.drives else None
     cut_drives = _cut_drives(mm, rds)
     cut = bool(cut_drives)
     # a slower stroke on a drive whose strokes all complete may be cut short by an edge
@@ -383,6 +419,11 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     verdict = "none"
     combination = None
     alternatives = []
+    # the plant explains a real part of the gap (D1's own limits): then no noise exceeds
+    # what it leaves, and an effect must beat it too
+    on_plant = reference is not None and finding(base_heldout, reference.heldout_score)
+    if on_plant:
+        noise = min(noise, reference.fit_score.rmse_l_min)
     if results and finding(base_heldout, results[0].heldout_score):
         verdict = results[0].name
         # effects the held-out samples cannot tell from the verdict (a dead volume and an
@@ -428,9 +469,61 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
         combination = {"effects": [e.name for e in chosen], "fit": best.fit,
                        "heldout": best.heldout_score, "score": best.fit_score,
                        "physical": best.physical}
+    dynamics_explain = False
+    if (combination is not None and on_plant
+            and not finding(reference.heldout_score, combination["heldout"])):
+        # the machine file, modelled dynamically, explains the gap as well as the best
+        # effects do: D1's own limits, no fault (the effects stay ranked in the report)
+        dynamics_explain = True
+        verdict, combination, alternatives = "none", None, []
     return Diagnosis(machine, rds, base_score, base_heldout, noise, ctx_list, step_list,
                      locations, results, verdict, combination, fold_kind, warnings,
-                     bases=bases, machine_model=mm, alternatives=alternatives)
+                     bases=bases, machine_model=mm, alternatives=alternatives,
+                     reference=reference, on_plant=on_plant,
+                     dynamics_explain=dynamics_explain)
+
+
+def _dynamic_reference(machine, mm, rds, bases, ctx, fold_masks, warnings: list[str],
+                       program=None, compiled=None) -> EffectResult | None:
+    """The nominal machine file through the physics plant, its clock and meter lag
+    fitted as the baseline's are, scored on the same held-out samples: what the machine
+    draws with nothing wrong once what D1 leaves out by design is in (docs/physics.md:
+    the air a tube still holds at atmosphere, heat, exhausts and strokes cut short at
+    speed). With the sequencer's runs (``program`` given) the program runs against the
+    plant, whose end switches move the edges it waits on, as on the machine
+    (:func:`~plcpred.plant.replay.closed_loop_total_cells_nl`); with recorded I/O the
+    plant follows the recorded edges (:func:`~plcpred.plant.replay.replay`). Each run's
+    :attr:`RunModel.dynamic_cells` is set to the plant's cells less the nominal D1
+    cells. None (with a warning) where the plant cannot run the machine."""
+    from ..errors import PlcpredError
+    from ..plant.replay import closed_loop_total_cells_nl, replay_total_cells_nl
+
+    made: dict[tuple, np.ndarray] = {}      # runs with the same edges: one plant run
+    for rd, base in zip(rds, bases):
+        rm = rd.model
+        key = (rm.horizon_s, len(rm.edges_s),
+               tuple(t.tobytes() + e.tobytes() for t, e in rm.transitions),
+               rm.unit_cells.tobytes())
+        try:
+            plant_cells = made.get(key)
+            if plant_cells is None:
+                if program is not None:
+                    plant_cells = closed_loop_total_cells_nl(machine, rm.timeline,
+                                                             rm.edges_s, program, compiled)
+                else:
+                    plant_cells = replay_total_cells_nl(machine, rm.timeline, rm.edges_s)
+                made[key] = plant_cells
+        except PlcpredError as e:
+            warnings.append(f"no dynamic reference: {e}")
+            for r in rds:
+                r.model.dynamic_cells = None
+            return None
+        nominal = dataclasses.replace(base, dynamic=False)
+        rm.dynamic_cells = plant_cells - rm.total_cells(nominal)
+    dynamic_bases = [dataclasses.replace(b, dynamic=True) for b in bases]
+    result = _evaluate([], mm, rds, dynamic_bases, ctx, fold_masks)
+    result.name, result.title = "plant", "the machine file through the physics plant"
+    return result
 
 
 def _cut_drives(mm, rds) -> set[int]:

@@ -47,6 +47,9 @@ class ModelParams:
     # a resequenced run's key (diagnose.timing: per drive a stroke factor and an extra
     # delay), None: the run's own prediction
     timing: tuple | None = None
+    # add what the physics plant draws beyond D1 on the run's nominal edges
+    # (RunModel.dynamic_cells): the nominal machine's dynamic reference
+    dynamic: bool = False
 
     def copy(self) -> "ModelParams":
         """A copy whose arrays an effect may change (called for every evaluation of a
@@ -136,6 +139,9 @@ class RunModel:
             self.unit_cells[k] = interval_cells(self.edges_s, s, e, 1.0)
         self.leak_unit = interval_cells(self.edges_s, [0.0], [self.horizon_s], 1.0)
         self._drive_cache: dict[tuple, np.ndarray] = {}
+        # NL per cell the physics plant draws beyond the nominal D1 model on these edges
+        # (set by the diagnosis; used where ModelParams.dynamic)
+        self.dynamic_cells: np.ndarray | None = None
 
     # ------------------------------------------------------------------ cells
     def drive_cells(self, params: ModelParams, k: int) -> np.ndarray:
@@ -198,6 +204,8 @@ class RunModel:
             total = total + params.passive_l_min @ self.unit_cells
         for k in range(len(self.mm.drives)):
             total = total + self.drive_cells(params, k)
+        if params.dynamic and self.dynamic_cells is not None:
+            total = total + self.dynamic_cells
         return total
 
     # ------------------------------------------------------------------ readings
