@@ -7,8 +7,10 @@ meter), and emulates the real machine with ``plcpred emulate`` through a random 
 (0.1-0.6 s, 1-10 Hz, noise, a random clock offset): two runs. The diagnosis sees only the
 nominal machine file and the logs. Here nothing is painted on: the effects emerge from
 the plant's physics, and so does everything D1 leaves out on *every* machine (the tube's
-air at atmospheric pressure, heat, incomplete exhaust at speed), which is why ``none``
-cases need not come out ``none``.
+air at atmospheric pressure, heat, incomplete exhaust at speed). The diagnosis scores the
+nominal machine through the plant as its reference (a verdict must beat it too), so on
+the ``none`` cases it meets the plant with the same physics as the logs: the ``none`` row
+says that a healthy machine is not taken for a faulty one, the effect rows are the test.
 
 ``incomplete_exhaust`` is not withheld: in the plant it is not a deviation one adds but
 what fast cycling does to any drive; it shows in the ``none`` row. How large it is, is
