@@ -464,21 +464,30 @@ def test_diagnose_names_a_leak_hidden_in_the_plant(tmp_path, capsys):
     assert best["parameters"]["flow_l_min"] == pytest.approx(8e-10 * 5e5 * 60_000, rel=0.05)
 
 
-def test_a_healthy_machine_in_the_plant_is_none_beyond_what_d1_leaves_out(tmp_path):
-    """The sorter's pusher chatters (its valve reverses mid-stroke): with nothing wrong,
-    the plant draws far less than D1 books. Each effect painted on D1 takes that gap for
-    a fault; the nominal machine through the physics plant explains it without a
-    parameter, so the verdict is none."""
-    from plcpred.diagnose import MeasuredRun, diagnose
+def _sorter_logs(tmp_path, truth_text):
+    """Two 24 s logs of the sorter emulated with ``truth_text`` through a 2 Hz meter
+    (0.3 s, 0.5 NL/min of noise), their clocks 5 s apart; and the runs' I/O."""
+    from plcpred.diagnose import MeasuredRun
 
-    truth = tmp_path / "meter.toml"
-    truth.write_text("[meter]\ntau_s = 0.3\nrate_hz = 2\nnoise_l_min = 0.5\n")
+    truth = tmp_path / "truth.toml"
+    truth.write_text(truth_text + "[meter]\ntau_s = 0.3\nrate_hz = 2\nnoise_l_min = 0.5\n")
     runs, traces = [], []
     for seed in (1, 2):
         em = emulate(SORTER, "24s", truth=truth, seed=seed)
         runs.append(MeasuredRun(f"r{seed}", em.measured_time_s + 5.0 * seed,
                                 em.measured_flow_l_min))
         traces.append(em.timeline)
+    return runs, traces
+
+
+def test_a_healthy_machine_in_the_plant_is_none_beyond_what_d1_leaves_out(tmp_path):
+    """The sorter's pusher chatters (its valve reverses mid-stroke): with nothing wrong,
+    the plant draws far less than D1 books. Each effect painted on D1 takes that gap for
+    a fault; the nominal machine through the physics plant explains it without a
+    parameter, so the verdict is none."""
+    from plcpred.diagnose import diagnose
+
+    runs, traces = _sorter_logs(tmp_path, "")
     m = load_machine(SORTER)
     tried = ["leak", "incomplete_exhaust", "dead_volume"]
     d1_only = diagnose(m, runs, effects=tried, dynamic=False)
@@ -492,6 +501,28 @@ def test_a_healthy_machine_in_the_plant_is_none_beyond_what_d1_leaves_out(tmp_pa
     # with the recorded I/O the plant follows the recorded edges (open loop)
     recorded = diagnose(m, runs, io=traces, effects=tried)
     assert recorded.verdict == "none" and recorded.dynamics_explain
+
+
+def test_a_leak_on_a_fast_machine_is_named_beyond_the_plant(tmp_path):
+    """A hidden leak on the sorter: in D1's terms its chattering pusher's gap hides the
+    leak behind an exhaust; fitted beyond the plant's reference it is a leak of its own
+    size, and the fixed file says what predict on it still books."""
+    from plcpred.diagnose import diagnose
+    from plcpred.diagnose.core import write_fixed_machine
+
+    runs, _ = _sorter_logs(tmp_path, '[[consumer]]\nname = "hidden"\nkind = "leak"\n'
+                                     'C = 4e-10\nb = 0.15\nm = 0.7\n')
+    d = diagnose(load_machine(SORTER), runs, effects=["leak", "incomplete_exhaust"])
+    assert d.on_plant and d.verdict == "leak", d.report()
+    best = d.effects[0]
+    assert best.beyond_plant and "beyond the plant" in best.title
+    # 4e-10 at 7 bar absolute, choked: C P = 16.8 NL/min
+    assert best.physical["flow_l_min"] == pytest.approx(4e-10 * 7e5 * 60_000, rel=0.1)
+    assert d.summary()["effects"][0]["beyond_plant"] is True
+    write_fixed_machine(d, tmp_path / "fixed.toml")
+    assert "beyond the physics plant" in (tmp_path / "fixed.toml").read_text()
+    fixed = load_machine(tmp_path / "fixed.toml")
+    assert len(fixed.consumers) == len(load_machine(SORTER).consumers) + 1
 
 
 def test_friction_differs_by_direction():

@@ -50,9 +50,12 @@ class EffectResult:
     heldout_score: Score
     parameters: dict
     physical: dict
+    # fitted on top of the plant's reference (what the plant draws beyond D1 added)
+    beyond_plant: bool = False
 
     def summary(self) -> dict:
         return {"name": self.name, "title": self.title, "parameters": self.physical,
+                "beyond_plant": self.beyond_plant,
                 "fitted": {k: {"value": float(v), "stderr": _num(s), "unit": u}
                            for k, v, s, u in zip(self.fit.names, self.fit.theta,
                                                  self.fit.stderr, self.fit.units)},
@@ -127,7 +130,8 @@ class Diagnosis:
                 "heldout_error_pct_after": _num(self.combination["heldout"].error_pct),
                 "heldout_rmse_l_min_after": _num(self.combination["heldout"].rmse_l_min),
                 "error_pct_after": _num(self.combination["score"].error_pct),
-                "parameters": self.combination["physical"]},
+                "parameters": self.combination["physical"],
+                "beyond_plant": self.combination.get("beyond_plant", False)},
             "fixed_machine": self.fixed_machine,
             "warnings": self.warnings,
         }
@@ -359,6 +363,12 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     reference = _dynamic_reference(machine, mm, rds, bases, ctx, fold_masks, warnings,
                                    program if compiled is not None else None, compiled) \
         if dynamic and mm.drives else None
+    # where the plant explains a material part of the gap, each effect is also fitted on
+    # top of it (painted forms: a resequenced run has no plant run of its own)
+    plant_bases = [dataclasses.replace(b, dynamic=True) for b in bases] if (
+        reference is not None and significant(base_heldout, reference.heldout_score, noise)
+        and material(base_heldout, reference.heldout_score, noise, ctx["mean_l_min"])) \
+        else None
     cut_drives = _cut_drives(mm, rds)
     cut = bool(cut_drives)
     # a slower stroke on a drive whose strokes all complete may be cut short by an edge
@@ -376,6 +386,9 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
         # a timing effect painted on the predicted edges, or with the program waiting
         # on the drives (every later edge moved): whichever holds on held-out samples
         tried = [_evaluate([e], mm, rds, bases, ctx, fold_masks) for e in forms]
+        if plant_bases is not None:
+            tried += [_evaluate([e], mm, rds, plant_bases, ctx, fold_masks)
+                      for e in forms if e is not CLOSED_LOOP_EFFECTS.get(name)]
         if tried:
             results.append(min(tried, key=lambda e: e.heldout_score.rmse_l_min))
     results.sort(key=lambda e: e.heldout_score.rmse_l_min)
@@ -397,7 +410,8 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     pairs = []
     if exhaust is not None and (exhaust is results[0] or (
             first_implausible and finding(base_heldout, exhaust.heldout_score))):
-        pairs = _with_exhaust(exhaust, results, mm, rds, bases, ctx, fold_masks)
+        pairs = _with_exhaust(exhaust, results, mm, rds, _bases_of(exhaust, bases),
+                              ctx, fold_masks)
         if pairs:
             # an exhaust's mismatch with D1 (a sorter's chatter) left in every single
             # fit inflates the noise; the pairs say how little is left
@@ -456,7 +470,8 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
         # nothing is left to explain once the held-out error is down to the noise
         while (len(chosen) < max_combination and candidates
                and best.heldout_score.rmse_l_min > 1.1 * noise):
-            trials = [_evaluate(chosen + list(c.fit.effects), mm, rds, bases, ctx,
+            trials = [_evaluate(chosen + list(c.fit.effects), mm, rds,
+                                _bases_of(best, bases), ctx,
                                 fold_masks)
                       for c in candidates]
             trial = min(trials, key=lambda e: e.heldout_score.rmse_l_min)
@@ -468,7 +483,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                           if c.name not in {e.name for e in chosen}]
         combination = {"effects": [e.name for e in chosen], "fit": best.fit,
                        "heldout": best.heldout_score, "score": best.fit_score,
-                       "physical": best.physical}
+                       "physical": best.physical, "beyond_plant": best.beyond_plant}
     dynamics_explain = False
     if (combination is not None and on_plant
             and not finding(reference.heldout_score, combination["heldout"])):
@@ -559,6 +574,12 @@ def _with_exhaust(exhaust: EffectResult, results: list[EffectResult], mm, rds, b
             for e in results if e.name != exhaust.name]
 
 
+def _bases_of(result: EffectResult, bases: list) -> list:
+    """The nominal models ``result`` was fitted from: D1's, or on top of the plant."""
+    return [dataclasses.replace(b, dynamic=True) for b in bases] if result.beyond_plant \
+        else bases
+
+
 def _evaluate(effects: list[Effect], mm, rds, bases, ctx, fold_masks) -> EffectResult:
     all_masks = [np.ones(len(rd.end_s), bool) for rd in rds]
     fit = fit_effects(effects, mm, rds, all_masks, bases, ctx)
@@ -571,8 +592,10 @@ def _evaluate(effects: list[Effect], mm, rds, bases, ctx, fold_masks) -> EffectR
         ph = e.physical(mm, theta)
         physical.update(ph if len(effects) == 1 else {e.name: ph})
     name = "+".join(e.name for e in effects)
-    return EffectResult(name, " + ".join(e.title for e in effects), fit, fit_score, held,
-                        dict(zip(fit.names, map(float, fit.theta))), physical)
+    beyond = bool(bases) and bases[0].dynamic
+    title = " + ".join(e.title for e in effects) + (" (beyond the plant)" if beyond else "")
+    return EffectResult(name, title, fit, fit_score, held,
+                        dict(zip(fit.names, map(float, fit.theta))), physical, beyond)
 
 
 def _tie_break(results: list[EffectResult], noise: float, mm) -> list[EffectResult]:
@@ -677,6 +700,9 @@ def write_fixed_machine(d: Diagnosis, path) -> list[str]:
               f"verdict: {d.verdict}"]
     header += [f"changed: {c}" for c in changes] or ["changed: nothing"]
     header += [f"not written (the air model cannot express it yet): {s}" for s in skipped]
+    if d.combination and d.combination.get("beyond_plant") and changes:
+        header.append("fitted beyond the physics plant's reference of the nominal machine: "
+                      "predict (D1) on this file also books what D1 leaves out by design")
     save_machine(data, machine, path, "\n".join(header))
     d.fixed_machine = str(path)
     return changes
