@@ -15,6 +15,10 @@
    (:data:`MATERIAL_SHARE`, a thermal meter's accuracy), else ``none``.
 5. **Combination**: from the verdict, effects are added one at a time while each still
    improves the held-out error by more than the noise allows, materially (up to three).
+
+The nominal machine is also run through the physics plant (:func:`_dynamic_reference`):
+where that explains a material part of the gap (what D1 leaves out by design), every
+effect is also fitted beyond it, and a verdict that does not beat it is ``none``.
 """
 from __future__ import annotations
 
@@ -279,8 +283,9 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     sequencer's); ``offsets``: per run the logger's clock at the machine's start (or
     None: aligned by correlation within ``max_offset_s``, default half the run up to
     120 s); ``effects``: names to try (default: all that apply); ``dynamic``: also score
-    the nominal machine through the physics plant, and call the gap ``none`` where that
-    explains it as well as the best effects (:func:`_dynamic_reference`)."""
+    the nominal machine through the physics plant (:func:`_dynamic_reference`); where it
+    explains part of the gap, each effect is also fitted beyond it, and the gap is
+    ``none`` where it explains it as well as the best effects."""
     from ..machine import Machine, load_machine
     from ..sequencer import compile_program, unfold
 
@@ -364,8 +369,9 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                                    program if compiled is not None else None, compiled) \
         if dynamic and mm.drives else None
     # where the plant explains a material part of the gap, each effect is also fitted on
-    # top of it (painted forms: a resequenced run has no plant run of its own)
-    plant_bases = [dataclasses.replace(b, dynamic=True) for b in bases] if (
+    # top of it (painted forms: a resequenced run has no plant run of its own). The test
+    # is the verdict's, at the noise known before any fit (the fits lower it later)
+    plant_bases = _plant_bases(bases) if (
         reference is not None and significant(base_heldout, reference.heldout_score, noise)
         and material(base_heldout, reference.heldout_score, noise, ctx["mean_l_min"])) \
         else None
@@ -535,8 +541,7 @@ def _dynamic_reference(machine, mm, rds, bases, ctx, fold_masks, warnings: list[
             return None
         nominal = dataclasses.replace(base, dynamic=False)
         rm.dynamic_cells = plant_cells - rm.total_cells(nominal)
-    dynamic_bases = [dataclasses.replace(b, dynamic=True) for b in bases]
-    result = _evaluate([], mm, rds, dynamic_bases, ctx, fold_masks)
+    result = _evaluate([], mm, rds, _plant_bases(bases), ctx, fold_masks)
     result.name, result.title = "plant", "the machine file through the physics plant"
     return result
 
@@ -574,10 +579,14 @@ def _with_exhaust(exhaust: EffectResult, results: list[EffectResult], mm, rds, b
             for e in results if e.name != exhaust.name]
 
 
+def _plant_bases(bases: list) -> list:
+    """The nominal models with the plant's air beyond D1 added (ModelParams.dynamic)."""
+    return [dataclasses.replace(b, dynamic=True) for b in bases]
+
+
 def _bases_of(result: EffectResult, bases: list) -> list:
     """The nominal models ``result`` was fitted from: D1's, or on top of the plant."""
-    return [dataclasses.replace(b, dynamic=True) for b in bases] if result.beyond_plant \
-        else bases
+    return _plant_bases(bases) if result.beyond_plant else bases
 
 
 def _evaluate(effects: list[Effect], mm, rds, bases, ctx, fold_masks) -> EffectResult:
