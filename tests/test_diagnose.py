@@ -685,9 +685,21 @@ def _resequencer(path):
                        [15.0], [None], load_program(d.machine.program_path), None)
 
 
+def _stroke_time_found(real, nominal, horizon_s, offset_s, rate_hz, others, form_word):
+    """Two logs of the ``real`` machine diagnosed on the ``nominal`` file, trying
+    stroke_time and ``others``: the verdict is stroke_time in the form whose title holds
+    ``form_word``. Returns (the diagnosis, that effect)."""
+    runs = two_runs(real, horizon_s, offset_s, rate_hz=rate_hz, tau_s=0.3, noise=0.5)
+    d = diagnose(nominal, runs, effects=["stroke_time", *others])
+    assert d.verdict == "stroke_time", d.report()
+    best = d.effects[0]
+    assert form_word in best.title
+    return d, best
+
+
 def test_closed_loop_is_told_from_timers():
-    assert _resequencer(PICK).closed_loop()           # end switches start its steps
-    assert not _resequencer(RIG_SEQ2).closed_loop()   # its valves follow timers
+    assert _resequencer(PICK).waiting_drives()            # end switches start its steps
+    assert not _resequencer(RIG_SEQ2).waiting_drives()    # its valves follow timers
 
 
 def test_slower_stroke_in_a_closed_loop_is_found_with_its_drive_and_factor():
@@ -695,11 +707,8 @@ def test_slower_stroke_in_a_closed_loop_is_found_with_its_drive_and_factor():
     # prediction is out of step with the log; painting slower strokes onto the
     # predicted edges cannot follow it, running the program again can
     real = _slower(PICK, "X slide", 1.8)
-    runs = two_runs(real, 60, 4.0, rate_hz=5.0, tau_s=0.3, noise=0.5)
-    d = diagnose(PICK, runs, effects=["stroke_time", "valve_delay", "leak"])
-    assert d.verdict == "stroke_time", d.report()
-    best = d.effects[0]
-    assert "waiting" in best.title
+    d, best = _stroke_time_found(real, PICK, 60, 4.0, 5.0, ["valve_delay", "leak"],
+                                 "waiting")
     assert best.physical["X slide"]["factor"] == pytest.approx(1.8, rel=0.05)
     assert best.physical["Z lift"]["factor"] == 1.0
     assert best.heldout_score.rmse_l_min < 0.3 * d.baseline_heldout.rmse_l_min
@@ -737,11 +746,8 @@ def test_slower_strokes_on_a_timer_are_cut_short_and_found(rig_model):
     full = plcpred.predict(RIG_SEQ2, 20).profile
     i = full.names.index("C")
     assert c.consumer_nl[i] < 0.65 * full.consumer_nl[i]    # D1 books every stroke whole
-    runs = two_runs(real, 40, 2.0, rate_hz=2.0, tau_s=0.3, noise=0.5)
-    d = diagnose(RIG_SEQ2, runs, effects=["stroke_time", "supply_pressure", "leak"])
-    assert d.verdict == "stroke_time", d.report()
-    best = d.effects[0]
-    assert "cut short" in best.title
+    d, best = _stroke_time_found(real, RIG_SEQ2, 40, 2.0, 2.0, ["supply_pressure", "leak"],
+                                 "cut short")
     assert best.physical["C"]["factor"] == pytest.approx(1.9, rel=0.2)
     assert best.physical["C"]["partial_strokes"] is True
     assert abs(best.heldout_score.error_pct) < 2.0 < abs(d.baseline.error_pct)

@@ -40,24 +40,16 @@ def interval_means_l_min(cum_nl: np.ndarray, edges_s: np.ndarray, start_s: np.nd
     grid edges (linear within a cell, i.e. exact for cell-mean flows). Intervals must lie
     within the grid. ``dt_s``: the edges are ``k dt_s`` (the last may be short), which
     finds each time's cell by division instead of a search."""
-    if dt_s is None:
-        c1 = np.interp(end_s, edges_s, cum_nl)
-        c0 = np.interp(start_s, edges_s, cum_nl)
-    else:
-        c1 = _uniform_interp(end_s, edges_s, cum_nl, dt_s)
-        c0 = _uniform_interp(start_s, edges_s, cum_nl, dt_s)
+    if dt_s is not None:
+        return IntervalSampler(edges_s, start_s, end_s, dt_s)(cum_nl)
+    c1 = np.interp(end_s, edges_s, cum_nl)
+    c0 = np.interp(start_s, edges_s, cum_nl)
     return (c1 - c0) / (end_s - start_s) * 60.0
 
 
-def _uniform_interp(x: np.ndarray, edges_s: np.ndarray, y: np.ndarray,
-                    dt_s: float) -> np.ndarray:
-    """``np.interp(x, edges_s, y)`` for edges ``k dt_s`` (clamped at both ends)."""
-    i, f = _uniform_weights(x, edges_s, dt_s)
-    y0 = y[i]
-    return y0 + f * (y[i + 1] - y0)
-
-
 def _uniform_weights(x: np.ndarray, edges_s: np.ndarray, dt_s: float):
+    """(cell, share of it) of each time ``x`` on edges ``k dt_s``: ``np.interp``'s
+    weights, clamped at both ends."""
     i = np.clip((np.asarray(x) * (1.0 / dt_s)).astype(np.int64), 0, len(edges_s) - 2)
     e0 = edges_s[i]
     return i, np.clip((x - e0) / (edges_s[i + 1] - e0), 0.0, 1.0)
@@ -66,7 +58,7 @@ def _uniform_weights(x: np.ndarray, edges_s: np.ndarray, dt_s: float):
 class IntervalSampler:
     """:func:`interval_means_l_min` for fixed intervals on a fixed uniform grid, with the
     cells and weights found once: a fit reads the same samples at the same clock for
-    many model parameters. Gives the same numbers as the function."""
+    many model parameters. The function's uniform-grid case is this, made once."""
 
     def __init__(self, edges_s: np.ndarray, start_s: np.ndarray, end_s: np.ndarray,
                  dt_s: float):
@@ -75,11 +67,13 @@ class IntervalSampler:
         self.width_s = end_s - start_s
 
     def __call__(self, cum_nl: np.ndarray) -> np.ndarray:
-        y0 = cum_nl[self.i0]
-        c0 = y0 + self.f0 * (cum_nl[self.i0 + 1] - y0)
-        y1 = cum_nl[self.i1]
-        c1 = y1 + self.f1 * (cum_nl[self.i1 + 1] - y1)
-        return (c1 - c0) / self.width_s * 60.0
+        return (_at(cum_nl, self.i1, self.f1) - _at(cum_nl, self.i0, self.f0)) \
+            / self.width_s * 60.0
+
+
+def _at(y: np.ndarray, i: np.ndarray, f: np.ndarray) -> np.ndarray:
+    y0 = y[i]
+    return y0 + f * (y[i + 1] - y0)
 
 
 def noise_level_l_min(residual_l_min: np.ndarray) -> float:

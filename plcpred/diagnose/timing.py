@@ -128,10 +128,6 @@ class Resequencer:
                 rd.variants.pop(old, None)
                 rd.forget_samplers(old)
 
-    def closed_loop(self) -> bool:
-        """Whether the drives' timing moves the valve edges (end switches start steps)."""
-        return bool(self.waiting_drives())
-
     def waiting_drives(self) -> set[int]:
         """The drives (indices into mm.drives) whose valve edges wait on the drives' timing:
         with every stroke PROBE_FACTOR slower and every valve 50 ms later, do its valve

@@ -114,12 +114,25 @@ class Emulation:
         return files
 
 
+def run_closed_loop(machine, program, horizon_s: float, compiled=None):
+    """(plant, timeline): ``machine``'s program (parsed; ``compiled``: its compiled form)
+    run against the physics plant over ``horizon_s``, untiled (the plant's end switches
+    drive it), and the plant integrated to the horizon."""
+    from ..sequencer import Sequencer
+
+    plant = PlantModel(machine)
+    timeline = Sequencer(program, machine, compiled=compiled, plant=plant).run(
+        round(horizon_s * 1e9), tiling=False)
+    plant.finish(horizon_s)
+    return plant, timeline
+
+
 def emulate(machine, horizon="60s", truth=None, seed: int | None = None,
             program=None) -> Emulation:
     """Run ``machine`` (a path or a loaded Machine; with ``truth``, a truth file applied
     to it) in closed loop with the physics plant over ``horizon``."""
     from ..machine import Machine, check_against_program
-    from ..sequencer import Sequencer, parse_horizon
+    from ..sequencer import parse_horizon
     from .truth import load_real_machine
 
     wall0 = _time.perf_counter()
@@ -131,9 +144,7 @@ def emulate(machine, horizon="60s", truth=None, seed: int | None = None,
     if program is None or not hasattr(program, "pous"):
         program = machine.read_program(program)
     check_against_program(machine, program)
-    plant = PlantModel(machine)
-    timeline = Sequencer(program, machine, plant=plant).run(horizon_ns, tiling=False)
-    plant.finish(horizon_s)
+    plant, timeline = run_closed_loop(machine, program, horizon_s)
     wall_run = _time.perf_counter() - wall0
     cells = max(1, min(MAX_GRID_CELLS, math.ceil(horizon_s / 1e-3)))
     edges = np.linspace(0.0, horizon_s, cells + 1)

@@ -100,13 +100,9 @@ def closed_loop_total_cells_nl(machine, timeline, edges_s: np.ndarray, program,
     (as ``emulate`` does, without a meter): its end switches move the edges where the
     program waits on them. ``timeline`` is the sequencer's own prediction, for its
     period; ``program`` the parsed program (``compiled``: its compiled form)."""
-    from ..sequencer import Sequencer
+    from .emulate import run_closed_loop
 
     edges_s = np.asarray(edges_s, dtype=float)
     stop, period_cells = _stop_cell(timeline, edges_s)
-    stop_s = float(edges_s[stop])
-    plant = PlantModel(machine)
-    Sequencer(program, machine, compiled=compiled, plant=plant).run(
-        round(stop_s * 1e9), tiling=False)
-    plant.finish(stop_s)
+    plant, _ = run_closed_loop(machine, program, float(edges_s[stop]), compiled)
     return _metered_cells(plant, edges_s[:stop + 1], len(edges_s) - 1, period_cells)

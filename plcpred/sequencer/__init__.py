@@ -39,9 +39,9 @@ def unfold(machine, horizon="60s", scan_stepping: bool = False, tiling: bool = T
     if program is None or not hasattr(program, "pous"):
         program = machine.read_program(program)
     check_against_program(machine, program)
-    timeline = Sequencer(program, machine, compiled=compiled).run(horizon_ns, scan_stepping=scan_stepping,
-                                               tiling=tiling, max_events=max_events,
-                                               replay=replay)
+    timeline = Sequencer(program, machine, compiled=compiled).run(
+        horizon_ns, scan_stepping=scan_stepping, tiling=tiling, max_events=max_events,
+        replay=replay)
     machine.warnings.extend(lint_timeline(machine, timeline))
     return timeline
 
