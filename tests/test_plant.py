@@ -595,3 +595,44 @@ def test_two_lines_network_leak_and_a_din_meter():
                                            rel=1e-3)
     # a DIN 1343 meter reads the same air 8.7 % lower
     assert em.measured_nl() * 1.0875 == pytest.approx(em.total_nl, rel=0.01)
+
+
+def test_longer_tubes_on_a_fast_machine_are_found_through_the_plant(tmp_path):
+    """The sorter's pusher with 3 m tubes instead of 1.2 m (4 mm bore: 22.6 cm^3 more
+    per chamber). Its chattering valve reverses before the longer tube has filled, so
+    D1's painted extra volume per switch overstates what a longer tube costs; the
+    machine file changed by the effect and run through the plant draws what the plant
+    draws, and its tube is the one the fixed file writes."""
+    from plcpred.diagnose import diagnose
+    from plcpred.diagnose.core import write_fixed_machine
+
+    runs, _ = _sorter_logs(tmp_path, '[[consumer]]\nname = "pusher"\n'
+                                     'tube_length_m = [3.0, 3.0]\n')
+    d = diagnose(load_machine(SORTER), runs, effects=["dead_volume", "leak"])
+    assert d.on_plant and d.verdict == "dead_volume", d.report()
+    best = d.effects[0]
+    assert "through the plant" in best.title
+    assert d.machine_model.plant_variants.made > 3       # each value its own plant run
+    assert best.physical["pusher"]["extra_tube_m"] == pytest.approx(1.8, rel=0.3)
+    write_fixed_machine(d, tmp_path / "fixed.toml")
+    assert "fitted through the physics plant" in (tmp_path / "fixed.toml").read_text()
+    fixed = load_machine(tmp_path / "fixed.toml")
+    extra_m = fixed.consumer("pusher").tube_length_m[0] - 1.2
+    assert extra_m == pytest.approx(best.physical["pusher"]["extra_tube_m"], rel=0.01)
+
+
+def test_effects_are_not_run_through_the_plant_beyond_its_budget(tmp_path, monkeypatch):
+    """Each value fitted through the plant runs the whole log: where one run would cost
+    more integration pieces than allowed (an hour's log), the diagnosis says so and fits
+    the effects in D1's terms and beyond the reference only."""
+    from plcpred.diagnose import core, diagnose
+
+    runs, _ = _sorter_logs(tmp_path, "")
+    within = diagnose(load_machine(SORTER), runs, effects=["leak"])
+    assert within.machine_model.plant_variants is not None
+    monkeypatch.setattr(core, "MAX_VARIANT_PIECES", 10)
+    beyond = diagnose(load_machine(SORTER), runs, effects=["leak"])
+    assert beyond.machine_model.plant_variants is None
+    assert any("not fitted through the physics plant" in w and "integration pieces" in w
+               for w in beyond.warnings), beyond.warnings
+    assert beyond.verdict == within.verdict == "none"

@@ -18,7 +18,10 @@
 
 The nominal machine is also run through the physics plant (:func:`_dynamic_reference`):
 where that explains a material part of the gap (what D1 leaves out by design), every
-effect is also fitted beyond it, and a verdict that does not beat it is ``none``.
+effect is also fitted beyond it, and a verdict that does not beat it is ``none``. Where
+the plant beats D1 at all (by more than the noise) and its runs are cheap enough, the
+effects that change how drives fill and move are also fitted through it: the machine
+file changed by the effect, run through the plant (:mod:`~plcpred.diagnose.through_plant`).
 """
 from __future__ import annotations
 
@@ -29,6 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..air.demand import stroke_cuts
+from ..errors import PlcpredError
 from .effects import (CLOSED_LOOP_EFFECTS, CUT_STROKE_EFFECTS, EFFECTS, Effect,
                       IncompleteExhaust, StrokeTime)
 from .fit import (DiagnosisError, FitResult, RunData, Score, align, fit_effects, folds,
@@ -38,6 +42,8 @@ from .locate import contexts, sample_contexts, step_contexts, windows
 from .meter import noise_level_l_min
 from .model import MachineModel, RunModel
 from .timing import Resequencer
+from .through_plant import (MAX_VARIANT_PIECES, PLANT_FORMS, PlantVariants,
+                            variant_pieces)
 
 MAX_COMBINATION = 3
 MAX_CELLS_PER_RUN = 200_000
@@ -365,8 +371,10 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     base_all = fit_effects([], mm, rds, [np.ones(len(rd.end_s), bool) for rd in rds],
                            bases, ctx)
     base_heldout = heldout([], mm, rds, bases, ctx, fold_masks, start=base_all.theta)
+    reference_cost: dict = {}
     reference = _dynamic_reference(machine, mm, rds, bases, ctx, fold_masks, warnings,
-                                   program if compiled is not None else None, compiled) \
+                                   program if compiled is not None else None, compiled,
+                                   reference_cost) \
         if dynamic and mm.drives else None
     # where the plant explains a material part of the gap, each effect is also fitted on
     # top of it (painted forms: a resequenced run has no plant run of its own). The test
@@ -375,6 +383,23 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
         reference is not None and significant(base_heldout, reference.heldout_score, noise)
         and material(base_heldout, reference.heldout_score, noise, ctx["mean_l_min"])) \
         else None
+    if (reference is not None and machine.path is not None
+            and significant(base_heldout, reference.heldout_score, noise)):
+        # the plant is the better nominal model of this machine: the effects that change
+        # how its drives fill and move are also fitted through it (diagnose.through_plant),
+        # each value a plant run of the whole log (a variant's cycle is its own), so only
+        # where that costs few integration pieces: the reference's per machine second
+        pieces = variant_pieces(reference_cost, rds, replayed=compiled is None)
+        if pieces <= MAX_VARIANT_PIECES:
+            mm.plant_variants = PlantVariants(machine, mm, rds, bases,
+                                              program if compiled is not None else None,
+                                              compiled)
+        else:
+            warnings.append(
+                f"effects not fitted through the physics plant: each value would cost "
+                f"about {pieces:,.0f} integration pieces (the limit is "
+                f"{MAX_VARIANT_PIECES:,}); a shorter log, or fewer fast-cycling drives, "
+                f"fits them so")
     cut_drives = _cut_drives(mm, rds)
     cut = bool(cut_drives)
     # a slower stroke on a drive whose strokes all complete may be cut short by an edge
@@ -395,6 +420,14 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
         if plant_bases is not None:
             tried += [_evaluate([e], mm, rds, plant_bases, ctx, fold_masks)
                       for e in forms if e is not CLOSED_LOOP_EFFECTS.get(name)]
+        if name in PLANT_FORMS and PLANT_FORMS[name].applies(mm):
+            try:
+                # from the reference's clock and meter lag: a sweep of plant runs holds
+                # them while it chooses, and the alignment's are D1's
+                tried.append(_evaluate([PLANT_FORMS[name]], mm, rds, reference.fit.params,
+                                       ctx, fold_masks))
+            except PlcpredError as e:
+                warnings.append(f"{name} not fitted through the plant: {e}")
         if tried:
             results.append(min(tried, key=lambda e: e.heldout_score.rmse_l_min))
     results.sort(key=lambda e: e.heldout_score.rmse_l_min)
@@ -505,7 +538,8 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
 
 
 def _dynamic_reference(machine, mm, rds, bases, ctx, fold_masks, warnings: list[str],
-                       program=None, compiled=None) -> EffectResult | None:
+                       program=None, compiled=None, stats: dict | None = None
+                       ) -> EffectResult | None:
     """The nominal machine file through the physics plant, its clock and meter lag
     fitted as the baseline's are, scored on the same held-out samples: what the machine
     draws with nothing wrong once what D1 leaves out by design is in (docs/physics.md:
@@ -515,8 +549,8 @@ def _dynamic_reference(machine, mm, rds, bases, ctx, fold_masks, warnings: list[
     (:func:`~plcpred.plant.replay.closed_loop_total_cells_nl`); with recorded I/O the
     plant follows the recorded edges (:func:`~plcpred.plant.replay.replay`). Each run's
     :attr:`RunModel.dynamic_cells` is set to the plant's cells less the nominal D1
-    cells. None (with a warning) where the plant cannot run the machine."""
-    from ..errors import PlcpredError
+    cells. None (with a warning) where the plant cannot run the machine. ``stats`` (a
+    dict) counts what its plant runs cost (integration pieces, machine seconds)."""
     from ..plant.replay import closed_loop_total_cells_nl, replay_total_cells_nl
 
     made: dict[tuple, np.ndarray] = {}      # runs with the same edges: one plant run
@@ -530,9 +564,11 @@ def _dynamic_reference(machine, mm, rds, bases, ctx, fold_masks, warnings: list[
             if plant_cells is None:
                 if program is not None:
                     plant_cells = closed_loop_total_cells_nl(machine, rm.timeline,
-                                                             rm.edges_s, program, compiled)
+                                                             rm.edges_s, program, compiled,
+                                                             stats)
                 else:
-                    plant_cells = replay_total_cells_nl(machine, rm.timeline, rm.edges_s)
+                    plant_cells = replay_total_cells_nl(machine, rm.timeline, rm.edges_s,
+                                                        stats)
                 made[key] = plant_cells
         except PlcpredError as e:
             warnings.append(f"no dynamic reference: {e}")
@@ -602,7 +638,9 @@ def _evaluate(effects: list[Effect], mm, rds, bases, ctx, fold_masks) -> EffectR
         physical.update(ph if len(effects) == 1 else {e.name: ph})
     name = "+".join(e.name for e in effects)
     beyond = bool(bases) and bases[0].dynamic
-    title = " + ".join(e.title for e in effects) + (" (beyond the plant)" if beyond else "")
+    through = any(getattr(e, "through_plant", False) for e in effects)
+    title = " + ".join(e.title for e in effects) + (
+        " (beyond the plant)" if beyond and not through else "")
     return EffectResult(name, title, fit, fit_score, held,
                         dict(zip(fit.names, map(float, fit.theta))), physical, beyond)
 
@@ -710,8 +748,11 @@ def write_fixed_machine(d: Diagnosis, path) -> list[str]:
     header += [f"changed: {c}" for c in changes] or ["changed: nothing"]
     header += [f"not written (the air model cannot express it yet): {s}" for s in skipped]
     if d.combination and d.combination.get("beyond_plant") and changes:
-        header.append("fitted beyond the physics plant's reference of the nominal machine: "
-                      "predict (D1) on this file also books what D1 leaves out by design")
+        through = any(getattr(e, "through_plant", False) for e in d.combination["fit"].effects)
+        header.append(("fitted through the physics plant (this file run through it)"
+                       if through else
+                       "fitted beyond the physics plant's reference of the nominal machine")
+                      + ": predict (D1) on this file also books what D1 leaves out by design")
     save_machine(data, machine, path, "\n".join(header))
     d.fixed_machine = str(path)
     return changes

@@ -54,6 +54,11 @@ class Param:
     # on the grid and refined by golden section between grid neighbours, never by least
     # squares (the quantised value is piecewise constant)
     discrete: bool = False
+    # each value a plant run (diagnose.through_plant): a fold chooses among the values
+    # the fit on all samples ran rather than refining (which would run more)
+    plant: bool = False
+    # a discrete parameter of several drives also swept as one value for all of them
+    joint: bool = True
 
 
 DELAY_GRID_S = tuple(np.round(np.arange(0.0, 0.51, 0.05), 3))

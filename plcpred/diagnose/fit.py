@@ -432,7 +432,7 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
     u0 = (x0 - lo) / span
     discrete = np.array([p.discrete for p in flat])
     groups = [list(range(k, k + n)) for k, n in zip(np.cumsum([0] + sizes[:-1]), sizes)]
-    rays = _discrete_rays(groups, discrete)
+    rays = _discrete_rays(groups, discrete, [p.joint for p in flat])
     def sweep(u_from, ray, best, clocks=CLOCK_GRID_S):
         """``best`` (cost, u) improved by each grid value of ``ray``'s parameters, each
         with every clock adjustment of ``clocks`` (None: ``u_from``'s), from
@@ -449,18 +449,37 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
                     best = (trial, u)
         return best
 
+    nuisances = [clock] + ([clock + 1] if lag_free else [])
+
+    def profiled(u) -> tuple[float, np.ndarray]:
+        """(cost, u) with the clock and the meter's lag fitted for ``u``'s other
+        values: a plant run's edges are its own, and a value compared at another value's
+        clock loses to a worse one"""
+        best_c, best_u = min(((cost(v), v) for v in (
+            _with(u, clock, (c - lo[clock]) / span[clock]) for c in CLOCK_GRID_S)),
+            key=lambda x: x[0])
+        r = least_squares(lambda v: residuals(_with(best_u, nuisances, v)), best_u[nuisances],
+                          bounds=(0.0, 1.0), diff_step=1e-4, max_nfev=10 * len(nuisances))
+        return (2.0 * r.cost, _with(best_u, nuisances, r.x)) if 2.0 * r.cost < best_c \
+            else (best_c, best_u)
+
     if start is None and rays:
         # a closed loop's timing: each drive alone, then the effect's drives together,
         # from the nominal timing (swept one after the other, an early drive would take
         # the whole gap just because it is swept first); the best ray is then refined
-        best, best_ray = (cost(u0), u0), None
+        plant = flat[rays[0][0]].plant
+        best, best_ray = profiled(u0) if plant else (cost(u0), u0), None
         for ray in rays:
-            trial = sweep(u0, ray, best)
+            if plant:
+                trial = _profiled_sweep(profiled, u0, ray, flat[ray[0]], lo, span, best)
+            else:
+                trial = sweep(u0, ray, best)
             if trial[0] < best[0]:
                 best, best_ray = trial, ray
         u0 = best[1]
         if best_ray is not None:
-            u0 = _golden_refine(cost, u0, best_ray, flat[best_ray[0]], lo, span)
+            u0 = _golden_refine(cost, u0, best_ray, flat[best_ray[0]], lo, span,
+                                profiled=profiled if plant else None)
     elif rays:
         # a fold's fit: its own value, near the start's
         for g in groups:
@@ -469,7 +488,13 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
             values = lo[moved] + u0[moved] * span[moved]
             together = len(moved) == len(d) > 1 and np.ptp(values) < 1e-9
             for ray in [moved] if together else [[j] for j in moved]:
-                u0 = _golden_refine(cost, u0, ray, flat[ray[0]], lo, span, narrow=True)
+                if flat[ray[0]].plant:
+                    # each value a plant run: the grid the fit on all samples ran, and
+                    # the value it found
+                    u0 = _profiled_sweep(profiled, u0, ray, flat[ray[0]], lo, span,
+                                         profiled(u0))[1]
+                else:
+                    u0 = _golden_refine(cost, u0, ray, flat[ray[0]], lo, span, narrow=True)
     gridded = [j for j, p in enumerate(flat) if p.grid and not p.discrete]
     if start is None and gridded:
         # first the one parameter that alone explains most, with the clock (swept one
@@ -560,25 +585,45 @@ GOLDEN_STEPS = 6
 NARROW = 0.25          # a fold's refinement: this share of the way to the grid neighbours
 
 
-def _discrete_rays(groups: list[list[int]], discrete: np.ndarray) -> list[list[int]]:
+def _discrete_rays(groups: list[list[int]], discrete: np.ndarray,
+                   joint: list[bool]) -> list[list[int]]:
     """The directions a discrete sweep tries: each discrete parameter alone, and all of
-    one effect's discrete parameters together (every valve slower by the same delay)."""
+    one effect's discrete parameters together (every valve slower by the same delay)
+    where they are ``joint`` (one value means the same for each)."""
     rays = []
     for g in groups:
         d = [j for j in g if discrete[j]]
         rays += [[j] for j in d]
-        if len(d) > 1:
+        if len(d) > 1 and all(joint[j] for j in d):
             rays.append(d)
     return rays
 
 
+def _with(u: np.ndarray, idx, values) -> np.ndarray:
+    out = u.copy()
+    out[idx] = values
+    return out
+
+
+def _profiled_sweep(profiled, u0: np.ndarray, ray: list[int], param: Param, lo: np.ndarray,
+                    span: np.ndarray, best: tuple) -> tuple:
+    """``best`` (cost, u) improved by each grid value of the parameters ``ray`` (set
+    to one value together) from ``u0``, each with its nuisances fitted (``profiled``)."""
+    for v in param.grid:
+        if param.lower <= v <= param.upper:
+            trial = profiled(_with(u0, ray, np.clip((v - lo[ray]) / span[ray], 0.0, 1.0)))
+            if trial[0] < best[0]:
+                best = trial
+    return best
+
+
 def _golden_refine(cost, u0: np.ndarray, ray: list[int], param: Param, lo: np.ndarray,
-                   span: np.ndarray, narrow: bool = False) -> np.ndarray:
+                   span: np.ndarray, narrow: bool = False, profiled=None) -> np.ndarray:
     """``u0`` with the parameters ``ray`` (set to one value together) refined by
     golden-section search between the grid values either side of their value (the
     bounds where the grid ends; with ``narrow``, NARROW of the way to them), the others
-    held: for a discrete parameter each evaluation is a sequencer run, so a few, not a
-    gradient."""
+    held (or, with ``profiled``, u -> (cost, u), fitted for each value): for a discrete
+    parameter each evaluation is a sequencer or plant run, so a few, not a gradient."""
     j = ray[0]
     v = lo[j] + u0[j] * span[j]
     grid = sorted(g for g in param.grid if param.lower <= g <= param.upper)
@@ -590,28 +635,23 @@ def _golden_refine(cost, u0: np.ndarray, ray: list[int], param: Param, lo: np.nd
     def at(x):
         u = u0.copy()
         u[ray] = np.clip((x - lo[ray]) / span[ray], 0.0, 1.0)
-        return u
+        return profiled(u) if profiled else (cost(u), u)
 
     ratio = (math.sqrt(5.0) - 1.0) / 2.0
-    best_x, best_c = v, cost(u0)
+    best = profiled(u0) if profiled else (cost(u0), u0)
     c, d = b - ratio * (b - a), a + ratio * (b - a)
-    fc, fd = cost(at(c)), cost(at(d))
+    fc, fd = at(c), at(d)
     for _ in range(GOLDEN_STEPS - 2 if narrow else GOLDEN_STEPS):
-        for x, f in ((c, fc), (d, fd)):
-            if f < best_c:
-                best_x, best_c = x, f
-        if fc < fd:
+        best = min((best, fc, fd), key=lambda x: x[0])
+        if fc[0] < fd[0]:
             b, d, fd = d, c, fc
             c = b - ratio * (b - a)
-            fc = cost(at(c))
+            fc = at(c)
         else:
             a, c, fc = c, d, fd
             d = a + ratio * (b - a)
-            fd = cost(at(d))
-    for x, f in ((c, fc), (d, fd)):
-        if f < best_c:
-            best_x, best_c = x, f
-    return at(best_x)
+            fd = at(d)
+    return min((best, fc, fd), key=lambda x: x[0])[1]
 
 
 def folds(rds: list[RunData], period_s: float | None = None) -> list[list[np.ndarray]]:

@@ -50,6 +50,9 @@ class ModelParams:
     # add what the physics plant draws beyond D1 on the run's nominal edges
     # (RunModel.dynamic_cells): the nominal machine's dynamic reference
     dynamic: bool = False
+    # with ``dynamic``: the plant's air for the machine file changed by effects
+    # (diagnose.through_plant: RunModel.variant_cells) instead of the nominal file's
+    variant: tuple = ()
 
     def copy(self) -> "ModelParams":
         """A copy whose arrays an effect may change (called for every evaluation of a
@@ -72,6 +75,8 @@ class MachineModel:
     # set when the runs come from the sequencer and the drives' timing moves the valve
     # edges (a closed loop): timing effects then run the sequencer again
     resequencer: object = None
+    # the plant runs of machine files changed by effects (diagnose.through_plant)
+    plant_variants: object = None
 
     @classmethod
     def of(cls, machine) -> "MachineModel":
@@ -142,6 +147,8 @@ class RunModel:
         # NL per cell the physics plant draws beyond the nominal D1 model on these edges
         # (set by the diagnosis; used where ModelParams.dynamic)
         self.dynamic_cells: np.ndarray | None = None
+        # the same for machine files changed by effects (diagnose.through_plant)
+        self.variant_cells: dict[tuple, np.ndarray] = {}
 
     # ------------------------------------------------------------------ cells
     def drive_cells(self, params: ModelParams, k: int) -> np.ndarray:
@@ -204,8 +211,11 @@ class RunModel:
             total = total + params.passive_l_min @ self.unit_cells
         for k in range(len(self.mm.drives)):
             total = total + self.drive_cells(params, k)
-        if params.dynamic and self.dynamic_cells is not None:
-            total = total + self.dynamic_cells
+        if params.dynamic:
+            extra = self.variant_cells[params.variant] if params.variant \
+                else self.dynamic_cells
+            if extra is not None:
+                total = total + extra
         return total
 
     # ------------------------------------------------------------------ readings

@@ -61,6 +61,8 @@ def _stop_cell(timeline, edges_s: np.ndarray) -> tuple[int, int]:
     repeats one period from some time on (the sequencer's tiling) has repeated
     SETTLE_PERIODS times, when the period is a whole number of cells."""
     n = len(edges_s) - 1
+    if timeline is None:
+        return n, 0
     info = timeline.info
     period_s, tiled_s = info.get("period_s"), info.get("tiled_from_s")
     if period_s and tiled_s is not None and n > 1:
@@ -73,6 +75,14 @@ def _stop_cell(timeline, edges_s: np.ndarray) -> tuple[int, int]:
     return n, 0
 
 
+def _count(stats: dict | None, plant, horizon_s: float) -> None:
+    """Add a run's integration pieces and integrated seconds to ``stats`` (what a plant
+    run of this machine costs, counted the same on every computer)."""
+    if stats is not None:
+        stats["pieces"] = stats.get("pieces", 0) + sum(len(g.pieces) for g in plant.groups)
+        stats["machine_s"] = stats.get("machine_s", 0.0) + horizon_s
+
+
 def _metered_cells(plant, edges_s, n: int, period_cells: int) -> np.ndarray:
     cumulative = plant.cumulative_nl(edges_s)
     cells = np.diff(sum(cumulative[name] for name in plant.metered_names()))
@@ -82,27 +92,32 @@ def _metered_cells(plant, edges_s, n: int, period_cells: int) -> np.ndarray:
     return cells
 
 
-def replay_total_cells_nl(machine, timeline, edges_s: np.ndarray) -> np.ndarray:
+def replay_total_cells_nl(machine, timeline, edges_s: np.ndarray,
+                          stats: dict | None = None) -> np.ndarray:
     """Normal litres per grid cell (between ``edges_s``, uniform) through the machine's
     meter point when the plant is driven by ``timeline`` (:func:`replay`). A timeline
     that repeats one period from some time on (the sequencer's tiling) is run
     SETTLE_PERIODS periods past that time and its cells repeated from there, when the
-    period is a whole number of cells: an hour's log costs a minute of plant."""
+    period is a whole number of cells: an hour's log costs a minute of plant. ``stats``
+    (a dict) counts the run's cost (:func:`_count`)."""
     edges_s = np.asarray(edges_s, dtype=float)
     stop, period_cells = _stop_cell(timeline, edges_s)
     plant = replay(machine, timeline, float(edges_s[stop]))
+    _count(stats, plant, float(edges_s[stop] - edges_s[0]))
     return _metered_cells(plant, edges_s[:stop + 1], len(edges_s) - 1, period_cells)
 
 
 def closed_loop_total_cells_nl(machine, timeline, edges_s: np.ndarray, program,
-                               compiled=None) -> np.ndarray:
+                               compiled=None, stats: dict | None = None) -> np.ndarray:
     """As :func:`replay_total_cells_nl`, but with the program running against the plant
     (as ``emulate`` does, without a meter): its end switches move the edges where the
     program waits on them. ``timeline`` is the sequencer's own prediction, for its
-    period; ``program`` the parsed program (``compiled``: its compiled form)."""
+    period (None: the whole horizon is run, for a machine whose cycle is not the
+    prediction's); ``program`` the parsed program (``compiled``: its compiled form)."""
     from .emulate import run_closed_loop
 
     edges_s = np.asarray(edges_s, dtype=float)
     stop, period_cells = _stop_cell(timeline, edges_s)
     plant, _ = run_closed_loop(machine, program, float(edges_s[stop]), compiled)
+    _count(stats, plant, float(edges_s[stop] - edges_s[0]))
     return _metered_cells(plant, edges_s[:stop + 1], len(edges_s) - 1, period_cells)
