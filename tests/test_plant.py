@@ -636,3 +636,29 @@ def test_effects_are_not_run_through_the_plant_beyond_its_budget(tmp_path, monke
     assert any("not fitted through the physics plant" in w and "integration pieces" in w
                for w in beyond.warnings), beyond.warnings
     assert beyond.verdict == within.verdict == "none"
+
+
+def test_a_machine_changed_after_loading_is_not_run_through_the_plant(tmp_path):
+    """Variants are the machine file changed by an effect: a machine changed in memory
+    (here its supply) would lose that change, so the diagnosis says so instead."""
+    from plcpred.diagnose import diagnose
+
+    runs, _ = _sorter_logs(tmp_path, "")
+    m = load_machine(SORTER)
+    m.supply_bar_g = 6.2
+    d = diagnose(m, runs, effects=["leak"])
+    assert d.machine_model.plant_variants is None
+    assert any("differs from its file" in w for w in d.warnings), d.warnings
+
+
+def test_an_effect_stops_running_the_plant_when_its_budget_is_spent(tmp_path, monkeypatch):
+    from plcpred.diagnose import diagnose, through_plant
+
+    runs, _ = _sorter_logs(tmp_path, '[[consumer]]\nname = "pusher"\n'
+                                     'tube_length_m = [3.0, 3.0]\n')
+    monkeypatch.setattr(through_plant, "MAX_EFFECT_PIECES", 1)
+    d = diagnose(load_machine(SORTER), runs, effects=["dead_volume"])
+    assert d.machine_model.plant_variants.made == 1      # the first value, then no more
+    assert any(w.startswith("dead_volume not fitted through the plant: its budget")
+               for w in d.warnings), d.warnings
+    assert all("through the plant" not in e.title for e in d.effects)

@@ -19,9 +19,10 @@
 The nominal machine is also run through the physics plant (:func:`_dynamic_reference`):
 where that explains a material part of the gap (what D1 leaves out by design), every
 effect is also fitted beyond it, and a verdict that does not beat it is ``none``. Where
-the plant beats D1 at all (by more than the noise) and its runs are cheap enough, the
-effects that change how drives fill and move are also fitted through it: the machine
-file changed by the effect, run through the plant (:mod:`~plcpred.diagnose.through_plant`).
+the plant beats D1 at all on held-out samples, its runs are cheap enough and the
+painted effects leave more than the noise, the effects that change how drives fill and
+move are also fitted through it: the machine file changed by the effect, run through the
+plant (:mod:`~plcpred.diagnose.through_plant`).
 """
 from __future__ import annotations
 
@@ -46,6 +47,11 @@ from .through_plant import (MAX_VARIANT_PIECES, PLANT_FORMS, PlantVariants,
                             variant_pieces)
 
 MAX_COMBINATION = 3
+# a held-out RMSE within this factor of the noise leaves nothing to explain
+DOWN_TO_NOISE = 1.1
+# effects that change no drive: where one of them, painted on D1, explains a log to its
+# noise, the drives' physics (the plant) has nothing left to explain
+NOT_OF_THE_DRIVES = ("leak", "passive_flow", "sensor_lag")
 MAX_CELLS_PER_RUN = 200_000
 # units that do not fit: a log this many times the prediction (or a fraction of it)
 SCALE_LIMIT = 20.0
@@ -384,16 +390,20 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
         and material(base_heldout, reference.heldout_score, noise, ctx["mean_l_min"])) \
         else None
     if (reference is not None and machine.path is not None
-            and significant(base_heldout, reference.heldout_score, noise)):
-        # the plant is the better nominal model of this machine: the effects that change
-        # how its drives fill and move are also fitted through it (diagnose.through_plant),
+            and reference.heldout_score.rmse_l_min < base_heldout.rmse_l_min):
+        # the plant is the better nominal model of this machine, if only by a little (a
+        # fault it misses as much as D1 does hides how much else it explains): the effects
+        # that change how its drives fill and move are also fitted through it,
         # each value a plant run of the whole log (a variant's cycle is its own), so only
         # where that costs few integration pieces: the reference's per machine second
         pieces = variant_pieces(reference_cost, rds, replayed=compiled is None)
         if pieces <= MAX_VARIANT_PIECES:
-            mm.plant_variants = PlantVariants(machine, mm, rds, bases,
-                                              program if compiled is not None else None,
-                                              compiled)
+            try:
+                mm.plant_variants = PlantVariants(machine, mm, rds, bases,
+                                                  program if compiled is not None else None,
+                                                  compiled)
+            except PlcpredError as e:
+                warnings.append(f"effects not fitted through the physics plant: {e}")
         else:
             warnings.append(
                 f"effects not fitted through the physics plant: each value would cost "
@@ -408,7 +418,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     uncut = tuple(k for k, m in enumerate(mm.drive_models())
                   if m.stroke_time_s and k not in cut_drives | waiting)
     slowed = {StrokeTime.name: StrokeTime(partial_drives=uncut)} if uncut else {}
-    results = []
+    tried: dict[str, list[EffectResult]] = {}
     for name in names:
         forms = [e for e in (EFFECTS[name], CLOSED_LOOP_EFFECTS.get(name),
                              CUT_STROKE_EFFECTS.get(name) if cut else None,
@@ -416,20 +426,29 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                  if e is not None and e.applies(mm)]
         # a timing effect painted on the predicted edges, or with the program waiting
         # on the drives (every later edge moved): whichever holds on held-out samples
-        tried = [_evaluate([e], mm, rds, bases, ctx, fold_masks) for e in forms]
+        tried[name] = [_evaluate([e], mm, rds, bases, ctx, fold_masks) for e in forms]
         if plant_bases is not None:
-            tried += [_evaluate([e], mm, rds, plant_bases, ctx, fold_masks)
-                      for e in forms if e is not CLOSED_LOOP_EFFECTS.get(name)]
-        if name in PLANT_FORMS and PLANT_FORMS[name].applies(mm):
-            try:
-                # from the reference's clock and meter lag: a sweep of plant runs holds
-                # them while it chooses, and the alignment's are D1's
-                tried.append(_evaluate([PLANT_FORMS[name]], mm, rds, reference.fit.params,
-                                       ctx, fold_masks))
-            except PlcpredError as e:
-                warnings.append(f"{name} not fitted through the plant: {e}")
-        if tried:
-            results.append(min(tried, key=lambda e: e.heldout_score.rmse_l_min))
+            tried[name] += [_evaluate([e], mm, rds, plant_bases, ctx, fold_masks)
+                            for e in forms if e is not CLOSED_LOOP_EFFECTS.get(name)]
+    # an effect of no drive (a leak, a nozzle's flow, the meter) that, painted on D1,
+    # explains the log to its noise leaves the drives' physics nothing to explain. (Not
+    # so an effect of the drives: a lower supply or an exhaust painted on D1 fits the
+    # sorter's longer tubes to the noise, what its fills cut short do to them)
+    explained = any(e.heldout_score.rmse_l_min <= DOWN_TO_NOISE * noise
+                    for name, t in tried.items() if name in NOT_OF_THE_DRIVES
+                    for e in t if not e.beyond_plant)
+    if mm.plant_variants is not None and not explained:
+        # the effects through the plant, each value a plant run
+        for name in names:
+            if name in PLANT_FORMS and PLANT_FORMS[name].applies(mm):
+                try:
+                    # from the reference's clock and meter lag: a sweep of plant runs
+                    # holds them while it chooses, and the alignment's are D1's
+                    tried[name].append(_evaluate([PLANT_FORMS[name]], mm, rds,
+                                                 reference.fit.params, ctx, fold_masks))
+                except PlcpredError as e:
+                    warnings.append(f"{name} not fitted through the plant: {e}")
+    results = [min(t, key=lambda e: e.heldout_score.rmse_l_min) for t in tried.values() if t]
     results.sort(key=lambda e: e.heldout_score.rmse_l_min)
     # differences of the residual overstate the noise when the log is too coarse for
     # the strokes (1 Hz against 0.2 s strokes); no noise can exceed what the best fit
@@ -508,7 +527,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                       and e.name not in {c.name for c in chosen}]
         # nothing is left to explain once the held-out error is down to the noise
         while (len(chosen) < max_combination and candidates
-               and best.heldout_score.rmse_l_min > 1.1 * noise):
+               and best.heldout_score.rmse_l_min > DOWN_TO_NOISE * noise):
             trials = [_evaluate(chosen + list(c.fit.effects), mm, rds,
                                 _bases_of(best, bases), ctx,
                                 fold_masks)

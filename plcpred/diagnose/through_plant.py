@@ -25,6 +25,7 @@ from collections import OrderedDict
 
 import numpy as np
 
+from ..errors import PlcpredError
 from .effects import (CLOSED_DELAY_GRID_S, CLOSED_FACTOR_GRID, DeadVolume, Effect, Param,
                       StrokeTime, SupplyPressure, ValveDelay, _tube_volumes_cm3)
 from .timing import KEPT_CELLS, quantise_delay, quantise_factor
@@ -37,10 +38,14 @@ MIN_DEAD_VOLUME_CM3 = 2.0
 # what one value may cost, in the plant's integration pieces (a piece is one stretch
 # between valve commands or switch events; about 1-2 ms of CPU each). A value runs every
 # distinct run's whole horizon (a variant's cycle is its own, so the prediction's tiling
-# does not hold for it), and a fit runs some 30-60 values: 400 pieces keep it near a
-# minute. The sample machines' 20-40 s logs cost 40-300; the rig's sequence 2 (drive C at
-# 50 cycles a minute) 580, an hour of pick-and-place 25,000.
-MAX_VARIANT_PIECES = 400
+# does not hold for it), and a fit runs some 30-60 values: 800 pieces keep it near a
+# minute. Two 40 s logs of the sample machines cost 80-550 (the pick-and-place station
+# 550); two of the rig's sequence 2 (drive C at 50 cycles a minute) 1,150; an hour of
+# pick-and-place 25,000.
+MAX_VARIANT_PIECES = 800
+# and what one effect may cost in all (the pick-and-place station's slower strokes,
+# two 40 s logs: about 24,000): past it, the effect is not fitted through the plant
+MAX_EFFECT_PIECES = 30_000
 
 
 def _run_key(rd, replayed: bool) -> tuple:
@@ -66,7 +71,7 @@ class PlantVariants:
     nominal D1 cells, as the reference's are) for it."""
 
     def __init__(self, machine, mm, rds, bases, program=None, compiled=None):
-        from ..machine import read_machine_data
+        from ..machine import machine_from_data, read_machine_data
 
         self.machine = machine
         self.mm = mm
@@ -74,7 +79,14 @@ class PlantVariants:
         self.program = program
         self.compiled = compiled
         self.data = read_machine_data(machine.path)
+        if dataclasses.replace(machine_from_data(self.data, machine.path), warnings=[]) \
+                != dataclasses.replace(machine, warnings=[]):
+            # a variant is the file changed by an effect: a machine changed in memory
+            # after loading would lose its changes
+            raise PlcpredError(f"{machine.path.name}: the machine differs from its file")
         self.made = 0
+        # integration pieces the plant ran, per effect (the last of a variant's)
+        self.pieces: dict[str, int] = {}
         self._kept: OrderedDict = OrderedDict()
         self._d1 = [rd.model.total_cells(dataclasses.replace(b, dynamic=False, variant=()))
                     for rd, b in zip(rds, bases)]
@@ -97,9 +109,15 @@ class PlantVariants:
             return
         from ..plant.replay import closed_loop_total_cells_nl, replay_total_cells_nl
 
+        effect = variant[-1][0]
+        spent = self.pieces.get(effect, 0)
+        if spent >= MAX_EFFECT_PIECES:
+            raise PlcpredError(f"its budget of {MAX_EFFECT_PIECES:,} integration pieces "
+                               f"in the plant is spent ({self.made} values run)")
         self.made += 1
         machine = self.machine_of(variant)
         made: dict = {}
+        stats: dict = {}
         for rd, d1 in zip(self.rds, self._d1):
             rm = rd.model
             key = _run_key(rd, self.program is None)
@@ -108,11 +126,12 @@ class PlantVariants:
                 if self.program is not None:
                     # the variant's own cycle: its period is not the prediction's
                     cells = closed_loop_total_cells_nl(machine, None, rm.edges_s,
-                                                       self.program, self.compiled)
+                                                       self.program, self.compiled, stats)
                 else:
-                    cells = replay_total_cells_nl(machine, rm.timeline, rm.edges_s)
+                    cells = replay_total_cells_nl(machine, rm.timeline, rm.edges_s, stats)
                 made[key] = cells
             rm.variant_cells[variant] = cells - d1
+        self.pieces[effect] = spent + stats.get("pieces", 0)
         self._kept[variant] = True
         cells = sum(rd.model.n_cells for rd in self.rds)
         while len(self._kept) > max(8, KEPT_CELLS // max(cells, 1)):
