@@ -644,6 +644,11 @@ def _bases_of(result: EffectResult, bases: list) -> list:
     return _plant_bases(bases) if result.beyond_plant else bases
 
 
+def _through_plant(effects: list[Effect]) -> bool:
+    """Were any of ``effects`` fitted as machine files run through the plant?"""
+    return any(e.through_plant for e in effects)
+
+
 def _evaluate(effects: list[Effect], mm, rds, bases, ctx, fold_masks) -> EffectResult:
     all_masks = [np.ones(len(rd.end_s), bool) for rd in rds]
     fit = fit_effects(effects, mm, rds, all_masks, bases, ctx)
@@ -657,9 +662,8 @@ def _evaluate(effects: list[Effect], mm, rds, bases, ctx, fold_masks) -> EffectR
         physical.update(ph if len(effects) == 1 else {e.name: ph})
     name = "+".join(e.name for e in effects)
     beyond = bool(bases) and bases[0].dynamic
-    through = any(getattr(e, "through_plant", False) for e in effects)
     title = " + ".join(e.title for e in effects) + (
-        " (beyond the plant)" if beyond and not through else "")
+        " (beyond the plant)" if beyond and not _through_plant(effects) else "")
     return EffectResult(name, title, fit, fit_score, held,
                         dict(zip(fit.names, map(float, fit.theta))), physical, beyond)
 
@@ -767,9 +771,8 @@ def write_fixed_machine(d: Diagnosis, path) -> list[str]:
     header += [f"changed: {c}" for c in changes] or ["changed: nothing"]
     header += [f"not written (the air model cannot express it yet): {s}" for s in skipped]
     if d.combination and d.combination.get("beyond_plant") and changes:
-        through = any(getattr(e, "through_plant", False) for e in d.combination["fit"].effects)
         header.append(("fitted through the physics plant (this file run through it)"
-                       if through else
+                       if _through_plant(d.combination["fit"].effects) else
                        "fitted beyond the physics plant's reference of the nominal machine")
                       + ": predict (D1) on this file also books what D1 leaves out by design")
     save_machine(data, machine, path, "\n".join(header))

@@ -74,6 +74,7 @@ class Effect:
     name = ""
     title = ""
     expressible = True      # to_machine can write it in the machine file's keys
+    through_plant = False   # its values are machine files run through the plant
 
     def params(self, mm: MachineModel, ctx: dict) -> list[Param]:
         raise NotImplementedError

@@ -154,7 +154,7 @@ class ThroughPlant(Effect):
         self.title = inner.title + " (through the plant)"
 
     def applies(self, mm):
-        return getattr(mm, "plant_variants", None) is not None and self.inner.applies(mm)
+        return mm.plant_variants is not None and self.inner.applies(mm)
 
     def grid(self, mm, k: int, param: Param) -> tuple:
         return param.grid
