@@ -434,9 +434,12 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     # explains the log to its noise leaves the drives' physics nothing to explain. (Not
     # so an effect of the drives: a lower supply or an exhaust painted on D1 fits the
     # sorter's longer tubes to the noise, what its fills cut short do to them)
-    explained = any(e.heldout_score.rmse_l_min <= DOWN_TO_NOISE * noise
-                    for name, t in tried.items() if name in NOT_OF_THE_DRIVES
-                    for e in t if not e.beyond_plant)
+    # (no noise exceeds what the best of them leaves: the differences of the residual
+    # that estimate it before any fit also carry a fault's own signal)
+    painted = [(name, e) for name, t in tried.items() for e in t if not e.beyond_plant]
+    floor = min([noise] + [e.fit_score.rmse_l_min for _, e in painted])
+    explained = any(e.heldout_score.rmse_l_min <= DOWN_TO_NOISE * floor
+                    for name, e in painted if name in NOT_OF_THE_DRIVES)
     if mm.plant_variants is not None and not explained:
         # the effects through the plant, each value a plant run
         for name in names:
