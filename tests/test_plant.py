@@ -20,7 +20,7 @@ from plcpred.plant.drive import drive_params
 from plcpred.plant.group import Group, Supply
 from plcpred.plant.model import PlantModel
 from plcpred.plant.replay import (closed_loop_total_cells_nl, replay,
-                                  replay_total_cells_nl)
+                                  replay_total_cells_nl, shared_run_cells_nl)
 from plcpred.sequencer import unfold
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -348,6 +348,29 @@ def test_replay_of_a_repeating_timeline_repeats_the_settled_plant():
     tl.info["period_s"] = None          # no period: the plant runs to the horizon
     whole = replay_total_cells_nl(m, tl, edges)
     assert np.abs(np.cumsum(repeated) - np.cumsum(whole)).max() < 1e-6
+
+
+def test_runs_of_different_lengths_share_one_plant_run():
+    """Two logs of one machine (8 s and 12 s, on grids of their own) read one plant run
+    to the longer: each log's cells are what a run of its own gives, and the cost counted
+    is the longer run's alone."""
+    m = load_machine(PICK)
+    program = m.read_program()
+    short, long = np.linspace(0.0, 8.0, 401), np.linspace(0.0, 12.0, 1201)
+    stats: dict = {}
+    cells = shared_run_cells_nl(m, [short, long], program=program, stats=stats)
+    assert stats["machine_s"] == pytest.approx(12.0)
+    alone: dict = {}
+    for edges, c in zip((short, long), cells):
+        own = closed_loop_total_cells_nl(m, None, edges, program, stats=alone)
+        assert len(c) == len(edges) - 1
+        assert np.abs(np.cumsum(c) - np.cumsum(own)).max() < 1e-6
+    assert alone["pieces"] > stats["pieces"] > 0
+    # replayed edges: one timeline's runs share a run the same way
+    tl = unfold(m, "12s")
+    replayed = shared_run_cells_nl(m, [short, long], timeline=tl)
+    assert np.abs(np.cumsum(replayed[0]) - np.cumsum(
+        replay_total_cells_nl(m, tl, short))).max() < 1e-6
 
 
 # ---------------------------------------------------------------------- truth files

@@ -36,23 +36,23 @@ DEAD_VOLUME_GRID = (-0.5, 0.5, 1.5, 3.0)        # times a drive's known dead vol
 DEAD_VOLUME_QUANTUM = 0.02                      # of a drive's known dead volume
 MIN_DEAD_VOLUME_CM3 = 2.0
 # what one value may cost, in the plant's integration pieces (a piece is one stretch
-# between valve commands or switch events; about 1-2 ms of CPU each). A value runs every
-# distinct run's whole horizon (a variant's cycle is its own, so the prediction's tiling
-# does not hold for it), and a fit runs some 30-60 values: 800 pieces keep it near a
-# minute. Two 40 s logs of the sample machines cost 80-550 (the pick-and-place station
-# 550); two of the rig's sequence 2 (drive C at 50 cycles a minute) 1,150; an hour of
-# pick-and-place 25,000.
+# between valve commands or switch events; about 1-2 ms of CPU each). A value is one
+# plant run to the longest log's end (a variant's cycle is its own, so the prediction's
+# tiling does not hold for it; every sequencer log reads the same run), and a fit runs
+# some 30-60 values: 800 pieces keep it near a minute. Two 40 s logs of the sample
+# machines cost 40-440 (the pick-and-place station 435); of the rig's sequence 2
+# (drive C at 50 cycles a minute) 880; an hour of pick-and-place about 25,000.
 MAX_VARIANT_PIECES = 800
 # and what one effect may cost in all (the pick-and-place station's slower strokes,
 # two 40 s logs: about 24,000): past it, the effect is not fitted through the plant
 MAX_EFFECT_PIECES = 30_000
 
 
-def _run_key(rd, replayed: bool) -> tuple:
-    """Runs with the same key share one plant run: the same horizon and grid, and for
-    replayed (recorded) edges the same timeline."""
-    rm = rd.model
-    return rm.horizon_s, len(rm.edges_s), id(rm.timeline) if replayed else None
+def _run_key(rd, replayed: bool):
+    """Runs with the same key share one plant run, to the longest's horizon: every
+    sequencer run (the program from its start against the variant), and replayed
+    (recorded) edges of one timeline."""
+    return id(rd.model.timeline) if replayed else None
 
 
 def variant_pieces(reference_cost: dict, rds, replayed: bool = False) -> float:
@@ -60,7 +60,11 @@ def variant_pieces(reference_cost: dict, rds, replayed: bool = False) -> float:
     pieces per integrated machine second (``reference_cost``, counted by the plant's
     replay functions) times the seconds a variant integrates."""
     per_s = reference_cost.get("pieces", 0) / max(reference_cost.get("machine_s", 0.0), 1e-9)
-    return per_s * sum(h for h, _, _ in {_run_key(rd, replayed): None for rd in rds})
+    longest: dict = {}
+    for rd in rds:
+        key = _run_key(rd, replayed)
+        longest[key] = max(longest.get(key, 0.0), rd.model.horizon_s)
+    return per_s * sum(longest.values())
 
 
 class PlantVariants:
@@ -107,7 +111,7 @@ class PlantVariants:
         if variant in self._kept:
             self._kept.move_to_end(variant)
             return
-        from ..plant.replay import closed_loop_total_cells_nl, replay_total_cells_nl
+        from ..plant.replay import shared_run_cells_nl
 
         effect = variant[-1][0]
         spent = self.pieces.get(effect, 0)
@@ -116,21 +120,18 @@ class PlantVariants:
                                f"in the plant is spent ({self.made} values run)")
         self.made += 1
         machine = self.machine_of(variant)
-        made: dict = {}
-        stats: dict = {}
+        replayed = self.program is None
+        shared: dict = {}
         for rd, d1 in zip(self.rds, self._d1):
-            rm = rd.model
-            key = _run_key(rd, self.program is None)
-            cells = made.get(key)
-            if cells is None:
-                if self.program is not None:
-                    # the variant's own cycle: its period is not the prediction's
-                    cells = closed_loop_total_cells_nl(machine, None, rm.edges_s,
-                                                       self.program, self.compiled, stats)
-                else:
-                    cells = replay_total_cells_nl(machine, rm.timeline, rm.edges_s, stats)
-                made[key] = cells
-            rm.variant_cells[variant] = cells - d1
+            shared.setdefault(_run_key(rd, replayed), []).append((rd, d1))
+        stats: dict = {}
+        for runs in shared.values():
+            # the variant's own cycle: its period is not the prediction's
+            cells = shared_run_cells_nl(machine, [rd.model.edges_s for rd, _ in runs],
+                                        runs[0][0].model.timeline, self.program,
+                                        self.compiled, stats)
+            for (rd, d1), c in zip(runs, cells):
+                rd.model.variant_cells[variant] = c - d1
         self.pieces[effect] = spent + stats.get("pieces", 0)
         self._kept[variant] = True
         cells = sum(rd.model.n_cells for rd in self.rds)

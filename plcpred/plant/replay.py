@@ -121,3 +121,23 @@ def closed_loop_total_cells_nl(machine, timeline, edges_s: np.ndarray, program,
     plant, _ = run_closed_loop(machine, program, float(edges_s[stop]), compiled)
     _count(stats, plant, float(edges_s[stop] - edges_s[0]))
     return _metered_cells(plant, edges_s[:stop + 1], len(edges_s) - 1, period_cells)
+
+
+def shared_run_cells_nl(machine, edges_s: list[np.ndarray], timeline=None, program=None,
+                        compiled=None, stats: dict | None = None) -> list[np.ndarray]:
+    """Normal litres per cell through the meter point for each grid of ``edges_s`` (all
+    starting at the run's start), from one plant run to the longest: driven by
+    ``timeline``'s edges (:func:`replay`), or with ``program`` given, the program run
+    against the plant from its start (a run's first seconds do not depend on how long it
+    goes on). Nothing is tiled: the machine's cycle need not be any prediction's.
+    ``stats`` counts the run's cost (:func:`_count`)."""
+    from .emulate import run_closed_loop
+
+    edges_s = [np.asarray(e, dtype=float) for e in edges_s]
+    horizon_s = max(float(e[-1]) for e in edges_s)
+    if program is not None:
+        plant, _ = run_closed_loop(machine, program, horizon_s, compiled)
+    else:
+        plant = replay(machine, timeline, horizon_s)
+    _count(stats, plant, horizon_s - min(float(e[0]) for e in edges_s))
+    return [_metered_cells(plant, e, len(e) - 1, 0) for e in edges_s]
