@@ -688,6 +688,21 @@ def test_an_effect_stops_running_the_plant_when_its_budget_is_spent(tmp_path, mo
     assert all("through the plant" not in e.title for e in d.effects)
 
 
+
+def _clamp_logs(tmp_path, truth_text, offsets_s):
+    """Two 40 s logs of the clamp station emulated with ``truth_text`` (seeds 1 and 2),
+    their clocks starting at ``offsets_s``."""
+    from plcpred.diagnose import MeasuredRun
+
+    truth = tmp_path / "truth.toml"
+    truth.write_text(truth_text)
+    runs = []
+    for seed, offset_s in zip((1, 2), offsets_s):
+        em = emulate(CLAMP, "40s", truth=truth, seed=seed)
+        runs.append(MeasuredRun(f"r{seed}", em.measured_time_s + offset_s,
+                                em.measured_flow_l_min))
+    return runs
+
 def test_slower_valves_logged_at_1_hz_are_found_through_the_plant(tmp_path):
     """The clamp station's valves 70 ms slower, logged at 1 Hz through a 0.6 s meter.
     The differences of the residual that estimate the noise before any fit carry the
@@ -695,20 +710,34 @@ def test_slower_valves_logged_at_1_hz_are_found_through_the_plant(tmp_path):
     D1 "explained" the log to that noise, and the plant's variants were skipped (verdict
     none). No noise exceeds what the best fit leaves: the variants run, and the slower
     valves are named with each valve's delay near the truth."""
-    from plcpred.diagnose import MeasuredRun, diagnose
+    from plcpred.diagnose import diagnose
 
-    truth = tmp_path / "truth.toml"
-    truth.write_text('[[consumer]]\nname = "clamp"\nswitch_delay_s = 0.085\n'
-                     '[[consumer]]\nname = "drill feed"\nswitch_delay_s = 0.085\n'
-                     "[meter]\ntau_s = 0.6\nrate_hz = 1\nnoise_l_min = 0.5\n")
-    runs = []
-    for seed, offset_s in ((1, 14.8), (2, 3.9)):
-        em = emulate(CLAMP, "40s", truth=truth, seed=seed)
-        runs.append(MeasuredRun(f"r{seed}", em.measured_time_s + offset_s,
-                                em.measured_flow_l_min))
+    runs = _clamp_logs(tmp_path, '[[consumer]]\nname = "clamp"\nswitch_delay_s = 0.085\n'
+                                 '[[consumer]]\nname = "drill feed"\nswitch_delay_s = 0.085\n'
+                                 "[meter]\ntau_s = 0.6\nrate_hz = 1\nnoise_l_min = 0.5\n",
+                       (14.8, 3.9))
     d = diagnose(load_machine(CLAMP), runs, effects=["leak", "valve_delay"])
     assert d.verdict == "valve_delay", d.report()
     best = d.effects[0]
     assert "through the plant" in best.title
     for name in ("clamp", "drill feed"):
         assert best.physical[name]["switch_delay_s"] == pytest.approx(0.085, abs=0.025)
+
+
+def test_a_stronger_nozzle_on_a_machine_d1_overbooks_is_found_beyond_the_plant(tmp_path):
+    """The clamp station's chip blow at Cd 1.0 for the file's 0.8. The blow's extra air
+    hides what D1 overbooks on the drill feed, so D1 is nearer the log than the plant's
+    reference, and in D1's terms a longer clamp tube fits best. Fitted on each nominal
+    model, the nozzle's flow says which is the better model of the drives (the plant),
+    and on the plant it is the blow's own 1.25x."""
+    from plcpred.diagnose import diagnose
+
+    runs = _clamp_logs(tmp_path, '[[consumer]]\nname = "chip blow"\nCd = 1.0\n'
+                                 "[meter]\ntau_s = 0.3\nrate_hz = 2\nnoise_l_min = 0.5\n",
+                       (6.0, 11.0))
+    d = diagnose(load_machine(CLAMP), runs, effects=["passive_flow", "dead_volume"])
+    assert d.reference.heldout_score.rmse_l_min > d.baseline_heldout.rmse_l_min
+    assert d.verdict == "passive_flow", d.report()
+    best = d.effects[0]
+    assert best.beyond_plant
+    assert best.physical["chip blow"]["factor"] == pytest.approx(1.25, rel=0.05)
