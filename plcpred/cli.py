@@ -732,6 +732,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="write the machine file with the diagnosed effect(s) added")
     p.add_argument("--program", metavar="PROGRAM",
                    help="run this program instead of the one the machine file names")
+    p.add_argument("--no-plant", action="store_true",
+                   help="do not run the machine through the physics plant as a second "
+                        "reference (faster; the effects are then fitted in D1's terms "
+                        "only)")
     p.set_defaults(func=cmd_diagnose)
 
     p = sub.add_parser("emulate", help="run a machine in closed loop with the physics plant "
@@ -964,7 +968,7 @@ def cmd_diagnose(args) -> int:
     io = [read_io_timeline(p, horizon_s=r.span_s) for p, r in zip(args.io, runs)] \
         if args.io else None
     d = diagnose(machine, runs, io=io, offsets=args.offset, max_offset_s=args.max_offset,
-                 effects=effects, program=args.program)
+                 effects=effects, program=args.program, dynamic=not args.no_plant)
     if args.write_machine:
         write_fixed_machine(d, args.write_machine)
     for w in d.warnings:

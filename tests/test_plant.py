@@ -486,6 +486,12 @@ def test_diagnose_names_a_leak_hidden_in_the_plant(tmp_path, capsys):
     assert best["name"] == "leak" and abs(best["heldout_error_pct_after"]) < 2.0
     # 8e-10 at 5 bar absolute, all but choked (phi 0.997): C P = 24.0 NL/min
     assert best["parameters"]["flow_l_min"] == pytest.approx(8e-10 * 5e5 * 60_000, rel=0.05)
+    assert "dynamic_reference" in d
+    # --no-plant: D1 alone is the reference, and the leak is still a leak
+    assert main(["diagnose", str(RIG), *logs, "--no-plant", "--json",
+                 str(tmp_path / "d1.json")]) == 0
+    d1 = json.loads((tmp_path / "d1.json").read_text())
+    assert "dynamic_reference" not in d1 and d1["verdict"] == "leak"
 
 
 def _sorter_logs(tmp_path, truth_text):
