@@ -401,9 +401,16 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                     if e is not None and e.applies(mm)] for name in names}
     tried: dict[str, list[EffectResult]] = {name: [] for name in names}
 
+    def finding(base: Score, new: Score) -> bool:
+        # at the noise known when it is asked (the fits lower it later)
+        return significant(base, new, noise) and material(base, new, noise,
+                                                           ctx["mean_l_min"])
+
+    plant_bases = _plant_bases(bases)
+
     def paint(name: str, beyond: bool) -> None:
         # on the plant, painted forms only (a resequenced run has no plant run of its own)
-        tried[name] += [_evaluate([e], mm, rds, _plant_bases(bases) if beyond else bases,
+        tried[name] += [_evaluate([e], mm, rds, plant_bases if beyond else bases,
                                   ctx, fold_masks)
                         for e in forms[name]
                         if not beyond or e is not CLOSED_LOOP_EFFECTS.get(name)]
@@ -412,7 +419,6 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     # D1 and on the plant's reference: which of the two is the better nominal model of
     # the drives is best seen with them fitted, since a fault that adds air (a stronger
     # nozzle) hides D1's own excess behind it
-    d1_side, plant_side = base_heldout, None
     for name in names:
         if name in NOT_OF_THE_DRIVES:
             paint(name, False)
@@ -426,16 +432,11 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
             e.heldout_score for t in tried.values() for e in t if e.beyond_plant],
             key=lambda x: x.rmse_l_min)
 
-    def plant_explains(d1: Score, plant: Score) -> bool:
-        return significant(d1, plant, noise) and material(d1, plant, noise,
-                                                          ctx["mean_l_min"])
-
     # where the plant explains a material part of the gap, the drives' effects are also
     # fitted on top of it. The test is the verdict's, at the noise known before any fit
     # (the fits lower it later)
     on_reference = reference is not None and (
-        plant_explains(base_heldout, reference.heldout_score)
-        or plant_explains(d1_side, plant_side))
+        finding(base_heldout, reference.heldout_score) or finding(d1_side, plant_side))
     if (reference is not None and machine.path is not None
             and (reference.heldout_score.rmse_l_min < base_heldout.rmse_l_min
                  or on_reference)):
@@ -494,10 +495,6 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     if results:
         noise = min(noise, min(e.fit_score.rmse_l_min for e in results))
     results = _tie_break(results, noise, mm)
-
-    def finding(base: Score, new: Score) -> bool:
-        return significant(base, new, noise) and material(base, new, noise,
-                                                           ctx["mean_l_min"])
 
     exhaust = next((e for e in results if e.name == IncompleteExhaust.name), None)
     # a first whose values no plant has (a drive with most of its tube gone: what an
