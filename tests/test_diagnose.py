@@ -901,6 +901,22 @@ def test_a_run_left_out_is_scored_on_its_own_clock():
     assert d.verdict == "none", d.report()
 
 
+def test_alternate_blocks_of_one_run_keep_its_clock_and_meter():
+    # one 20 s log of the rig at 1 Hz with a 4 NL/min leak: each half is nine or ten
+    # readings, one of them mostly idle, which pins no clock. Fitted freely, its clock
+    # drifted half a second and every held-out edge fell in the wrong reading (held-out
+    # RMSE 15-45 NL/min against 1 on all readings, verdict none); the blocks of one run
+    # share its logger and meter, so the folds keep the clock and lag all readings found
+    run = run_of(RIG, 20, rate_hz=1.0, tau_s=0.37, noise=1.2, offset_s=3.86, seed=1,
+                 transform=lambda pred, flow: flow.sum(axis=0) + 4.0)
+    d = diagnose(RIG, [run], effects=["leak"])
+    assert d.verdict == "leak", d.report()
+    leak = d.effects[0]
+    assert leak.heldout_score.rmse_l_min < 1.5 * leak.fit_score.rmse_l_min, d.report()
+    # 19 readings of 1.2 NL/min noise pin the mean to about 0.3 NL/min
+    assert leak.physical["flow_l_min"] == pytest.approx(4.0, abs=0.8)
+
+
 def test_a_slow_log_trades_meter_lag_for_clock_and_still_finds_nothing():
     # at 1 Hz a 0.46 s lag looks like a later clock: the alignment takes one for the
     # other, and the fits must be able to take it back

@@ -357,7 +357,8 @@ CLOCK_GRID_S = tuple(np.round(np.arange(-CLOCK_REACH_S, CLOCK_REACH_S + 1e-9, 0.
 
 def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
                 masks: list[np.ndarray], bases: list[ModelParams], ctx: dict,
-                start: np.ndarray | None = None) -> FitResult:
+                start: np.ndarray | None = None, hold_nuisances: bool = False
+                ) -> FitResult:
     """Fit ``effects`` jointly to the samples ``masks[r]`` of each run (bounded least
     squares on the meter readings; each run keeps its own aligned base parameters).
 
@@ -374,7 +375,8 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
     section and then held while least squares fits the rest. ``start`` (the values of an
     earlier fit of the same effects, such as the fit on all samples before the folds')
     replaces the initial values and the sweep; its discrete values are refined near
-    where they are."""
+    where they are. ``hold_nuisances`` keeps the start's clock and meter lag (the
+    alternate blocks of one run)."""
     from scipy.optimize import least_squares
 
     specs = [e.params(mm, ctx) for e in effects]
@@ -393,11 +395,19 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
                           tuple(np.linspace(0.0, NUISANCE_METER_TAU_S, 5))))
     lo = np.array([p.lower for p in flat], dtype=float)
     hi = np.array([p.upper for p in flat], dtype=float)
+    clock = sum(sizes)
+    if hold_nuisances and start is not None and len(start) == len(flat):
+        # the blocks of one run share its logger and meter: a fold keeps the clock and
+        # lag that all its samples found. Half of a 20 s log at 1 Hz, mostly idle, pins
+        # no clock, and one that drifts half a second puts every held-out edge in the
+        # wrong sample
+        lo[clock] = hi[clock] = float(start[clock])
+        if lag_free:
+            lo[clock + 1] = hi[clock + 1] = float(start[clock + 1])
     hi = np.where(hi > lo, hi, lo + 1e-9)
     x0 = np.clip(np.array([p.init for p in flat], dtype=float), lo, hi)
     span = hi - lo
     n = int(sum(int(m.sum()) for m in masks))
-    clock = sum(sizes)
 
     def model_params(theta):
         out = []
@@ -427,13 +437,16 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
         return float(r @ r)
 
     u_init = (x0 - lo) / span
+    clock_grid_s = CLOCK_GRID_S
     if start is not None and len(start) == len(x0):
         x0 = np.clip(np.asarray(start, dtype=float), lo, hi)
+        if hold_nuisances:
+            clock_grid_s = (float(x0[clock]),)
     u0 = (x0 - lo) / span
     discrete = np.array([p.discrete for p in flat])
     groups = [list(range(k, k + n)) for k, n in zip(np.cumsum([0] + sizes[:-1]), sizes)]
     rays = _discrete_rays(groups, discrete, [p.joint for p in flat])
-    def sweep(u_from, ray, best, clocks=CLOCK_GRID_S):
+    def sweep(u_from, ray, best, clocks=clock_grid_s):
         """``best`` (cost, u) improved by each grid value of ``ray``'s parameters, each
         with every clock adjustment of ``clocks`` (None: ``u_from``'s), from
         ``u_from``."""
@@ -456,7 +469,7 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
         values: a plant run's edges are its own, and a value compared at another value's
         clock loses to a worse one"""
         best_c, best_u = min(((cost(v), v) for v in (
-            _with(u, clock, (c - lo[clock]) / span[clock]) for c in CLOCK_GRID_S)),
+            _with(u, clock, (c - lo[clock]) / span[clock]) for c in clock_grid_s)),
             key=lambda x: x[0])
         r = least_squares(lambda v: residuals(_with(best_u, nuisances, v)), best_u[nuisances],
                           bounds=(0.0, 1.0), diff_step=1e-4, max_nfev=10 * len(nuisances))
@@ -731,7 +744,10 @@ def heldout(effects: list[Effect], mm: MachineModel, rds: list[RunData],
     effects: the baseline, its clock refitted, on the same samples)."""
     tally = _Tally()
     for masks in fold_masks:
-        params = fit_effects(effects, mm, rds, masks, bases, ctx, start).params
+        # alternate blocks of one run: the run's clock and meter, as every sample
+        # found them
+        params = fit_effects(effects, mm, rds, masks, bases, ctx, start,
+                             hold_nuisances=len(rds) == 1).params
         for rd, m, p in zip(rds, masks, params):
             if not m.any():
                 p = _own_clock(rd, p)
