@@ -747,3 +747,25 @@ def test_a_stronger_nozzle_on_a_machine_d1_overbooks_is_found_beyond_the_plant(t
     best = d.effects[0]
     assert best.beyond_plant
     assert best.physical["chip blow"]["factor"] == pytest.approx(1.25, rel=0.05)
+
+
+def test_a_leak_far_better_than_any_drive_effect_runs_no_variant(tmp_path):
+    """A leak of C 1e-9 on the clamp station, logged at 2 Hz: painted on the plant it
+    leaves about the noise, every effect of the drives painted leaves ten times more. A
+    plant form moves its painted form's error by less than PLANT_FORM_REACH, so none is
+    run through the plant (each value a plant run): the leak is named, and no variant
+    was made."""
+    from plcpred.diagnose import diagnose, core
+
+    runs = _clamp_logs(tmp_path, '[[consumer]]\nname = "hidden leak"\nkind = "leak"\n'
+                                 'C = 1e-9\nb = 0.15\nm = 0.7\n'
+                                 "[meter]\ntau_s = 0.3\nrate_hz = 2\nnoise_l_min = 0.5\n",
+                       (14.8, 3.9))
+    d = diagnose(load_machine(CLAMP), runs)
+    assert d.verdict == "leak", d.report()
+    painted = {e.name: e.heldout_score.rmse_l_min for e in d.effects}
+    assert min(painted[n] for n in ("supply_pressure", "dead_volume", "valve_delay",
+                                    "stroke_time")) > core.PLANT_FORM_REACH * painted["leak"]
+    assert d.machine_model.plant_variants is not None        # the plant was ready
+    assert d.machine_model.plant_variants.made == 0, d.report()
+    assert all("through the plant" not in e.title for e in d.effects)

@@ -50,6 +50,9 @@ from .through_plant import (MAX_VARIANT_PIECES, PLANT_FORMS, PlantVariants,
                             variant_pieces)
 
 MAX_COMBINATION = 3
+# how much more error than the best painted effect an effect's painted forms may leave
+# and still be fitted through the plant
+PLANT_FORM_REACH = 3.0
 # a held-out RMSE within this factor of the noise leaves nothing to explain
 DOWN_TO_NOISE = 1.1
 # effects that change no drive: where one of them, painted on D1, explains a log to its
@@ -477,9 +480,19 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     explained = any(e.heldout_score.rmse_l_min <= DOWN_TO_NOISE * floor
                     for name, e in painted if name in NOT_OF_THE_DRIVES)
     if mm.plant_variants is not None and not explained:
-        # the effects through the plant, each value a plant run
+        # the effects through the plant, each value a plant run. A plant form is its
+        # painted form plus the drives' dynamics (a fill's pace moves the strokes, and
+        # with them the program): where it won, its painted forms had left at most 1.7x
+        # the best painted error on the physical benchmark, 2.3x on the clamp station's
+        # slower valves logged at 1 Hz. An effect whose painted forms all leave more than
+        # PLANT_FORM_REACH times it is not run through the plant
+        reach = PLANT_FORM_REACH * min((e.heldout_score.rmse_l_min
+                                        for t in tried.values() for e in t),
+                                       default=float("inf"))
         for name in names:
-            if name in PLANT_FORMS and PLANT_FORMS[name].applies(mm):
+            if (name in PLANT_FORMS and PLANT_FORMS[name].applies(mm)
+                    and (not tried[name] or any(e.heldout_score.rmse_l_min <= reach
+                                                for e in tried[name]))):
                 try:
                     # from the reference's clock and meter lag: a sweep of plant runs
                     # holds them while it chooses, and the alignment's are D1's
