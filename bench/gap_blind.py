@@ -401,7 +401,8 @@ def main(argv=None) -> int:
                                       / abs(out["base_error_pct"]))
         if args.verbose:
             print(f"{i:4d} {case['machine']:<20} {truth:<19} -> {verdict:<19} size/noise "
-                  f"{case['size'] / case['noise']:5.1f} {case['desc']}", flush=True)
+                  f"{case['size'] / case['noise']:5.1f} {out['cpu_s']:5.1f} s {case['desc']}",
+                  flush=True)
     wall = time.perf_counter() - t0
     verdicts.print(args.cases, EFFECTS, target_pct=95)
     if shrinks:
