@@ -526,6 +526,25 @@ def test_cli_diagnose_bad_unit_exit_2(tmp_path, capsys):
     assert "check --flow-unit" in capsys.readouterr().err
 
 
+def test_a_single_log_far_below_the_prediction_is_diagnosed_not_crashed(tmp_path):
+    # an m3/h log read as l/min: 1/16.7 of the prediction. The folds of one run hold its
+    # clock and lag, which the solver once saw as bounds of no width (its internal
+    # error "x is not within the trust region")
+    import datetime as dt
+
+    log = run_of(RIG, 30, noise=0.5, offset_s=2.0)
+    t0 = dt.datetime(2026, 11, 27, 8, 15, 1)
+    path = tmp_path / "m3h.csv"
+    path.write_text("Timestamp,Flow (m3/h)\n" + "".join(
+        f"{(t0 + dt.timedelta(seconds=float(t))).isoformat(timespec='milliseconds')},"
+        f"{q * 0.06:.4f}\n" for t, q in zip(log.time_s, log.flow_l_min)))
+    run = read_measured(path, time_col="Timestamp", flow_col="Flow (m3/h)",
+                        flow_unit="l/min")
+    d = diagnose(RIG, [run], dynamic=False)
+    assert d.baseline_heldout.rmse_l_min > 0
+    assert d.verdict in EFFECTS or d.verdict == "none"
+
+
 def test_recorded_io_replaces_the_sequencer(tmp_path):
     # the real machine started its sequence 1.5 s later than the program model says (a
     # slow operator): the log follows the trace, not the sequencer

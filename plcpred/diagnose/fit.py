@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -396,14 +397,15 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
     lo = np.array([p.lower for p in flat], dtype=float)
     hi = np.array([p.upper for p in flat], dtype=float)
     clock = sum(sizes)
+    nuisances = [clock] + ([clock + 1] if lag_free else [])
+    # the blocks of one run share its logger and meter: a fold keeps the clock and lag
+    # that all its samples found (held: neither swept nor fitted). Half of a 20 s log at
+    # 1 Hz, mostly idle, pins no clock, and one that drifts half a second puts every
+    # held-out edge in the wrong sample
+    held = np.zeros(len(flat), bool)
     if hold_nuisances and start is not None and len(start) == len(flat):
-        # the blocks of one run share its logger and meter: a fold keeps the clock and
-        # lag that all its samples found. Half of a 20 s log at 1 Hz, mostly idle, pins
-        # no clock, and one that drifts half a second puts every held-out edge in the
-        # wrong sample
-        lo[clock] = hi[clock] = float(start[clock])
-        if lag_free:
-            lo[clock + 1] = hi[clock + 1] = float(start[clock + 1])
+        held[nuisances] = True
+        nuisances = []
     hi = np.where(hi > lo, hi, lo + 1e-9)
     x0 = np.clip(np.array([p.init for p in flat], dtype=float), lo, hi)
     span = hi - lo
@@ -462,8 +464,6 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
                     best = (trial, u)
         return best
 
-    nuisances = [clock] + ([clock + 1] if lag_free else [])
-
     def profiled(u) -> tuple[float, np.ndarray]:
         """(cost, u) with the clock and the meter's lag fitted for ``u``'s other
         values: a plant run's edges are its own, and a value compared at another value's
@@ -471,6 +471,8 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
         best_c, best_u = min(((cost(v), v) for v in (
             _with(u, clock, (c - lo[clock]) / span[clock]) for c in clock_grid_s)),
             key=lambda x: x[0])
+        if not nuisances:
+            return best_c, best_u
         r = least_squares(lambda v: residuals(_with(best_u, nuisances, v)), best_u[nuisances],
                           bounds=(0.0, 1.0), diff_step=1e-4, max_nfev=10 * len(nuisances))
         return (2.0 * r.cost, _with(best_u, nuisances, r.x)) if 2.0 * r.cost < best_c \
@@ -526,7 +528,7 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
             if j not in same:
                 best = sweep(u0, [j], best, clocks=None)
                 u0 = best[1]
-    free = np.flatnonzero(~discrete)
+    free = np.flatnonzero(~discrete & ~held)
 
     def free_residuals(v):
         u = u0.copy()
@@ -534,6 +536,11 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
         return residuals(u)
 
     def solve(u_from):
+        if not len(free):       # a baseline fold with its nuisances held: nothing to fit
+            r0 = free_residuals(np.zeros(0))
+            return SimpleNamespace(x=np.zeros(0), cost=0.5 * float(r0 @ r0),
+                                   jac=np.zeros((len(r0), 0)), success=True,
+                                   message="nothing to fit"), u_from.copy()
         r = least_squares(free_residuals, u_from[free], bounds=(0.0, 1.0), diff_step=1e-4,
                           x_scale=1.0, max_nfev=40 * (len(free) + 1))
         u = u_from.copy()
