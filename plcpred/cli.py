@@ -709,17 +709,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-offset", type=_seconds, metavar="S",
                    help="search the clock offset within this many seconds of the log's "
                         "first sample (default: half the run, at most 120 s)")
-    p.add_argument("--time-col", metavar="NAME|N", help="time column (default time_s); "
+    p.add_argument("--time-col", metavar="NAME|N", help="time column (default time_s, else "
+                   "the one column named as a time: Time, Timestamp, Zeit, ...); "
                    "seconds, ISO 8601 date-times, a logger's date-times (24.11.2026 "
                    "13:05:00,5; 2026/11/24 13:05:00; 11/24/2026 1:05:00 PM) or times of "
                    "day (13:05:00.5). Lines above the header (device, serial) are "
                    "skipped")
-    p.add_argument("--flow-col", metavar="NAME|N", help="flow column (default flow_l_min)")
+    p.add_argument("--flow-col", metavar="NAME|N",
+                   help="flow column (default flow_l_min, else the one column named as a "
+                        "flow: Flow, Durchfluss, Volumenstrom, Debit, ...)")
     p.add_argument("--supply-col", metavar="NAME|N",
                    help="supply pressure column, bar(g) (default supply_bar_g when the log "
                         "has one): its mean is compared with the machine file's supply")
-    p.add_argument("--flow-unit", default="l/min", choices=("l/min", "m3/h", "l/s", "scfm"),
-                   help="unit of the flow column (default l/min)")
+    p.add_argument("--flow-unit", choices=("l/min", "m3/h", "l/s", "scfm"),
+                   help="unit of the flow column (default: the unit its header names, as "
+                        "in 'Flow (m3/h)', else l/min)")
     p.add_argument("--reference", choices=("iso8778", "din1343", "iso2533"),
                    help="the meter's reference condition (default: the machine file's "
                         "[meter] reference, else iso8778)")
@@ -965,6 +969,10 @@ def cmd_diagnose(args) -> int:
                           flow_unit=args.flow_unit, reference=reference,
                           supply_col=args.supply_col)
             for p in args.measured]
+    for r in runs:
+        if "columns_guessed" in r.source:
+            print(f"note: {r.name}: {r.source['columns_guessed']} (name them with "
+                  "--time-col, --flow-col and --flow-unit if not)", file=sys.stderr)
     io = [read_io_timeline(p, horizon_s=r.span_s) for p, r in zip(args.io, runs)] \
         if args.io else None
     d = diagnose(machine, runs, io=io, offsets=args.offset, max_offset_s=args.max_offset,

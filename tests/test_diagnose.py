@@ -183,10 +183,20 @@ def test_a_header_below_the_loggers_own_lines(tmp_path):
     # a header that is not there: the error lists the first line's columns
     with pytest.raises(MeasuredDataError, match="no time column 'Zeit' .*Device"):
         read_measured(p, time_col="Zeit", flow_col="Flow [m3/h]")
+    # nothing named: one column says time and one says flow, in the unit its name gives
+    # (T [C] is no time); a unit given wins over the name's
+    guessed = read_measured(p)
+    assert guessed.flow_l_min.tolist() == run.flow_l_min.tolist()
+    assert guessed.source["columns_guessed"] == \
+        "time from column 'Date/Time', flow from 'Flow [m3/h]' in m3/h"
+    assert read_measured(p, flow_unit="l/min").flow_l_min[:3].tolist() == \
+        pytest.approx([1.2, 1.5, 1.8])
 
 
 @pytest.mark.parametrize("text, message", [
     ("time_s,pressure\n0,1\n1,2\n2,3\n", "no flow column"),
+    ("Zeit;Durchfluss A;Durchfluss B\n0;1;2\n1;2;3\n2;3;4\n",
+     "line 1: no time and flow columns .*Zeit, Durchfluss A, Durchfluss B"),
     ("time_s,flow_l_min\n0,1\n2,2\n1,3\n", "line 4, column 1: time 1 does not increase"),
     ("time_s,flow_l_min\n0,1\nnoon,2\n", "line 3, column 1: cannot read the time"),
     ("time_s,flow_l_min\n0,1\n1,2\n", "at least 3 samples"),
@@ -524,6 +534,20 @@ def test_cli_diagnose_bad_unit_exit_2(tmp_path, capsys):
         f"{t:.3f},{q:.4f}\n" for t, q in zip(run.time_s, run.flow_l_min)))
     assert main(["diagnose", str(RIG), "--measured", str(log), "--flow-unit", "l/s"]) == 2
     assert "check --flow-unit" in capsys.readouterr().err
+
+
+def test_cli_reads_a_loggers_names_and_unit_and_says_so(tmp_path, capsys):
+    run = run_of(RIG, 20)
+    log = tmp_path / "log.csv"
+    log.write_text("Timestamp,Flow (m3/h)\n" + "".join(
+        f"{t:.3f},{q * 0.06:.5f}\n" for t, q in zip(run.time_s, run.flow_l_min)))
+    out = tmp_path / "d.json"
+    assert main(["diagnose", str(RIG), "--measured", str(log), "--no-plant",
+                 "--json", str(out)]) == 0
+    err = capsys.readouterr().err
+    assert "time from column 'Timestamp', flow from 'Flow (m3/h)' in m3/h" in err
+    baseline = json.loads(out.read_text())["baseline"]
+    assert abs(baseline["error_pct"]) < 2.0
 
 
 def test_a_single_log_far_below_the_prediction_is_diagnosed_not_crashed(tmp_path):

@@ -3,7 +3,9 @@
 A flow log is a CSV file with a header row: by default ``time_s,flow_l_min`` with an
 optional ``supply_bar_g``, as ``plcpred emulate`` writes it, or any logger's columns chosen
 with ``time_col``/``flow_col`` (a header name or a 1-based column number), below any lines
-the logger writes before its header. Times are seconds, ISO 8601 date-times, a logger's
+the logger writes before its header. Without them, a header with exactly one column named
+as a time and one as a flow (``Timestamp``, ``Flow (m3/h)``, ``Zeit;Durchfluss [l/min]``)
+is read so, in the unit the flow column's name gives unless one is given. Times are seconds, ISO 8601 date-times, a logger's
 date-times (``24.11.2026 13:05:00,5``, ``2026/11/24 13:05:00``, ``11/24/2026 1:05:00
 PM``) or times of day alone (``13:05:00.5``, passing midnight); readings stamped to the
 whole second by a logger that samples faster are spread evenly over their second. Flows
@@ -95,15 +97,20 @@ def reference_factor(reference: str) -> float:
     return (p_pa / P0_PA) * (T0_K / t_k)
 
 
-def flow_unit_factor(unit: str) -> float:
+def canonical_flow_unit(unit: str) -> str:
+    """The FLOW_UNITS key ``unit`` spells (``Nm³/h``, ``m3h``, ``lpm``, ``NL/min``)."""
     key = unit.strip().lower().replace(" ", "").replace("³", "3").replace("lpm", "l/min")
     key = {"nl/min": "l/min", "nm3/h": "m3/h", "nl/s": "l/s", "l_min": "l/min",
-           "m3_h": "m3/h", "l_s": "l/s", "cfm": "scfm"}.get(key, key)
-    try:
-        return FLOW_UNITS[key]
-    except KeyError:
+           "m3_h": "m3/h", "l_s": "l/s", "cfm": "scfm", "m3h": "m3/h", "nm3h": "m3/h",
+           "lmin": "l/min", "nlmin": "l/min", "nl_min": "l/min"}.get(key, key)
+    if key not in FLOW_UNITS:
         raise MeasuredDataError(f"unknown flow unit {unit!r} (known: "
-                                f"{', '.join(FLOW_UNITS)})") from None
+                                f"{', '.join(FLOW_UNITS)})")
+    return key
+
+
+def flow_unit_factor(unit: str) -> float:
+    return FLOW_UNITS[canonical_flow_unit(unit)]
 
 
 def _column(path: str, header: list[str], wanted, default: str | None, what: str,
@@ -125,6 +132,59 @@ def _column(path: str, header: list[str], wanted, default: str | None, what: str
         return lower.index(text.lower())
     raise MeasuredDataError(f"{path}: no {what} column {text!r} (columns: "
                             f"{', '.join(names)}); name it with {option}")
+
+
+# header words a logger's export names its time and flow columns with (English, German,
+# French, Italian, Spanish), matched in a name without its unit: "Flow (m3/h)" is a flow
+_TIME_WORDS = ("time", "timestamp", "zeit", "zeitstempel", "datetime", "date time",
+               "date/time", "datum/zeit", "datum zeit", "horodatage", "tempo", "tiempo",
+               "heure", "t_s", "time_s")
+_FLOW_WORDS = ("flow", "durchfluss", "volumenstrom", "verbrauch", "debit", "débit",
+               "portata", "caudal", "consumption", "q")
+
+
+def _bare(name: str) -> tuple[str, str | None]:
+    """(a header name without its unit, the unit it names in brackets or after an
+    underscore, if one of FLOW_UNITS'): ``Flow (m3/h)`` -> (``flow``, ``m3/h``)."""
+    text = name.strip().lower()
+    unit = None
+    m = re.search(r"[\(\[]\s*([^\)\]]+?)\s*[\)\]]", text)
+    if m:
+        unit = m.group(1)
+        text = (text[:m.start()] + text[m.end():]).strip()
+    else:
+        m = re.search(r"(?:_|\s+in\s+|\s+)((?:n?m3|n?m³)_?/?h|n?l_?/?(?:min|s)|lpm|s?cfm)$",
+                      text)
+        if m:
+            unit = m.group(1)
+            text = text[:m.start()].strip()
+    if unit is not None:
+        try:
+            unit = canonical_flow_unit(unit)
+        except MeasuredDataError:
+            unit = None
+    return text.strip(" _-:"), unit
+
+
+def _guess_columns(header: list[str]) -> tuple[int, int, str | None] | None:
+    """(time column, flow column, the flow column's unit) where exactly one column's
+    name says time and exactly one says flow (``Timestamp``, ``Flow (m3/h)``); None
+    where that is not so."""
+    bare = [_bare(h) for h in header]
+
+    def only(words, exclude=()):
+        hits = [k for k, (b, _) in enumerate(bare) if k not in exclude and (
+            b in words or any(b.startswith(w + " ") or b.startswith(w + "_")
+                              for w in words if len(w) > 2))]
+        return hits[0] if len(hits) == 1 else None
+
+    t = only(_TIME_WORDS)
+    if t is None:
+        return None
+    f = only(_FLOW_WORDS, exclude=(t,))
+    if f is None:
+        return None
+    return t, f, bare[f][1]
 
 
 MAX_PREAMBLE_LINES = 50
@@ -153,6 +213,8 @@ def _header_line(lines: list[str], time_col, flow_col) -> int:
                 return max(j for j in range(k) if lines[j].strip())
         elif (str(t_names[0]).isdigit() or t_names[0].lower() in row) and \
                 (str(f_names[0]).isdigit() or f_names[0].lower() in row):
+            return k
+        elif time_col is None and flow_col is None and _guess_columns(row):
             return k
     # not found: the first line with anything on it, whose columns the error lists
     return next(k for k, line in enumerate(lines) if line.strip())
@@ -237,14 +299,18 @@ def _read_text(path: Path) -> str:
         raise MeasuredDataError(f"{path}: not UTF-8 text (byte {e.start})") from None
 
 
-def read_measured(path, time_col=None, flow_col=None, flow_unit: str = "l/min",
+def read_measured(path, time_col=None, flow_col=None, flow_unit: str | None = None,
                   reference: str = "iso8778", supply_col=None) -> MeasuredRun:
     """Read a flow log (see the module docstring). Rows whose flow is empty or not a
     number are skipped and counted in ``source["skipped_rows"]``; times must increase.
+    Without ``time_col``/``flow_col`` and without the default names, a header with
+    exactly one column named as a time and one as a flow is read so (``Timestamp``,
+    ``Flow (m3/h)``), in the unit the flow column's name gives unless ``flow_unit`` is
+    given (else l/min); ``source["columns_guessed"]`` says what was taken.
     Raises :class:`MeasuredDataError` naming the file, the line and the column."""
     path = Path(path)
     file = str(path)
-    unit_k = flow_unit_factor(flow_unit)
+    unit_k = flow_unit_factor(flow_unit or "l/min")
     ref_k = reference_factor(reference)
     text = _read_text(path)
     lines = text.splitlines()
@@ -259,11 +325,24 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str = "l/min",
     header = next(rows)
     t_idx = _column(file, header, time_col, "time_s", "time", "--time-col")
     f_idx = _column(file, header, flow_col, "flow_l_min", "flow", "--flow-col")
+    guessed = None
+    if (t_idx is None and time_col is None) or (f_idx is None and flow_col is None):
+        # a logger's own names: taken where one column says time and one says flow
+        guess = _guess_columns(header)
+        if guess is not None and t_idx in (None, guess[0]) and f_idx in (None, guess[1]):
+            guessed = guess
+            header_unit = guess[2] if f_idx is None else None
+            t_idx, f_idx = guess[0], guess[1]
+            if flow_unit is None and header_unit is not None:
+                unit_k = flow_unit_factor(header_unit)
+                flow_unit = header_unit
     if t_idx is None or f_idx is None:
-        missing = "time" if t_idx is None else "flow"
+        missing = "time and flow columns" if t_idx is None and f_idx is None else (
+            "time column" if t_idx is None else "flow column")
         raise MeasuredDataError(
-            f"{file}: line 1: no {missing} column (expected the header time_s,flow_l_min; "
-            f"this file has {', '.join(h.strip() for h in header) or 'no columns'}); name "
+            f"{file}: line {start + 1}: no {missing} (expected the header "
+            f"time_s,flow_l_min, or one column named as a time and one as a flow; this "
+            f"file has {', '.join(h.strip() for h in header) or 'no columns'}); name "
             "the columns with --time-col and --flow-col")
     s_idx = _column(file, header, supply_col, "supply_bar_g", "supply", "--supply-col")
     times, flows, supplies = [], [], []
@@ -333,8 +412,14 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str = "l/min",
     flow = np.asarray(flows, dtype=float) * unit_k * ref_k
     supply = np.asarray(supplies, dtype=float) if s_idx is not None and len(
         supplies) == len(times) else None
+    source = {}
+    if guessed is not None:
+        source["columns_guessed"] = (
+            f"time from column '{header[t_idx].strip()}', flow from "
+            f"'{header[f_idx].strip()}' in {flow_unit or 'l/min'}")
     return MeasuredRun(path.name, time_s, flow, supply,
-                       {"path": file, "flow_unit": flow_unit, "reference": reference,
+                       {**source, "path": file, "flow_unit": flow_unit or "l/min",
+                        "reference": reference,
                         "time_format": ("iso8601" if iso == "iso" else iso) if iso
                         else "seconds",
                         "time_column": header[t_idx].strip(),
