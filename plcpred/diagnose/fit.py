@@ -537,7 +537,7 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
 
     def solve(u_from):
         if not len(free):       # a baseline fold with its nuisances held: nothing to fit
-            r0 = free_residuals(np.zeros(0))
+            r0 = residuals(u_from)
             return SimpleNamespace(x=np.zeros(0), cost=0.5 * float(r0 @ r0),
                                    jac=np.zeros((len(r0), 0)), success=True,
                                    message="nothing to fit"), u_from.copy()
