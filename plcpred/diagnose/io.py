@@ -5,11 +5,12 @@ optional ``supply_bar_g``, as ``plcpred emulate`` writes it, or any logger's col
 with ``time_col``/``flow_col`` (a header name or a 1-based column number), below any lines
 the logger writes before its header. Without them, a header with exactly one column named
 as a time and one as a flow (``Timestamp``, ``Flow (m3/h)``, ``Zeit;Durchfluss [l/min]``)
-is read so, in the unit the flow column's name gives unless one is given. Times are seconds, ISO 8601 date-times, a logger's
-date-times (``24.11.2026 13:05:00,5``, ``2026/11/24 13:05:00``, ``11/24/2026 1:05:00
-PM``) or times of day alone (``13:05:00.5``, passing midnight); readings stamped to the
-whole second by a logger that samples faster are spread evenly over their second. Flows
-are in ``l/min``, ``m3/h``, ``l/s`` or ``scfm`` at the meter's reference condition
+is read so, in the unit the flow column's name gives unless one is given. Times are
+seconds, ISO 8601 date-times, a logger's date-times (``24.11.2026 13:05:00,5``,
+``2026/11/24 13:05:00``, ``11/24/2026 1:05:00 PM``) or times of day alone
+(``13:05:00.5``, passing midnight); readings stamped to the whole second by a logger
+that samples faster are spread evenly over their second. Flows are in ``l/min``,
+``m3/h``, ``l/s`` or ``scfm`` at the meter's reference condition
 (ISO 8778, DIN 1343 or ISO 2533), converted here to normal litres per minute at the
 ISO 8778 reference every other part of plcpred uses (docs/physics.md: reference
 conditions: ``V_2 = V_1 * (P_1/P_2) * (T_2/T_1)``). Fields separated by ``,``, ``;`` or
