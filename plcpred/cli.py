@@ -710,7 +710,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="search the clock offset within this many seconds of the log's "
                         "first sample (default: half the run, at most 120 s)")
     p.add_argument("--time-col", metavar="NAME|N", help="time column (default time_s, else "
-                   "the one column named as a time: Time, Timestamp, Zeit, ...); "
+                   "the one column named as a time: Time, Timestamp, Zeit, ...; a name "
+                   "such as t_ms or 'Zeit [ms]' gives numbers in ms, '(min)' in minutes); "
                    "seconds, ISO 8601 date-times, a logger's date-times (24.11.2026 "
                    "13:05:00,5; 2026/11/24 13:05:00; 11/24/2026 1:05:00 PM) or times of "
                    "day (13:05:00.5). Lines above the header (device, serial) are "

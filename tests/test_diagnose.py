@@ -536,6 +536,18 @@ def test_cli_diagnose_bad_unit_exit_2(tmp_path, capsys):
     assert "check --flow-unit" in capsys.readouterr().err
 
 
+def test_a_time_column_in_milliseconds_or_minutes_says_so_in_its_name(tmp_path):
+    run = run_of(RIG, 20)
+    for name, per_s in (("t_ms", 1000.0), ("Zeit [ms]", 1000.0), ("time (min)", 1 / 60)):
+        p = tmp_path / "log.csv"
+        p.write_text(f"{name};flow_l_min\n" + "".join(
+            f"{t * per_s:.6f};{q:.4f}\n".replace(".", ",")
+            for t, q in zip(run.time_s, run.flow_l_min)))
+        got = read_measured(p)
+        assert got.time_s == pytest.approx(run.time_s, abs=1e-4), name   # 6 decimals
+        assert got.flow_l_min == pytest.approx(run.flow_l_min, abs=1e-4), name
+
+
 def test_cli_reads_a_loggers_names_and_unit_and_says_so(tmp_path, capsys):
     run = run_of(RIG, 20)
     log = tmp_path / "log.csv"

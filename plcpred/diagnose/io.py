@@ -6,7 +6,8 @@ with ``time_col``/``flow_col`` (a header name or a 1-based column number), below
 the logger writes before its header. Without them, a header with exactly one column named
 as a time and one as a flow (``Timestamp``, ``Flow (m3/h)``, ``Zeit;Durchfluss [l/min]``)
 is read so, in the unit the flow column's name gives unless one is given. Times are
-seconds, ISO 8601 date-times, a logger's date-times (``24.11.2026 13:05:00,5``,
+seconds (milliseconds or minutes where the column's name says so: ``t_ms``, ``Zeit
+[ms]``, ``time (min)``), ISO 8601 date-times, a logger's date-times (``24.11.2026 13:05:00,5``,
 ``2026/11/24 13:05:00``, ``11/24/2026 1:05:00 PM``) or times of day alone
 (``13:05:00.5``, passing midnight); readings stamped to the whole second by a logger
 that samples faster are spread evenly over their second. Flows are in ``l/min``,
@@ -139,7 +140,7 @@ def _column(path: str, header: list[str], wanted, default: str | None, what: str
 # French, Italian, Spanish), matched in a name without its unit: "Flow (m3/h)" is a flow
 _TIME_WORDS = ("time", "timestamp", "zeit", "zeitstempel", "datetime", "date time",
                "date/time", "datum/zeit", "datum zeit", "horodatage", "tempo", "tiempo",
-               "heure", "t_s", "time_s")
+               "heure", "t_s", "time_s", "t_ms")
 _FLOW_WORDS = ("flow", "durchfluss", "volumenstrom", "verbrauch", "debit", "débit",
                "portata", "caudal", "consumption", "q")
 
@@ -165,6 +166,18 @@ def _bare(name: str) -> tuple[str, str | None]:
         except MeasuredDataError:
             unit = None
     return text.strip(" _-:"), unit
+
+
+TIME_UNITS_S = {"ms": 0.001, "s": 1.0, "sec": 1.0, "min": 60.0, "h": 3600.0}
+
+
+def _time_unit_s(name: str) -> float:
+    """Seconds per unit of a time column whose name gives its unit (``t_ms``,
+    ``Zeit [ms]``, ``time (min)``); 1 where it gives none."""
+    text = name.strip().lower()
+    m = re.search(r"[\(\[]\s*(ms|s|sec|min|h)\s*[\)\]]", text) or re.search(
+        r"[_\s](ms|s|sec|min|h)$", text)
+    return TIME_UNITS_S[m.group(1)] if m else 1.0
 
 
 def _guess_columns(header: list[str]) -> tuple[int, int, str | None] | None:
@@ -346,6 +359,7 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str | None = No
             f"file has {', '.join(h.strip() for h in header) or 'no columns'}); name "
             "the columns with --time-col and --flow-col")
     s_idx = _column(file, header, supply_col, "supply_bar_g", "supply", "--supply-col")
+    time_unit_s = _time_unit_s(header[t_idx])     # numeric times only: t_ms, Zeit [ms]
     times, flows, supplies = [], [], []
     skipped = 0
     iso = None          # False: seconds; else the date-time format of the first row
@@ -363,12 +377,13 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str | None = No
         try:
             if iso is None:
                 try:
-                    t = _number(cell, decimal_comma)
+                    t = _number(cell, decimal_comma) * time_unit_s
                     iso = False
                 except ValueError:
                     t, iso = _timestamp(cell)
             else:
-                t = _timestamp(cell, iso)[0] if iso else _number(cell, decimal_comma)
+                t = _timestamp(cell, iso)[0] if iso else \
+                    _number(cell, decimal_comma) * time_unit_s
         except (ValueError, OverflowError):
             raise MeasuredDataError(
                 f"{file}: line {lineno}, column {t_idx + 1}: cannot read the time "
