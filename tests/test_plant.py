@@ -494,20 +494,27 @@ def test_diagnose_names_a_leak_hidden_in_the_plant(tmp_path, capsys):
     assert "dynamic_reference" not in d1 and d1["verdict"] == "leak"
 
 
-def _sorter_logs(tmp_path, truth_text):
-    """Two 24 s logs of the sorter emulated with ``truth_text`` through a 2 Hz meter
-    (0.3 s, 0.5 NL/min of noise), their clocks 5 s apart; and the runs' I/O."""
+def _emulated_logs(tmp_path, machine, horizon, truth_text, offsets_s):
+    """Logs of ``machine`` emulated for ``horizon`` with ``truth_text`` (seeds 1, 2, ...),
+    their clocks starting at ``offsets_s``; and the runs' I/O."""
     from plcpred.diagnose import MeasuredRun
 
     truth = tmp_path / "truth.toml"
-    truth.write_text(truth_text + "[meter]\ntau_s = 0.3\nrate_hz = 2\nnoise_l_min = 0.5\n")
+    truth.write_text(truth_text)
     runs, traces = [], []
-    for seed in (1, 2):
-        em = emulate(SORTER, "24s", truth=truth, seed=seed)
-        runs.append(MeasuredRun(f"r{seed}", em.measured_time_s + 5.0 * seed,
+    for seed, offset_s in enumerate(offsets_s, start=1):
+        em = emulate(machine, horizon, truth=truth, seed=seed)
+        runs.append(MeasuredRun(f"r{seed}", em.measured_time_s + offset_s,
                                 em.measured_flow_l_min))
         traces.append(em.timeline)
     return runs, traces
+
+
+def _sorter_logs(tmp_path, truth_text):
+    """Two 24 s logs of the sorter emulated with ``truth_text`` through a 2 Hz meter
+    (0.3 s, 0.5 NL/min of noise), their clocks 5 s apart; and the runs' I/O."""
+    return _emulated_logs(tmp_path, SORTER, "24s", truth_text + "[meter]\ntau_s = 0.3\n"
+                          "rate_hz = 2\nnoise_l_min = 0.5\n", (5.0, 10.0))
 
 
 def test_a_healthy_machine_in_the_plant_is_none_beyond_what_d1_leaves_out(tmp_path):
@@ -694,20 +701,11 @@ def test_an_effect_stops_running_the_plant_when_its_budget_is_spent(tmp_path, mo
     assert all("through the plant" not in e.title for e in d.effects)
 
 
-
 def _clamp_logs(tmp_path, truth_text, offsets_s):
     """Two 40 s logs of the clamp station emulated with ``truth_text`` (seeds 1 and 2),
     their clocks starting at ``offsets_s``."""
-    from plcpred.diagnose import MeasuredRun
+    return _emulated_logs(tmp_path, CLAMP, "40s", truth_text, offsets_s)[0]
 
-    truth = tmp_path / "truth.toml"
-    truth.write_text(truth_text)
-    runs = []
-    for seed, offset_s in zip((1, 2), offsets_s):
-        em = emulate(CLAMP, "40s", truth=truth, seed=seed)
-        runs.append(MeasuredRun(f"r{seed}", em.measured_time_s + offset_s,
-                                em.measured_flow_l_min))
-    return runs
 
 def test_slower_valves_logged_at_1_hz_are_found_through_the_plant(tmp_path):
     """The clamp station's valves 70 ms slower, logged at 1 Hz through a 0.6 s meter.
