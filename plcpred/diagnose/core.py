@@ -427,13 +427,14 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
             paint(name, False)
             if reference is not None:
                 paint(name, True)
+    def best_heldout(nominal: Score, beyond: bool) -> Score:
+        # a nominal model's held-out score, or its best effect's so far
+        return min([nominal] + [e.heldout_score for t in tried.values() for e in t
+                                if e.beyond_plant == beyond], key=lambda x: x.rmse_l_min)
+
     if reference is not None:
-        d1_side = min([base_heldout] + [e.heldout_score for t in tried.values() for e in t
-                                        if not e.beyond_plant],
-                      key=lambda x: x.rmse_l_min)
-        plant_side = min([reference.heldout_score] + [
-            e.heldout_score for t in tried.values() for e in t if e.beyond_plant],
-            key=lambda x: x.rmse_l_min)
+        d1_side = best_heldout(base_heldout, False)
+        plant_side = best_heldout(reference.heldout_score, True)
 
     # where the plant explains a material part of the gap, the drives' effects are also
     # fitted on top of it. The test is the verdict's, at the noise known before any fit
