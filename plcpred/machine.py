@@ -109,6 +109,10 @@ class Meter:
     offset_l_min: float = 0.0           # reading at zero flow
     full_scale_l_min: float | None = None
     line: str | None = None             # on one [[line]] (after its regulator); default: the drop
+    # what a reading is: "mean" (the response averaged over its logging interval, as a
+    # meter's own logger reports) or "instant" (the response when it was read, as a PLC
+    # polling the meter's analogue output does); None: not said (read as "mean")
+    sampling: str | None = None
 
 
 @dataclass
@@ -205,8 +209,9 @@ _CONSUMER_KEYS |= set(PLANT_DRIVE_KEYS)
 _LINE_KEYS = {"name", "volume_l", "pressure_bar_g", "network_bar_g", "C", "b", "m",
               "droop_bar", "check_valves"}
 _METER_KEYS = {"tau_s", "rate_hz", "reference", "noise_l_min", "offset_l_min",
-               "full_scale_l_min", "line"}
+               "full_scale_l_min", "line", "sampling"}
 METER_REFERENCES = ("iso8778", "din1343", "iso2533")
+METER_SAMPLINGS = ("mean", "instant")
 _CALENDAR_KEYS = {"shifts_per_day", "hours_per_shift", "days_per_week", "weeks_per_year",
                   "production_share", "idle_state"}
 CALENDAR_IDLE_STATES = ("off", "program")
@@ -487,7 +492,8 @@ def _meter(file: str, table: dict) -> Meter:
                  noise_l_min=r.number("noise_l_min", 0.0, nonneg=True),
                  offset_l_min=r.number("offset_l_min", 0.0),
                  full_scale_l_min=r.number("full_scale_l_min", positive=True),
-                 line=r.string("line"))
+                 line=r.string("line"),
+                 sampling=r.string("sampling", choices=METER_SAMPLINGS))
 
 
 def _calendar(file: str, table: dict) -> Calendar:

@@ -573,6 +573,32 @@ def test_friction_differs_by_direction():
     assert uneven[0] == pytest.approx(even[0], rel=0.1)
 
 
+def test_instantaneous_meter_readings_against_a_hand_calculation(tmp_path):
+    """A flow of 60 NL/min from t = 1 s through a 0.5 s first-order meter read once a
+    second: read at the moment (a PLC polling the analogue output), the reading at t is
+    60 (1 - exp(-(t - 1)/0.5)); as interval means, 60 (1 - 0.5 (1 - exp(-2)))
+    at t = 2 s and the means of the response over each second after."""
+    from plcpred.plant.meter import MeterSettings, meter_readings
+
+    edges = np.linspace(0.0, 4.0, 401)
+    cell_flow = np.where(edges[:-1] >= 1.0 - 1e-9, 60.0, 0.0)
+    cum = np.concatenate([[0.0], np.cumsum(cell_flow * np.diff(edges) / 60.0)])
+    t, q = meter_readings(edges, cum, MeterSettings(tau_s=0.5, rate_hz=1.0,
+                                                    sampling="instant"), 4.0)
+    assert list(t) == pytest.approx([1.0, 2.0, 3.0, 4.0])
+    hand = [60.0 * (1.0 - math.exp(-(x - 1.0) / 0.5)) for x in t]
+    # each reading is the response at the end of the 10 ms cell that holds its time
+    assert q == pytest.approx(hand, abs=60.0 * 0.01 / 0.5)
+    _, mean = meter_readings(edges, cum, MeterSettings(tau_s=0.5, rate_hz=1.0), 4.0)
+    # a cell's response at its end stands for the cell: half a cell (5 ms) late, which
+    # over a second that rises 51.9 NL/min is 0.26 NL/min
+    assert mean[1] == pytest.approx(60.0 * (1.0 - 0.5 * (1.0 - math.exp(-2.0))), abs=0.3)
+    truth = tmp_path / "t.toml"
+    truth.write_text('[meter]\nsampling = "sometimes"\n')
+    with pytest.raises(MachineError, match=r"\[meter\].*sampling"):
+        emulate(RIG, "3s", truth=truth)
+
+
 def test_a_meter_on_a_line_sees_only_that_line(tmp_path):
     truth = tmp_path / "t.toml"
     truth.write_text('[meter]\nline = "drop"\ntau_s = 0.2\n'

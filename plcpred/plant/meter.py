@@ -1,6 +1,7 @@
 """What a real flow meter reports of a true flow (docs/physics.md: figures, what D4 adds): its
 reference condition, first-order response, logging intervals (each reading the mean over
-its interval), noise, zero offset and full-scale clipping."""
+its interval, or with ``sampling = "instant"`` the response at the reading's time), noise,
+zero offset and full-scale clipping."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -22,6 +23,7 @@ class MeterSettings:
     noise_l_min: float = 0.0
     offset_l_min: float = 0.0
     full_scale_l_min: float | None = None
+    sampling: str = "mean"          # "mean" over the interval | "instant" at its end
 
     @classmethod
     def from_machine(cls, meter) -> "MeterSettings":
@@ -32,7 +34,8 @@ class MeterSettings:
         return cls(tau_s=DEFAULT_TAU_S if meter.tau_s is None else meter.tau_s,
                    rate_hz=meter.rate_hz or DEFAULT_RATE_HZ, reference=meter.reference,
                    noise_l_min=meter.noise_l_min, offset_l_min=meter.offset_l_min,
-                   full_scale_l_min=meter.full_scale_l_min)
+                   full_scale_l_min=meter.full_scale_l_min,
+                   sampling=meter.sampling or "mean")
 
 
 def meter_readings(edges_s: np.ndarray, cum_nl: np.ndarray, settings: MeterSettings,
@@ -42,16 +45,23 @@ def meter_readings(edges_s: np.ndarray, cum_nl: np.ndarray, settings: MeterSetti
 
     The flow of each fine cell (its mean) goes through the first-order response (exact
     for piecewise-constant input), each reading is the mean of the response over its
-    logging interval ending at its time stamp, then converted to the meter's reference
-    (V_ref2 = V_ref1 (P1/P2)(T2/T1), docs/physics.md: reference conditions), offset,
-    noise and clipping."""
+    logging interval ending at its time stamp (``instant``: the response in the fine cell
+    that holds the time stamp, as a logger polling the meter's analogue output reads it),
+    then converted to the meter's reference (V_ref2 = V_ref1 (P1/P2)(T2/T1),
+    docs/physics.md: reference conditions), offset, noise and clipping."""
     dt = np.diff(edges_s)
     cell_flow = np.diff(cum_nl) / dt * 60.0
     lagged = first_order_lag(cell_flow, float(np.median(dt)), settings.tau_s)
     period = 1.0 / settings.rate_hz
     times = np.arange(period, horizon_s + 1e-9, period)
-    flow = interval_means_l_min(cumulative_nl(lagged * dt / 60.0), edges_s, times - period,
-                                times) / reference_factor(settings.reference)
+    if settings.sampling == "instant":
+        # the response is held over each fine cell: the cell's value at the time stamp
+        cell = np.clip(np.searchsorted(edges_s, times, side="left") - 1, 0, len(dt) - 1)
+        flow = lagged[cell]
+    else:
+        flow = interval_means_l_min(cumulative_nl(lagged * dt / 60.0), edges_s,
+                                    times - period, times)
+    flow = flow / reference_factor(settings.reference)
     if settings.noise_l_min > 0:
         rng = rng or np.random.default_rng()
         flow = flow + rng.normal(0.0, settings.noise_l_min, len(flow))
