@@ -404,6 +404,29 @@ def test_alignment_finds_a_known_offset():
     assert d.verdict == "none"
 
 
+def test_a_combination_the_plant_cannot_run_is_left_out_with_a_warning(monkeypatch):
+    from plcpred.diagnose import core
+    from plcpred.errors import PlcpredError
+
+    def spent(effects, *args):
+        raise PlcpredError("its budget of 30,000 integration pieces in the plant is spent")
+
+    monkeypatch.setattr(core, "_evaluate", spent)
+    warnings = []
+    effects = [EFFECTS["leak"], EFFECTS["passive_flow"]]
+    assert core._evaluate_or_warn(effects, None, [], [], {}, [], warnings) is None
+    assert warnings == ["leak + passive_flow not fitted: its budget of 30,000 integration "
+                        "pieces in the plant is spent"]
+    # the exhaust's pairs go on without the ones the plant cannot run
+    from types import SimpleNamespace
+
+    exhaust = SimpleNamespace(name="incomplete_exhaust",
+                              fit=SimpleNamespace(effects=[EFFECTS["incomplete_exhaust"]]))
+    leak = SimpleNamespace(name="leak", fit=SimpleNamespace(effects=[EFFECTS["leak"]]))
+    assert core._with_exhaust(exhaust, [exhaust, leak], None, [], [], {}, [], warnings) == []
+    assert warnings[-1].startswith("incomplete_exhaust + leak not fitted")
+
+
 def test_given_offset_is_used():
     run = run_of(RIG, 30, offset_s=50.0)
     d = diagnose(RIG, [run], offsets=[50.0], effects=["leak"])

@@ -518,7 +518,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     if exhaust is not None and (exhaust is results[0] or (
             first_implausible and finding(base_heldout, exhaust.heldout_score))):
         pairs = _with_exhaust(exhaust, results, mm, rds, _bases_of(exhaust, bases),
-                              ctx, fold_masks)
+                              ctx, fold_masks, warnings)
         if pairs:
             # an exhaust's mismatch with D1 (a sorter's chatter) left in every single
             # fit inflates the noise; the pairs say how little is left
@@ -577,12 +577,12 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
         # nothing is left to explain once the held-out error is down to the noise
         while (len(chosen) < max_combination and candidates
                and best.heldout_score.rmse_l_min > DOWN_TO_NOISE * noise):
-            trials = [_evaluate(chosen + list(c.fit.effects), mm, rds,
-                                _bases_of(best, bases), ctx,
-                                fold_masks)
+            trials = [_evaluate_or_warn(chosen + list(c.fit.effects), mm, rds,
+                                        _bases_of(best, bases), ctx, fold_masks, warnings)
                       for c in candidates]
-            trial = min(trials, key=lambda e: e.heldout_score.rmse_l_min)
-            if not finding(best.heldout_score, trial.heldout_score):
+            trials = [t for t in trials if t is not None]
+            trial = min(trials, key=lambda e: e.heldout_score.rmse_l_min, default=None)
+            if trial is None or not finding(best.heldout_score, trial.heldout_score):
                 break
             best = trial
             chosen = list(trial.fit.effects)
@@ -666,7 +666,7 @@ def _cut_drives(mm, rds) -> set[int]:
 
 
 def _with_exhaust(exhaust: EffectResult, results: list[EffectResult], mm, rds, bases, ctx,
-                  fold_masks) -> list[EffectResult]:
+                  fold_masks, warnings: list[str]) -> list[EffectResult]:
     """Each other effect of ``results`` fitted together with an incomplete exhaust that
     explains part of the gap (``exhaust``).
 
@@ -678,9 +678,22 @@ def _with_exhaust(exhaust: EffectResult, results: list[EffectResult], mm, rds, b
     whatever else is wrong, or another effect that mimics both takes the first place.
     The verdict names the pair's other effect when the pair beats the exhaust alone on
     held-out samples by more than the noise."""
-    return [_evaluate(list(exhaust.fit.effects) + list(e.fit.effects), mm, rds, bases, ctx,
-                      fold_masks)
-            for e in results if e.name != exhaust.name]
+    pairs = [_evaluate_or_warn(list(exhaust.fit.effects) + list(e.fit.effects), mm, rds,
+                               bases, ctx, fold_masks, warnings)
+             for e in results if e.name != exhaust.name]
+    return [p for p in pairs if p is not None]
+
+
+def _evaluate_or_warn(effects: list[Effect], mm, rds, bases, ctx, fold_masks,
+                      warnings: list[str]) -> EffectResult | None:
+    """:func:`_evaluate`, or None with a warning where the plant cannot run a
+    combination with a plant form (its budget of integration pieces spent): the
+    combination goes untried, the diagnosis goes on without it."""
+    try:
+        return _evaluate(effects, mm, rds, bases, ctx, fold_masks)
+    except PlcpredError as e:
+        warnings.append(f"{' + '.join(x.name for x in effects)} not fitted: {e}")
+        return None
 
 
 def _plant_bases(bases: list) -> list:
