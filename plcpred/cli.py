@@ -728,6 +728,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--reference", choices=("iso8778", "din1343", "iso2533"),
                    help="the meter's reference condition (default: the machine file's "
                         "[meter] reference, else iso8778)")
+    p.add_argument("--sampling", choices=("mean", "instant"),
+                   help="what a reading is: the mean flow over its logging interval (a "
+                        "meter's own logger) or the flow at that moment (a PLC polling the "
+                        "meter's analogue output). Default: the machine file's [meter] "
+                        "sampling, else mean (a warning says when the logs fit "
+                        "instantaneous readings far better)")
     p.add_argument("--effects", metavar="A,B",
                    help="try only these effects (default: all that apply)")
     p.add_argument("--json", metavar="OUT", help="write the diagnosis as JSON (- for stdout)")
@@ -970,6 +976,9 @@ def cmd_diagnose(args) -> int:
                           flow_unit=args.flow_unit, reference=reference,
                           supply_col=args.supply_col)
             for p in args.measured]
+    if args.sampling:
+        for r in runs:
+            r.sampling = args.sampling
     for r in runs:
         if "columns_guessed" in r.source:
             print(f"note: {r.name}: {r.source['columns_guessed']} (name them with "

@@ -3,6 +3,7 @@ verdict on clean and faulty runs, the thesis case, the fixed machine file and th
 
 Measured runs here are made in the test from the prediction's flow and a first-order
 meter written out below (not the diagnosis' own meter code), plus seeded noise."""
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -28,10 +29,12 @@ RIG_NOLEAK = ROOT / "samples" / "prototype_rig" / "rig_noleak.toml"
 PICK = ROOT / "samples" / "pick_place.toml"
 
 
-def meter_log(flow_l_min, dt_s, rate_hz, tau_s, noise, offset_s=0.0, seed=0, t_end=None):
+def meter_log(flow_l_min, dt_s, rate_hz, tau_s, noise, offset_s=0.0, seed=0, t_end=None,
+              instant=False):
     """A meter's log of a flow on a grid: a first-order lag integrated step by step with
     the exact exponential update, then each sample the mean over the interval since the
-    previous one (trapezoid over the grid), plus Gaussian noise."""
+    previous one (trapezoid over the grid), or with ``instant`` the response at the
+    sample's time (linear between grid points), plus Gaussian noise."""
     y = np.empty(len(flow_l_min))
     state = float(flow_l_min[0])
     for k, x in enumerate(flow_l_min):
@@ -47,16 +50,18 @@ def meter_log(flow_l_min, dt_s, rate_hz, tau_s, noise, offset_s=0.0, seed=0, t_e
     end = (t_end if t_end is not None else grid_t[-1]) - 1e-9
     ts = np.arange(interval, end, interval)
     means = (np.interp(ts, t_cum, cum) - np.interp(ts - interval, t_cum, cum)) / interval
+    if instant:
+        means = np.interp(ts, grid_t, y)
     rng = np.random.default_rng(seed)
     return ts + offset_s, means + rng.normal(0.0, noise, len(ts))
 
 
 def run_of(machine, horizon_s, rate_hz=2.0, tau_s=0.3, noise=1.0, offset_s=0.0, seed=0,
-           name="run.csv", transform=None):
+           name="run.csv", transform=None, instant=False):
     pred = plcpred.predict(machine, horizon_s, dt=0.01)
     flow = pred.profile.flow_l_min            # consumers x cells
     total = flow.sum(axis=0) if transform is None else transform(pred, flow)
-    t, q = meter_log(total, 0.01, rate_hz, tau_s, noise, offset_s, seed)
+    t, q = meter_log(total, 0.01, rate_hz, tau_s, noise, offset_s, seed, instant=instant)
     return MeasuredRun(name, t, q)
 
 
@@ -404,6 +409,30 @@ def test_alignment_finds_a_known_offset():
     assert d.verdict == "none"
 
 
+def test_instantaneous_readings_are_found_and_read_so():
+    # a PLC polling the meter's analogue output logs the flow at that moment: once a
+    # second behind a 0.1 s meter, most strokes fall between two readings
+    runs = [run_of(RIG, 40, rate_hz=1.0, tau_s=0.1, noise=0.5, offset_s=o, seed=s,
+                   name=f"r{s}.csv", instant=True) for s, o in enumerate((3.0, 6.0))]
+    d = diagnose(RIG, [dataclasses.replace(r, sampling="instant") for r in runs])
+    assert [rd.offset_s for rd in d.runs] == pytest.approx([3.0, 6.0], abs=0.02)
+    assert d.verdict == "none", d.report()
+    assert d.baseline_heldout.rmse_l_min < 1.5 * 0.5
+    assert d.summary()["runs"][0]["sampling"] == "instant"
+    assert "(instantaneous)" in d.report()
+    # read as interval means (nothing said), the same logs look like a fault of the
+    # drives, and a warning says what they fit
+    means = diagnose(RIG, runs)
+    assert [rd.run.sampling for rd in means.runs] == ["mean", "mean"]
+    assert means.baseline_heldout.rmse_l_min > 4 * 0.5
+    assert means.verdict != "none"
+    assert any("--sampling instant" in w for w in means.warnings)
+    # logs of interval means: no such warning
+    logged = diagnose(RIG, two_runs(RIG, 40, 3.0, rate_hz=1.0, tau_s=0.1, noise=0.5),
+                      effects=["leak"])
+    assert not any("--sampling" in w for w in logged.warnings)
+
+
 def test_a_combination_the_plant_cannot_run_is_left_out_with_a_warning(monkeypatch):
     from plcpred.diagnose import core
     from plcpred.errors import PlcpredError
@@ -583,6 +612,24 @@ def test_cli_reads_a_loggers_names_and_unit_and_says_so(tmp_path, capsys):
     assert "time from column 'Timestamp', flow from 'Flow (m3/h)' in m3/h" in err
     baseline = json.loads(out.read_text())["baseline"]
     assert abs(baseline["error_pct"]) < 2.0
+
+
+def test_cli_sampling_option_reads_instantaneous_readings(tmp_path, capsys):
+    run = run_of(RIG, 20, rate_hz=1.0, tau_s=0.1, noise=0.3, instant=True)
+    log = tmp_path / "log.csv"
+    log.write_text("time_s,flow_l_min\n" + "".join(
+        f"{t:.3f},{q:.4f}\n" for t, q in zip(run.time_s, run.flow_l_min)))
+    out = tmp_path / "d.json"
+    assert main(["diagnose", str(RIG), "--measured", str(log), "--no-plant", "--effects",
+                 "leak", "--sampling", "instant", "--json", str(out)]) == 0
+    got = json.loads(out.read_text())
+    assert got["runs"][0]["sampling"] == "instant"
+    assert got["baseline"]["rmse_l_min"] < 1.0
+    assert "--sampling instant" not in capsys.readouterr().err
+    assert main(["diagnose", str(RIG), "--measured", str(log), "--no-plant", "--effects",
+                 "leak", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["runs"][0]["sampling"] == "mean"
+    assert "give --sampling instant" in capsys.readouterr().err
 
 
 def test_a_single_log_far_below_the_prediction_is_diagnosed_not_crashed(tmp_path):

@@ -59,6 +59,10 @@ DOWN_TO_NOISE = 1.1
 # noise, the drives' physics (the plant) has nothing left to explain
 NOT_OF_THE_DRIVES = ("leak", "passive_flow", "sensor_lag")
 MAX_CELLS_PER_RUN = 200_000
+# instantaneous readings are suggested where they leave at most this share of the logs'
+# variance that interval means leave unexplained (healthy rigs logged either way leave
+# a twentieth of the wrong way's)
+INSTANT_HINT = 0.25
 # units that do not fit: a log this many times the prediction (or a fraction of it)
 SCALE_LIMIT = 20.0
 
@@ -136,6 +140,7 @@ class Diagnosis:
                       "meter_tau_s": rd.meter_tau_s, "correlation": rd.correlation,
                       "samples": int(len(rd.end_s)),
                       "interval_s": rd.run.interval_s,
+                      "sampling": rd.run.sampling or "mean",
                       "unlogged_s": rd.run.unlogged_s,
                       "supply_bar_g": _num(_logged_supply(rd.run)),
                       "source": "recorded I/O" if rd.model.timeline.info.get(
@@ -177,8 +182,9 @@ class Diagnosis:
                  f"{'s' if len(self.runs) != 1 else ''}, noise {self.noise_l_min:.2g} NL/min"]
         for rd in self.runs:
             src = rd.model.timeline.info.get("mode") == "recorded"
+            way = "instantaneous" if rd.run.sampling == "instant" else "interval means"
             lines.append(f"  {rd.run.name}: {len(rd.end_s)} samples every "
-                         f"{rd.run.interval_s:g} s, clock offset {rd.offset_s:+.3f} s"
+                         f"{rd.run.interval_s:g} s ({way}), clock offset {rd.offset_s:+.3f} s"
                          f"{_clock_reading(rd.run, rd.offset_s)}, "
                          f"meter lag {rd.meter_tau_s:.2f} s, correlation {rd.correlation:.2f}"
                          f"{', edges from recorded I/O' if src else ''}")
@@ -326,6 +332,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     meter_tau = machine.meter.tau_s if machine.meter and machine.meter.tau_s is not None \
         else None
     rds: list[RunData] = []
+    instants: list[RunData] = []    # the runs aligned as instantaneous readings
     bases: list = []            # per run: the nominal model with the run's meter lag
     residuals: list = []        # per run: measured - predicted readings
     period_s = None
@@ -353,13 +360,20 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                         f"{run.name}: the log covers {run.span_s:g} s, less than one cycle "
                         f"of {machine.name} ({period_s:g} s)")
         rm = RunModel(mm, tl, _grid_dt(tl.horizon_ns / 1e9))
-        rd = align(run, rm, mm.nominal(meter_tau or 0.0), window, meter_tau, off)
-        base = mm.nominal(rd.meter_tau_s)
-        predicted = rd.readings(base)
-        _check_run(rd, predicted, machine.name, off is not None, warnings)
+        rd = align(dataclasses.replace(run, sampling=run.sampling or "mean"), rm,
+                   mm.nominal(meter_tau or 0.0), window, meter_tau, off)
+        _check_run(rd, rd.readings(mm.nominal(rd.meter_tau_s)), machine.name,
+                   off is not None, warnings)
         rds.append(rd)
+        if run.sampling is None:
+            instants.append(align(dataclasses.replace(run, sampling="instant"), rm,
+                                  mm.nominal(meter_tau or 0.0), window, meter_tau, off))
+    if len(instants) == len(rds):
+        _sampling_hint(rds, instants, warnings)
+    for rd in rds:
+        base = mm.nominal(rd.meter_tau_s)
         bases.append(base)
-        residuals.append(rd.measured_l_min - predicted)
+        residuals.append(rd.measured_l_min - rd.readings(base))
     waiting: set[int] = set()      # drives whose valve edges wait on the drives' timing
     if mm.drives and sequenced and set(CLOSED_LOOP_EFFECTS) & set(names):
         reseq = Resequencer(mm, rds, horizons, windows_s, offsets, program, meter_tau)
@@ -765,6 +779,29 @@ def _implausible(result: EffectResult, mm) -> str | None:
     return None
 
 
+def _sampling_hint(rds: list[RunData], instants: list[RunData], warnings: list[str]) -> None:
+    """Say so where logs read as interval means (what a meter's own logger reports, and
+    the default) fit instantaneous readings far better (a PLC polling the meter's
+    analogue output: at 1 Hz behind a fast meter most strokes fall between two readings,
+    and read as means such a log looks like a fault of the drives). Only a hint: a fault
+    the nominal model lacks can tilt the comparison either way (an emulated clamp
+    station logged as means at 1 Hz, its chip blow weaker, fitted instantaneous readings
+    with a seventh of the means' misfit), so the user says which (``--sampling``,
+    ``[meter] sampling``)."""
+    as_means, as_instants = _unexplained(rds), _unexplained(instants)
+    if as_instants < INSTANT_HINT * as_means:
+        warnings.append(
+            f"the logs fit instantaneous readings better than interval means ({as_instants:.2g} "
+            f"against {as_means:.2g} readings' worth of their variance left unexplained): if "
+            "a PLC or logger polls the meter's output, give --sampling instant (or [meter] "
+            "sampling = \"instant\")")
+
+
+def _unexplained(rds: list[RunData]) -> float:
+    """Readings' worth of the logs' variance the nominal alignments leave unexplained."""
+    return sum(len(rd.end_s) * (1.0 - max(rd.correlation, 0.0) ** 2) for rd in rds)
+
+
 def _meter_corrected(run: MeasuredRun, meter, warnings: list[str]) -> MeasuredRun:
     """A run as the machine file's ``[meter]`` says to read it: its zero offset taken
     off, and readings at full scale (clipped, so they say only "at least this much")
@@ -780,7 +817,8 @@ def _meter_corrected(run: MeasuredRun, meter, warnings: list[str]) -> MeasuredRu
         raise DiagnosisError(f"{run.name}: (almost) every reading is at the meter's full "
                              "scale")
     return MeasuredRun(run.name, run.time_s[keep], flow[keep], None if run.supply_bar_g is
-                       None else run.supply_bar_g[keep], dict(run.source))
+                       None else run.supply_bar_g[keep], dict(run.source),
+                       run.sampling or meter.sampling)
 
 
 def _check_run(rd: RunData, pred: np.ndarray, machine_name: str, given_offset: bool,

@@ -44,16 +44,26 @@ class MeasuredDataError(PlcpredError):
     """A flow log or I/O trace that cannot be read as one."""
 
 
+# how much of the meter's response an instantaneous reading takes in (less than any
+# prediction grid's cell: the response in the cell that holds the time stamp)
+INSTANT_WINDOW_S = 1e-3
+
+
 @dataclass
 class MeasuredRun:
     """One flow log: sample times on the logger's clock (s) and flows in NL/min at the
-    ISO 8778 reference. A sample at ``time_s[k]`` is the meter's reading then, i.e. the
-    (lagged) flow averaged over the interval since the previous sample."""
+    ISO 8778 reference. A sample at ``time_s[k]`` is the meter's reading then: with
+    ``sampling`` "mean", the (lagged) flow averaged over the interval since the previous
+    sample (a meter's own logger); with "instant", the lagged flow at that moment (a PLC
+    polling the meter's analogue output); None: not said (``diagnose`` reads means and
+    warns where instantaneous readings fit far better). Either way a reading stands for
+    its whole interval in totals."""
     name: str
     time_s: np.ndarray
     flow_l_min: np.ndarray
     supply_bar_g: np.ndarray | None = None
     source: dict = field(default_factory=dict)   # unit, reference, columns, skipped rows
+    sampling: str | None = None
 
     @property
     def span_s(self) -> float:
@@ -69,6 +79,13 @@ class MeasuredRun:
         gap in the log (longer than 1.5 sampling intervals), where a reading still
         averages only one sampling interval (the first one as long as the median)."""
         return self._interval_starts_s.copy()
+
+    def reading_starts_s(self) -> np.ndarray:
+        """Start of what each reading averages of the meter's response: its interval
+        (``mean``, or not known) or the moment it was read (``instant``)."""
+        if self.sampling == "instant":
+            return self.time_s - INSTANT_WINDOW_S
+        return self.interval_starts_s()
 
     @functools.cached_property
     def unlogged_s(self) -> float:

@@ -167,4 +167,4 @@ def _head(run, span_s: float):
     n = int(np.searchsorted(run.time_s, end, side="right"))
     if n >= len(run.time_s):
         return run
-    return MeasuredRun(run.name, run.time_s[:n], run.flow_l_min[:n])
+    return MeasuredRun(run.name, run.time_s[:n], run.flow_l_min[:n], sampling=run.sampling)
