@@ -517,6 +517,32 @@ def _sorter_logs(tmp_path, truth_text):
                           "rate_hz = 2\nnoise_l_min = 0.5\n", (5.0, 10.0))
 
 
+def test_the_runs_of_one_meter_share_its_lag(tmp_path):
+    """Two 60 s logs of the healthy rig through one meter (0.4 s, read once a second).
+    Aligned alone, one run took the meter's lag and the other a clock 0.3 s later for
+    it; no fit with one clock adjustment and one lag for both could hold both (held out
+    6.2 NL/min against 0.5 of noise, named stroke_time). Aligned again at one lag, both
+    clocks are the logs' own and the verdict is none."""
+    from plcpred.diagnose import MeasuredRun, diagnose
+
+    truth = tmp_path / "t.toml"
+    truth.write_text("[meter]\ntau_s = 0.4\nrate_hz = 1\n")
+    em = emulate(RIG, "60s", truth=truth)
+    rng = np.random.default_rng(3)
+    noise = max(0.5, 0.02 * float(em.measured_flow_l_min.mean()))
+    runs, offsets = [], []
+    for k in range(2):
+        offsets.append(rng.uniform(0.0, 20.0))
+        runs.append(MeasuredRun(f"r{k}", em.measured_time_s + offsets[-1],
+                                em.measured_flow_l_min
+                                + rng.normal(0.0, noise, len(em.measured_time_s))))
+    d = diagnose(RIG, runs)
+    assert [rd.meter_tau_s for rd in d.runs] == pytest.approx([0.4, 0.4], abs=0.05)
+    assert [rd.offset_s for rd in d.runs] == pytest.approx(offsets, abs=0.03)
+    assert d.verdict == "none", d.report()
+    assert d.baseline_heldout.rmse_l_min < 1.5 * noise
+
+
 def test_a_healthy_machine_in_the_plant_is_none_beyond_what_d1_leaves_out(tmp_path):
     """The sorter's pusher chatters (its valve reverses mid-stroke): with nothing wrong,
     the plant draws far less than D1 books. Each effect painted on D1 takes that gap for

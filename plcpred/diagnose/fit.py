@@ -122,7 +122,8 @@ ALIGN_TAUS_S = (0.0, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.8, 1.0, 1.5, 2.0, 3.0, 4.0,
 
 def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
           meter_tau_s: float | None = None, offset_s: float | None = None,
-          quick: bool = False, max_tau_s: float | None = None) -> RunData:
+          quick: bool = False, max_tau_s: float | None = None,
+          near_s: float | None = None) -> RunData:
     """Tie ``run`` to its prediction ``rm``. The offset is the logger's clock reading at
     the prediction's time 0, searched within ``window_s`` of the log's first sample
     unless ``offset_s`` is given. The meter lag is ``meter_tau_s`` when the machine file
@@ -132,7 +133,8 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
     (``RunData.fitted_tau_s`` keeps what the search found). ``quick`` searches the
     fine offsets on a five times coarser grid and refines only the offset, and
     ``max_tau_s`` bounds the lags tried (a resequenced variant, aligned many times over,
-    near what the nominal alignment found)."""
+    near what the nominal alignment found); ``near_s`` searches the offset only within a
+    sampling interval or so of that one (another lag for an aligned run)."""
     from scipy.optimize import minimize, minimize_scalar
 
     taus = [meter_tau_s] if meter_tau_s is not None else [
@@ -173,7 +175,8 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
 
     g = max(run.interval_s, rm.dt_s)
     if offset_s is None:
-        candidates = _coarse_offsets(run, rm, cells, window_s)
+        candidates = [near_s] if near_s is not None else _coarse_offsets(run, rm, cells,
+                                                                          window_s)
         best = (-2.0, candidates[0], taus[0])
         # every candidate is scored on the same samples, when enough of them are common
         common = (min(candidates) - 1.5 * g - max(taus), max(candidates) + 1.5 * g)
