@@ -433,6 +433,38 @@ def test_instantaneous_readings_are_found_and_read_so():
     assert not any("--sampling" in w for w in logged.warnings)
 
 
+def test_the_baseline_takes_a_clock_an_effect_found():
+    """A baseline whose clock and lag ended in a shallow valley is fitted again from the
+    clock and lag an effect's fit ended at, so that the effect is not credited with
+    them: here a baseline started 0.3 s off against logs at 1 Hz."""
+    from types import SimpleNamespace
+
+    from plcpred.diagnose.core import _baseline_from_effects
+    from plcpred.diagnose.fit import fit_effects
+
+    runs = two_runs(RIG, 30, 3.0, rate_hz=1.0, tau_s=0.3, noise=0.5)
+    d = diagnose(RIG, runs, effects=["leak"])
+    rds, bases, mm = d.runs, d.bases, d.machine_model
+    ctx = {"meter_tau_s": None, "mean_l_min": 30.0, "fitted_tau_s": 0.3}
+    every = [np.ones(len(rd.end_s), bool) for rd in rds]
+    right = fit_effects([], mm, rds, every, bases, ctx)
+    names = list(right.names)
+    assert names == ["clock_adjust_s", "meter_tau_s"]
+    # least squares from a clock 0.3 s late and no lag stays in that valley
+    wrong = fit_effects([], mm, rds, every, bases, ctx, start=np.array([0.3, 0.0]),
+                        hold_nuisances=True)
+    assert wrong.cost > 4.0 * right.cost
+    found = SimpleNamespace(fit=SimpleNamespace(names=names + ["leak_C"],
+                                                theta=np.append(right.theta, 1e-12)))
+    lagless = SimpleNamespace(fit=SimpleNamespace(names=["tau_s", "clock_adjust_s"],
+                                                  theta=np.array([0.3, 0.0])))
+    better = _baseline_from_effects(wrong, [lagless, found], mm, rds, bases, ctx)
+    assert better is not None and better.cost == pytest.approx(right.cost, rel=0.05)
+    assert better.theta == pytest.approx(right.theta, abs=0.02)
+    # nothing better to start from: the baseline stays
+    assert _baseline_from_effects(right, [found], mm, rds, bases, ctx) is None
+
+
 def test_a_combination_the_plant_cannot_run_is_left_out_with_a_warning(monkeypatch):
     from plcpred.diagnose import core
     from plcpred.errors import PlcpredError
