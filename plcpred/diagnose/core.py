@@ -823,8 +823,8 @@ def _sampling_hint(rds: list[RunData], instants: list[RunData], warnings: list[s
     analogue output: at 1 Hz behind a fast meter most strokes fall between two readings,
     and read as means such a log looks like a fault of the drives). Only a hint: a fault
     the nominal model lacks can tilt the comparison either way (an emulated clamp
-    station logged as means at 1 Hz, its chip blow weaker, fitted instantaneous readings
-    with a seventh of the means' misfit), so the user says which (``--sampling``,
+    station logged as means at 1 Hz, its drill feed's tubes 2.3x longer, left a twelfth
+    as much unexplained read instantaneously), so the user says which (``--sampling``,
     ``[meter] sampling``)."""
     as_means, as_instants = _unexplained(rds), _unexplained(instants)
     if as_instants < INSTANT_HINT * as_means:
