@@ -23,7 +23,7 @@ import numpy as np
 
 from ..errors import PlcpredError
 from .effects import NUISANCE_METER_TAU_S, Effect, Param
-from .io import INSTANT_WINDOW_S, MeasuredRun
+from .io import MeasuredRun, reading_starts
 from .meter import IntervalSampler, cumulative_nl, first_order_lag
 from .model import MachineModel, ModelParams, RunModel
 
@@ -59,8 +59,7 @@ class RunData:
         self.weight_s = self.end_s - self.start_s
         # what each reading averages of the meter's response (an instantaneous reading
         # still stands for its whole interval in weights and totals)
-        self.read_start_s = self.end_s - INSTANT_WINDOW_S \
-            if self.run.sampling == "instant" else self.start_s
+        self.read_start_s = reading_starts(self.run.sampling, self.start_s, self.end_s)
         # (timing, clock) -> IntervalSampler: the samples' cells at that clock
         self._samplers: dict = {}
 

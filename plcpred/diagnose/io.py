@@ -49,6 +49,13 @@ class MeasuredDataError(PlcpredError):
 INSTANT_WINDOW_S = 1e-3
 
 
+def reading_starts(sampling: str | None, interval_starts_s: np.ndarray,
+                   times_s: np.ndarray) -> np.ndarray:
+    """Start of what each reading averages of the meter's response: its interval
+    (``mean``, or not said) or the moment it was read (``instant``)."""
+    return times_s - INSTANT_WINDOW_S if sampling == "instant" else interval_starts_s
+
+
 @dataclass
 class MeasuredRun:
     """One flow log: sample times on the logger's clock (s) and flows in NL/min at the
@@ -81,11 +88,8 @@ class MeasuredRun:
         return self._interval_starts_s.copy()
 
     def reading_starts_s(self) -> np.ndarray:
-        """Start of what each reading averages of the meter's response: its interval
-        (``mean``, or not known) or the moment it was read (``instant``)."""
-        if self.sampling == "instant":
-            return self.time_s - INSTANT_WINDOW_S
-        return self.interval_starts_s()
+        """:func:`reading_starts` of this log's readings."""
+        return reading_starts(self.sampling, self.interval_starts_s(), self.time_s)
 
     @functools.cached_property
     def unlogged_s(self) -> float:
