@@ -311,7 +311,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     explains part of the gap, each effect is also fitted beyond it, and the gap is
     ``none`` where it explains it as well as the best effects."""
     from ..machine import Machine, load_machine
-    from ..sequencer import compile_program, unfold
+    from ..sequencer import compile_program, observed_names, unfold
 
     if not isinstance(machine, Machine):
         machine = load_machine(machine)
@@ -341,7 +341,8 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     if sequenced and not hasattr(program, "pous"):
         # parsed once for every unfold (timing effects run the sequencer again)
         program = machine.read_program(program)
-    compiled = compile_program(program) if sequenced else None
+    compiled = compile_program(program, observed_names(machine, program)) if sequenced \
+        else None
     for run, tl, off in zip(runs, io, offsets):
         window = max_offset_s if max_offset_s is not None else min(
             120.0, max(2.0, 0.5 * run.span_s))

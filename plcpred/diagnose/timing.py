@@ -89,14 +89,15 @@ class Resequencer:
         if key in self._kept:
             self._kept.move_to_end(key)
             return
-        from ..sequencer import compile_program, unfold
+        from ..sequencer import compile_program, observed_names, unfold
         from .effects import NUISANCE_METER_TAU_S
         from .fit import DiagnosisError, align
         from .model import MachineModel, RunModel
 
         self.made += 1
         if self.compiled is None:       # once: every variant runs the same program
-            self.compiled = compile_program(self.program)
+            self.compiled = compile_program(self.program,
+                                            observed_names(self.machine(key), self.program))
         machine = self.machine(key)
         mm = MachineModel.of(machine)
         for rd, horizon, window, off in zip(self.rds, self.horizons_s, self.windows_s,

@@ -9,13 +9,13 @@ semantics and a plant I/O model.
 * :mod:`~plcpred.sequencer.plant` - cylinder end switches following their valves
 """
 from .compiler import CompileError, compile_program
-from .executor import Sequencer, SequencerError
+from .executor import Sequencer, SequencerError, observed_names
 from .runtime import ExecutionError, Watchdog
 from .timeline import DEFAULT_MAX_CHANGES, Signal, Timeline, TimelineTooLarge, parse_horizon
 
 __all__ = ["CompileError", "ExecutionError", "Sequencer", "SequencerError", "Signal",
            "Timeline", "TimelineTooLarge", "Watchdog", "compile_program", "lint_timeline",
-           "parse_horizon", "unfold", "valves_moved"]
+           "observed_names", "parse_horizon", "unfold", "valves_moved"]
 
 
 def unfold(machine, horizon="60s", scan_stepping: bool = False, tiling: bool = True,

@@ -143,10 +143,13 @@ class Compiled:
     # only ever adds a step to itself (a count, which grows by the same amount each
     # period of a repeating machine), None for any other
     left_out: dict = None
+    # names the machine file reads (Compiler's ``observed``): never left out, so that
+    # everything they show is in the compared state
+    observed: frozenset = frozenset()
 
 
 class Compiler:
-    def __init__(self, program: ir.Program):
+    def __init__(self, program: ir.Program, observed=frozenset()):
         # the gate to code generation: whatever built this IR (a front end or a library
         # caller), no name reaches the generated source unless it is an identifier
         program = self.program = validate_names(specialize(program))
@@ -176,6 +179,9 @@ class Compiler:
             + [b for c in program.configurations for b in c.var_blocks]
             if _constant_block(b) for d in b.decls}
         self.referenced: set | None = set()   # names handed out by reference (_ref_of)
+        # names that something outside the program reads (a valve the machine file
+        # names): a variable of such a name is no sink, whatever the program does with it
+        self.observed = frozenset(n.upper() for n in observed)
 
     # ================================================================== project
     def compile(self) -> Compiled:
@@ -234,7 +240,7 @@ class Compiler:
                         self.globals, self.reads_et, self.reads_clock, self.types,
                         dict(self.address_slots), dict(self.intervals),
                         tuple(sorted(self.et_thresholds)), self._written(),
-                        dict(self.left_out))
+                        dict(self.left_out), self.observed)
 
     def _written(self) -> frozenset | None:
         by_name = written_names(self.program)
@@ -568,15 +574,16 @@ class Compiler:
         bodies += [acc.body for p in pou.properties for acc in p.accessors]
         for body in bodies:
             flow.stmts(body)
-        sinks = cands - flow.used
-        changed = True
-        while changed:
-            changed = False
-            for target, reads in flow.flows:
-                if target is None or target not in sinks:
-                    if reads & sinks:
-                        sinks -= reads
-                        changed = True
+        while True:
+            sinks = _unread(cands, flow)
+            # a sink the machine file reads is shown: it must be compared, and so must
+            # what flows into it; a count of parts may stay out (the executor shifts a
+            # repeated period's counts, _LeftOut)
+            shown = {k for k in sinks & self.observed
+                     if self._count_width(k, flow, sinks, scope) is None}
+            if not shown:
+                break
+            flow.used |= shown
         if any(t is None or t not in sinks for t in flow.et_targets):
             # a running timer's ET reaches something that matters: the executor must
             # step scan by scan while timers run
@@ -620,7 +627,8 @@ class Compiler:
                 t = scope.names[ident(d.name)][1]
                 kind = t.name.upper().partition("_")[0] if isinstance(t, StdFbT) else None
                 if kind in ("CTU", "CTD") and not d.address \
-                        and d.name.upper() not in self._member_names:
+                        and d.name.upper() not in self._member_names \
+                        and d.name.upper() not in self.observed:
                     kinds[d.name.upper()] = kind
         if not kinds:
             return set()
@@ -2093,6 +2101,21 @@ def _root(e):
     return ident(e.name) if isinstance(e, ir.Name) else None
 
 
+def _unread(cands: set, flow) -> set:
+    """The candidates whose values reach nothing that ``flow`` uses, directly or through
+    other variables."""
+    sinks = cands - flow.used
+    changed = True
+    while changed:
+        changed = False
+        for target, reads in flow.flows:
+            if target is None or target not in sinks:
+                if reads & sinks:
+                    sinks -= reads
+                    changed = True
+    return sinks
+
+
 class _Flow:
     """Where each variable's value goes: ``flows`` (assignment target, names read) and
     ``used`` (names read by conditions, calls, indices and anything else that can steer
@@ -2401,10 +2424,12 @@ def _describe(e) -> str:
     return "array"
 
 
-def compile_program(program: ir.Program) -> Compiled:
-    """Compile a parsed project. Raises :class:`CompileError` (positioned) for constructs
-    the executor cannot run."""
-    compiler = Compiler(program)
+def compile_program(program: ir.Program, observed=frozenset()) -> Compiled:
+    """Compile a parsed project. ``observed``: names read from outside the program (the
+    machine file's signals, :func:`~plcpred.sequencer.executor.observed_names`), which are
+    always part of the state the executor compares. Raises :class:`CompileError`
+    (positioned) for constructs the executor cannot run."""
+    compiler = Compiler(program, observed)
     try:
         return compiler.compile()
     except ProgramError as e:       # a generic FB's copy named as the program writes it

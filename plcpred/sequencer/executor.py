@@ -705,7 +705,13 @@ class Sequencer:
                               (machine.scan_ms if machine is not None else 10.0)) * 1e6)
         if self.scan_ns <= 0:
             raise SequencerError("the scan time must be positive")
-        self.compiled = compiled or compile_program(program)
+        observed = observed_names(machine, program)
+        if compiled is None or not observed <= compiled.observed:
+            # a program compiled for another machine (or none) may have left out of its
+            # compared state a variable this machine file reads
+            compiled = compile_program(program, observed | (
+                compiled.observed if compiled is not None else frozenset()))
+        self.compiled = compiled
 
     # ------------------------------------------------------------------ setup
     def _signals(self, inst: ProgramInstance):
@@ -1075,15 +1081,18 @@ class Sequencer:
                             elif cyl._until < next_input:
                                 next_input = cyl._until
                 values = values_now()
-                if values != prev_values:
+                moved = values != prev_values
+                if moved:
                     record(t, values, prev_values)
                     prev_values = values
                 if always_step:
                     t += scan
                     continue
                 snap = inst.snap()
-                if snap != prev_snap or not inst.all_ran_since(k_change):
-                    if snap != prev_snap:
+                # a fixed point needs the recorded signals still too: a shown count the
+                # compared state leaves out may move while everything else rests
+                if moved or snap != prev_snap or not inst.all_ran_since(k_change):
+                    if snap != prev_snap or moved:
                         k_change = t // scan
                     prev_snap = snap
                     t += scan
@@ -1263,6 +1272,39 @@ class Sequencer:
             parts.append(k)
         return (inst.snap(t), tuple(parts), tuple([cyl.state_key(t) for cyl in cylinders]),
                 inst.phase(t))
+
+
+_WORD = re.compile(r"[A-Za-z_][A-Za-z_0-9]*")
+
+
+def observed_names(machine, program=None) -> frozenset:
+    """Every identifier in the signals ``machine`` reads or drives (valves, switches,
+    inputs, the cycle signal; addresses through ``[signals]`` and the program's AT
+    declarations): :func:`compile_program` keeps variables of these names in the state
+    the executor compares, whatever the program does with them. A superset (``fbCyl[2].q``
+    gives FBCYL and Q) costs at most a repeat found later, never a wrong timeline."""
+    if machine is None:
+        return frozenset()
+    signals = [s.signal for s in machine.inputs]
+    for cons in machine.consumers:
+        signals += list(cons.valve) + list(cons.switches.values())
+    if machine.cycle_signal:
+        signals.append(machine.cycle_signal)
+    signals += list(machine.signals.values())
+    addresses = None
+    names = set()
+    for s in signals:
+        if s.startswith("%"):
+            mapped = next((n for a, n in machine.signals.items()
+                           if a.upper() == s.upper()), None)
+            if mapped is None and program is not None and hasattr(program, "pous"):
+                if addresses is None:
+                    from ..machine import program_addresses
+                    addresses = program_addresses(program)
+                mapped = addresses.get(s.upper())
+            s = mapped or ""
+        names.update(w.upper() for w in _WORD.findall(s))
+    return frozenset(names)
 
 
 def _digest(key):
