@@ -28,7 +28,8 @@ def run(machine: str, horizon: str, command: str = "timeline") -> tuple[float, f
     before = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss
     t0 = time.perf_counter()
     r = subprocess.run([sys.executable, "-m", "plcpred", command, machine, "--horizon",
-                        horizon, "--out", str(out)], capture_output=True, text=True)
+                        horizon, "--out", str(out), "--max-rows", str(10**12)],
+                       capture_output=True, text=True)
     wall = time.perf_counter() - t0
     peak_mb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
     if peak_mb * 1024 <= before:

@@ -187,6 +187,9 @@ def cmd_timeline(args) -> int:
         return 1
     for w in machine.warnings:
         print(f"warning: {w}", file=sys.stderr)
+    if tl.n_changes > args.max_rows:
+        return _fail(_too_many_rows(tl.n_changes, args.max_rows) + "; shorten --horizon "
+                     "or raise --max-rows")
     with output_dir(out, _command_line(args)) as staging:
         tl.to_csv(staging / "timeline.csv")
     info = tl.info
@@ -200,6 +203,12 @@ def cmd_timeline(args) -> int:
           f"{info['wall_s']:.2f} s")
     print(f"wrote {out / 'timeline.csv'}")
     return 0
+
+
+def _too_many_rows(rows: int, limit: int) -> str:
+    size_mb = rows * 30 / 1e6          # about 30 bytes a row
+    size = f"{size_mb / 1e3:.1f} GB" if size_mb >= 1e3 else f"{size_mb:.0f} MB"
+    return f"timeline.csv would hold {rows:,} rows (about {size}), more than --max-rows {limit:,}"
 
 
 def _cut_stroke_warnings(machine, profile) -> list[str]:
@@ -230,9 +239,17 @@ def cmd_predict(args) -> int:
     except PlcpredError as e:
         print(e, file=sys.stderr)
         return 1
+    skipped = []
+    keep_timeline = not args.no_timeline
+    if keep_timeline and result.timeline.n_changes > args.max_rows:
+        keep_timeline = False
+        skipped.append(_too_many_rows(result.timeline.n_changes, args.max_rows)
+                       + ": not written (demand.csv and summary.json cover the whole "
+                         "horizon; raise --max-rows to write it)")
     with output_dir(out, _command_line(args)) as staging:
-        written = [out / f.name for f in result.write(staging, plot=not args.no_plot)]
-    for w in machine.warnings + _cut_stroke_warnings(machine, result.profile):
+        written = [out / f.name for f in result.write(staging, plot=not args.no_plot,
+                                                      timeline=keep_timeline)]
+    for w in machine.warnings + _cut_stroke_warnings(machine, result.profile) + skipped:
         print(f"warning: {w}", file=sys.stderr)
     prof = result.profile
     split = prof.by_role_nl()
@@ -429,6 +446,12 @@ DT_HELP = ("grid step of the demand (default 10ms, coarser for long horizons so 
            "under a few tens of MB)")
 
 
+def _max_rows_arg(p, beyond: str) -> None:
+    p.add_argument("--max-rows", type=_positive_int, default=DEFAULT_MAX_ROWS, metavar="N",
+                   help=f"most rows of timeline.csv (default {DEFAULT_MAX_ROWS:,}, about "
+                        f"{DEFAULT_MAX_ROWS * 30 / 1e9:.1f} GB); {beyond}")
+
+
 def _machine_args(p, out: str | None = "output directory", dt: bool = True) -> None:
     """The arguments every machine-running command shares."""
     p.add_argument("machine", metavar="MACHINE", help="machine file (.toml)")
@@ -447,6 +470,9 @@ def _machine_args(p, out: str | None = "output directory", dt: bool = True) -> N
 
 
 DEFAULT_MAX_CHANGES = 20_000_000  # the sequencer's default (not imported: --help stays fast)
+# timeline.csv rows written at most unless --max-rows says otherwise (about 30 bytes a
+# row: 1.5 GB); a tiled year of a fast machine would otherwise fill the disk
+DEFAULT_MAX_ROWS = 50_000_000
 EXIT_NEVER_MOVES = 4   # compare: NEW never moves (a deadlock passes no air gate)
 EXIT_THROUGHPUT_DROP = 5   # compare: NEW completes fewer cycles per hour than allowed
 
@@ -593,6 +619,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="execute every part of a run that cannot tile instead of copying "
                         "the recorded response of a part that starts from a state the "
                         "machine rested in before (the result is the same, only slower)")
+    _max_rows_arg(p, "a longer timeline is an error, before anything is written")
     p.set_defaults(func=cmd_timeline)
 
     p = sub.add_parser("predict", help="forecast a machine's compressed-air demand",
@@ -605,6 +632,9 @@ def build_parser() -> argparse.ArgumentParser:
     _machine_args(p)
     _consumers_arg(p)
     p.add_argument("--no-plot", action="store_true", help="skip demand.png")
+    p.add_argument("--no-timeline", action="store_true",
+                   help="skip timeline.csv (the demand is computed all the same)")
+    _max_rows_arg(p, "a longer timeline is not written, with a warning")
     p.set_defaults(func=cmd_predict)
 
     p = sub.add_parser("size", help="size the compressor and receiver for a machine",

@@ -60,18 +60,22 @@ class Prediction:
         data["supply_bar_g"] = self.machine.supply_bar_g
         return data
 
-    def write(self, out_dir, plot: bool = True) -> list[Path]:
-        """``timeline.csv``, ``demand.csv``, ``summary.json`` and ``demand.png`` in
-        ``out_dir`` (each through a temporary file)."""
+    def write(self, out_dir, plot: bool = True, timeline: bool = True) -> list[Path]:
+        """``timeline.csv`` (unless ``timeline`` is false), ``demand.csv``,
+        ``summary.json`` and ``demand.png`` in ``out_dir`` (each through a temporary
+        file)."""
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         t0 = time.perf_counter()
-        self.timeline.to_csv(out / "timeline.csv")
+        files = []
+        if timeline:
+            self.timeline.to_csv(out / "timeline.csv")
+            files.append(out / "timeline.csv")
         self.profile.to_csv(out / "demand.csv", shown=self.shown)
         self.profile.write_summary(out / "summary.json", {
             "machine": self.machine.name, "supply_bar_g": self.machine.supply_bar_g})
         self.stage_s["write_csv"] = time.perf_counter() - t0
-        files = [out / "timeline.csv", out / "demand.csv", out / "summary.json"]
+        files += [out / "demand.csv", out / "summary.json"]
         if plot:
             from ..report import plot_demand
             from .cycles import arrival_period_s
