@@ -405,10 +405,12 @@ def cmd_sweep(args) -> int:
         settings += [measure_setting(t) for t in args.measure]
         if not settings:
             raise SweepError("give at least one --set or --measure")
+        notes = []
         rows = sweep(args.machine, settings, horizon_s, dt_s, engine=args.engine,
                      scheduler=args.scheduler, workers=args.workers, program=args.program,
                      hours=args.hours, sec=args.sec, price=args.price,
-                     compressor=_compressor(args))
+                     compressor=_compressor(args), max_scenarios=args.max_scenarios,
+                     notes=notes)
     except (SweepError, OutputError) as e:
         return _fail(str(e))
     except PlcpredError as e:
@@ -416,6 +418,8 @@ def cmd_sweep(args) -> int:
         return 1
     except ValueError as e:
         return _fail(str(e))
+    for note in notes:
+        print(f"note: {note}", file=sys.stderr)
     keys = [st.key for st in settings]
     shown = keys + ["total_nl", "mean_l_min", "peak_l_min", "energy_kwh_per_year",
                     "cost_per_year"]
@@ -711,6 +715,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--engine", choices=("local", "dask"), default="local")
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler (tcp://host:8786)")
     p.add_argument("--workers", type=int, help="local processes (default: one per core)")
+    p.add_argument("--max-scenarios", type=_positive_int, default=10_000, metavar="N",
+                   help="most scenarios (the product of the --set value counts) a sweep "
+                        "runs (default 10,000); more is an error before any work")
     p.add_argument("--out", metavar="DIR", help="also write DIR/sweep.csv")
     _energy_args(p)
     p.set_defaults(func=cmd_sweep)

@@ -298,3 +298,27 @@ def test_a_process_parses_a_program_once_and_again_when_it_changes(tmp_path):
     changed = run_scenario(str(rig), {}, 20.0, 0.05)
     assert changed["total_nl"] == pytest.approx(longer["total_nl"])
     assert len(sweep_module._PROGRAMS) == 2
+
+
+def test_too_many_scenarios_fail_before_any_work():
+    settings = [parse_setting("supply_bar_g=" + ",".join(str(3 + k / 1000) for k in range(1000))),
+                parse_setting("A.stroke_time_s=" + ",".join(f"0.{k + 1}/0.2" for k in range(50)))]
+    with pytest.raises(SweepError, match=r"50,000 scenarios \(1000 x 50\) is more than "
+                                         r"--max-scenarios 10,000"):
+        sweep(RIG, settings, 20.0, 0.05)
+    with pytest.raises(SweepError, match="more than --max-scenarios 3"):
+        sweep(RIG, [parse_setting("supply_bar_g=3,4,5,6")], 1.0, max_scenarios=3)
+
+
+def test_dask_workers_started_elsewhere_find_a_relative_machine_path(tmp_path, monkeypatch):
+    """The cluster's workers run in the folder they were started in; a sweep given a
+    path relative to the caller's folder still reaches them (it was an error)."""
+    distributed = pytest.importorskip("dask.distributed")
+    monkeypatch.chdir(tmp_path)
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  dashboard_address=None) as cluster:
+        monkeypatch.chdir(SAMPLES)
+        rows = sweep(Path("prototype_rig") / "rig.toml", [parse_setting("supply_bar_g=3,5")],
+                     5.0, 0.05, engine="dask", scheduler=cluster.scheduler_address)
+    assert [r["supply_bar_g"] for r in rows] == ["3", "5"]
+    assert rows[1]["total_nl"] > rows[0]["total_nl"]
