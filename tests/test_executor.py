@@ -100,6 +100,41 @@ def test_endless_loop_stops_with_watchdog_naming_the_line():
     assert e.value.line == 6 and "WHILE" in str(e.value)
 
 
+@pytest.mark.parametrize("decls,code,line", [
+    # three FORs of 1,000 passes each: 10^9 passes in one scan, each loop under the limit
+    ("i, j, k : DINT; s : LINT;",
+     "FOR i := 0 TO 999 DO\nFOR j := 0 TO 999 DO\nFOR k := 0 TO 999 DO\ns := s + 1;\n"
+     "END_FOR; END_FOR; END_FOR;", 7),
+    # a WHILE inside a FOR, each far below the limit alone
+    ("i, j : DINT;",
+     "FOR i := 1 TO 5000 DO\nj := 0;\nWHILE j < 5000 DO\nj := j + 1;\nEND_WHILE;\n"
+     "END_FOR;", 7),
+])
+def test_nested_loops_share_one_watchdog_per_scan(decls, code, line):
+    import time
+    t0 = time.perf_counter()
+    with pytest.raises(Watchdog) as e:
+        run(body(decls, code))
+    assert e.value.line == line and "all loops together" in str(e.value)
+    assert time.perf_counter() - t0 < 20      # 10^9 passes before: hours
+
+
+def test_loops_in_called_fbs_count_against_the_callers_scan():
+    src = ("FUNCTION_BLOCK FB_I VAR_INPUT n : DINT; END_VAR VAR k : DINT; END_VAR\n"
+           "FOR k := 1 TO n DO\n;\nEND_FOR;\nEND_FUNCTION_BLOCK\n"
+           + body("i : DINT; fb : FB_I;", "FOR i := 1 TO 900000 DO fb(n := 900000); END_FOR;"))
+    with pytest.raises(Watchdog) as e:
+        run(src)
+    assert e.value.line == 2
+
+
+def test_the_watchdog_budget_is_per_scan():
+    """Each scan starts a new budget: 600,000 passes a scan for three scans run."""
+    p = run(body("i : DINT; s : DINT;", "FOR i := 1 TO 600000 DO s := s + 1; END_FOR;"),
+            scans=3)
+    assert p.S == 1_800_000
+
+
 def test_arrays_structs_and_copy_semantics():
     src = """
 TYPE Pt : STRUCT x : INT; y : INT := 7; END_STRUCT END_TYPE

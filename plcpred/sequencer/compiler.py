@@ -41,6 +41,8 @@ from ..parser.stdlib import (STANDARD_FBS, WIDE_STRING_FUNCTIONS, is_standard_fu
 from . import types as ty
 from .types import BOOL, STRING, TIME, ArrayT, Elem, EnumT, FbT, ItfT, PtrT, StdFbT, StructT
 
+# loop iterations one scan may run, all loops together (nested loops, and loops in the
+# FBs a loop calls, share it): a PLC's cycle watchdog, in work instead of time
 WATCHDOG_ITERATIONS = 1_000_000
 
 _STDFB_MEMBERS = {"IN": ty.BOOL, "PT": ty.TIME, "Q": ty.BOOL, "ET": ty.TIME, "CLK": ty.BOOL,
@@ -182,6 +184,14 @@ class Compiler:
         # names that something outside the program reads (a valve the machine file
         # names): a variable of such a name is no sink, whatever the program does with it
         self.observed = frozenset(n.upper() for n in observed)
+
+    def _count_iteration(self, kind: str, ind: int, pos, n: int = 1) -> None:
+        """Count ``n`` loop passes against the scan's budget (``_work``, reset by the
+        executor each scan): a loop that runs away, or loops nested so that together
+        they do, stop at the watchdog naming this loop."""
+        self.src.emit(ind, f"_work[0] += {n}", pos)
+        self.src.emit(ind, f"if _work[0] > {WATCHDOG_ITERATIONS}: _watchdog({kind!r}, "
+                           f"{_pos_args(pos)})", pos)
 
     # ================================================================== project
     def compile(self) -> Compiled:
@@ -944,13 +954,11 @@ class Compiler:
                 blocks.append([])
             else:
                 blocks[-1].append(s)
-        jl, n = self.src.temp("jl"), self.src.temp("n")
+        jl = self.src.temp("jl")
         pos = stmts[0].pos
         e(ind, f"{jl} = 0", pos)
-        e(ind, f"{n} = 0", pos)
         e(ind, "while True:", pos)
-        e(ind + 1, f"{n} += 1", pos)
-        e(ind + 1, f"if {n} > {WATCHDOG_ITERATIONS}: _watchdog('JMP', {_pos_args(pos)})", pos)
+        self._count_iteration("JMP", ind + 1, pos)
         saved = self._jump
         self._jump = (labels, jl, self._loop_depth)
         try:
@@ -1092,13 +1100,15 @@ class Compiler:
             r = self.src.temp("r")
             i = self.src.temp("i")
             e(ind, f"{r} = _for_range({start}, {end}, {step})", pos)
+            short = _short_for(s)
+            if short is not None:
+                # literal bounds: the whole loop counted once, as it starts
+                self._count_iteration("FOR", ind, pos, short)
             e(ind, f"for {i} in {r}:", pos)
-            if not _short_for(s):
-                # counted like WHILE: a FOR that runs away stops at the watchdog (an
-                # EXIT inside may end it earlier, so the range alone does not decide)
-                e(ind + 1, f"if {i} - {r}.start > {WATCHDOG_ITERATIONS} * {r}.step if "
-                           f"{r}.step > 0 else {r}.start - {i} > {WATCHDOG_ITERATIONS} * "
-                           f"-{r}.step: _watchdog('FOR', {_pos_args(pos)})", pos)
+            if short is None:
+                # counted like WHILE (an EXIT inside may end it earlier, so the range
+                # alone does not decide)
+                self._count_iteration("FOR", ind + 1, pos)
             self._store(var, i, ty.ANY_INT, scope, ind + 1, pos, raw=True)
             self._loop_depth += 1
             self._stmts(s.body, scope, ind + 1, True)
@@ -1114,12 +1124,13 @@ class Compiler:
             code, t = self._expr(s.cond, scope)
             cond = self._to(code, t, BOOL, s.cond)
             kind = "WHILE" if isinstance(s, ir.While) else "REPEAT"
-            e(ind, f"{n} = 0", pos)
-            e(ind, f"while {cond}:" if kind == "WHILE" else f"while {n} == 0 or not {cond}:",
-              pos)
-            e(ind + 1, f"{n} += 1", pos)
-            e(ind + 1, f"if {n} > {WATCHDOG_ITERATIONS}: _watchdog({kind!r}, "
-                       f"{_pos_args(pos)})", pos)
+            if kind == "WHILE":
+                e(ind, f"while {cond}:", pos)
+            else:
+                e(ind, f"{n} = True", pos)
+                e(ind, f"while {n} or not {cond}:", pos)
+                e(ind + 1, f"{n} = False", pos)
+            self._count_iteration(kind, ind + 1, pos)
             self._loop_depth += 1
             self._stmts(s.body, scope, ind + 1, True)
             self._loop_depth -= 1
@@ -2293,12 +2304,15 @@ def _children(e):
     return ()
 
 
-def _short_for(s: ir.For) -> bool:
-    """A FOR whose literal bounds keep it under the watchdog (no counting needed)."""
+def _short_for(s: ir.For) -> int | None:
+    """How often a FOR with literal bounds runs, when that is within the watchdog (it
+    is then counted once as it starts, not at each pass); None for any other FOR."""
     vals = [x.value if isinstance(x, ir.Literal) and isinstance(x.value, int) else None
             for x in (s.start, s.end, s.step or ir.Literal(1, "ANY_INT"))]
-    return None not in vals and vals[2] != 0 and len(
-        range(vals[0], vals[1] + 1, vals[2])) <= WATCHDOG_ITERATIONS
+    if None in vals or vals[2] == 0:
+        return None
+    n = len(range(vals[0], vals[1] + (1 if vals[2] > 0 else -1), vals[2]))
+    return n if n <= WATCHDOG_ITERATIONS else None
 
 
 def _has_fb(t) -> bool:

@@ -34,7 +34,7 @@ from ..parser import ir
 from ..parser.names import ident
 from . import runtime as rtm
 from . import types
-from .compiler import CompileError, Compiled, compile_program
+from .compiler import WATCHDOG_ITERATIONS, CompileError, Compiled, compile_program
 from .plant import CylinderPlant, valve_command
 from .sfc import ActionSpec, SfcRuntime, SfcSpec
 from .stdfb import TON, TOF, TP, TONR, make_standard_fb
@@ -255,7 +255,8 @@ def _for_range(start, end, step):
 
 def _watchdog(kind, file, line, col):
     raise rtm.Watchdog(f"watchdog: this {kind} loop did not finish within one scan "
-                       f"(more than {1_000_000} iterations)", file, line, col)
+                       f"(more than {WATCHDOG_ITERATIONS:,} loop passes in the scan, all "
+                       "loops together)", file, line, col)
 
 
 def _opaque(what, file, line, col, why="plcpred reads only ST and SFC bodies"):
@@ -363,6 +364,7 @@ def _namespace(timers: list, sfcs: list) -> dict:
         "_unlisted": _unlisted,
         "_setattrs": _setattrs, "_nest": _nest, "_copy": _copy, "_snap_any": _snap_any,
         "_refkey": _refkey, "_for_range": _for_range, "_watchdog": _watchdog,
+        "_work": [0],
         "_plc_exceptions": rtm.PLC_EXCEPTIONS, "_exception_code": rtm.exception_code,
         "_opaque": _opaque, "_memcpy": _memcpy, "_memset": _memset, "_memcmp": _memcmp,
         "_chkidx": rtm.check_index, "_getbit": rtm.getbit, "_setbit": rtm.setbit,
@@ -402,6 +404,7 @@ class ProgramInstance:
                                f"({getattr(e, 'msg', None) or type(e).__name__}); split it "
                                "with intermediate variables", *where) from None
         exec(code, self.ns)
+        self._work = self.ns["_work"]    # loop passes in this scan (the watchdog's count)
         self.programs = self.guard(self.ns["_build"])
         self.g = self.ns["_g"]
         self.names = [n for n, _ in self.compiled.programs]
@@ -427,6 +430,7 @@ class ProgramInstance:
 
     def scan(self, now_ns: int) -> None:
         self.ns["_now"] = now_ns
+        self._work[0] = 0
         if self.every is None:
             for body in self._bodies:
                 body()
