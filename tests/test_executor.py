@@ -135,6 +135,27 @@ def test_the_watchdog_budget_is_per_scan():
     assert p.S == 1_800_000
 
 
+def test_a_case_of_thousands_of_labels_compiles_and_picks_the_first_match():
+    """Chains are cut in pieces (ELIF_CHAIN); before, 20,000 labels ran Python's own
+    compiler out of memory, reported as 'nested too deeply'. The same label twice: the
+    first branch wins, across a cut too."""
+    arms = "\n".join(f"{k}: y := {k * 2};" for k in range(2500))
+    src = body("x, y : DINT;", f"CASE x OF\n{arms}\n150: y := -1;\n3, 7..9: y := -2;\n"
+                              "ELSE y := -3;\nEND_CASE;")
+    for x, y in ((0, 0), (99, 198), (100, 200), (150, 300), (2499, 4998), (2500, -3),
+                 (-5, -3)):
+        p = run(src, setup=lambda prog, k, x=x: setattr(prog, "X", x))
+        assert p.Y == y, (x, p.Y)
+
+
+def test_an_if_with_hundreds_of_elsifs_keeps_its_order():
+    arms = "".join(f"ELSIF x < {k} THEN y := {k};\n" for k in range(10, 3000, 10))
+    src = body("x, y : DINT;", f"IF x < 0 THEN y := -1;\n{arms}ELSE y := -9;\nEND_IF;")
+    for x, y in ((-1, -1), (0, 10), (995, 1000), (2985, 2990), (5000, -9)):
+        p = run(src, setup=lambda prog, k, x=x: setattr(prog, "X", x))
+        assert p.Y == y, (x, p.Y)
+
+
 def test_arrays_structs_and_copy_semantics():
     src = """
 TYPE Pt : STRUCT x : INT; y : INT := 7; END_STRUCT END_TYPE

@@ -44,6 +44,8 @@ from .types import BOOL, STRING, TIME, ArrayT, Elem, EnumT, FbT, ItfT, PtrT, Std
 # loop iterations one scan may run, all loops together (nested loops, and loops in the
 # FBs a loop calls, share it): a PLC's cycle watchdog, in work instead of time
 WATCHDOG_ITERATIONS = 1_000_000
+# longest if/elif chain generated at once (Compiler._chain)
+ELIF_CHAIN = 100
 
 _STDFB_MEMBERS = {"IN": ty.BOOL, "PT": ty.TIME, "Q": ty.BOOL, "ET": ty.TIME, "CLK": ty.BOOL,
                   "S1": ty.BOOL, "R": ty.BOOL, "S": ty.BOOL, "R1": ty.BOOL, "Q1": ty.BOOL,
@@ -184,6 +186,32 @@ class Compiler:
         # names that something outside the program reads (a valve the machine file
         # names): a variable of such a name is no sink, whatever the program does with it
         self.observed = frozenset(n.upper() for n in observed)
+
+    def _chain(self, arms, else_body, scope: Scope, ind: int, pos, loop: bool) -> None:
+        """``if``/``elif``/``else`` over ``arms`` [(a function giving the test's code, the
+        body, its position)]. Python's compiler recurses once per ``elif``, so a chain
+        longer than ELIF_CHAIN (a CASE of 20,000 labels ran it out of memory) is cut into
+        chains that each run only when none before matched."""
+        e = self.src.emit
+        hit = self.src.temp("hit") if len(arms) > ELIF_CHAIN else None
+        for start in range(0, len(arms), ELIF_CHAIN):
+            inner = ind
+            if start:
+                e(ind, f"if not {hit}:", pos)
+                inner = ind + 1
+            if hit:
+                e(inner, f"{hit} = True", pos)
+            for k, (test, body, at) in enumerate(arms[start:start + ELIF_CHAIN]):
+                e(inner, f"{'if' if k == 0 else 'elif'} {test()}:", at)
+                self._stmts(body, scope, inner + 1, loop)
+                e(inner + 1, "pass")
+            if hit:
+                e(inner, "else:", pos)
+                e(inner + 1, f"{hit} = False", pos)
+        if else_body is not None:
+            e(ind, f"if not {hit}:" if hit else "else:" if arms else "if True:", pos)
+            self._stmts(else_body, scope, ind + 1, loop)
+            e(ind + 1, "pass")
 
     def _count_iteration(self, kind: str, ind: int, pos, n: int = 1) -> None:
         """Count ``n`` loop passes against the scan's budget (``_work``, reset by the
@@ -1036,16 +1064,11 @@ class Compiler:
         elif isinstance(s, ir.CallStmt):
             self._call_stmt(s.call, scope, ind)
         elif isinstance(s, ir.If):
-            for k, (cond, body) in enumerate(s.branches):
+            def test(cond):
                 code, t = self._expr(cond, scope)
-                e(ind, f"{'if' if k == 0 else 'elif'} {self._to(code, t, BOOL, cond)}:",
-                  getattr(cond, "pos", None) or pos)
-                self._stmts(body, scope, ind + 1, loop)
-                e(ind + 1, "pass")
-            if s.else_body is not None:
-                e(ind, "else:", pos)
-                self._stmts(s.else_body, scope, ind + 1, loop)
-                e(ind + 1, "pass")
+                return self._to(code, t, BOOL, cond)
+            self._chain([(lambda c=cond: test(c), body, getattr(cond, "pos", None) or pos)
+                         for cond, body in s.branches], s.else_body, scope, ind, pos, loop)
         elif isinstance(s, ir.Try):
             e(ind, "try:", pos)
             self._stmts(s.body, scope, ind + 1, loop)
@@ -1069,8 +1092,8 @@ class Compiler:
             sel, st = self._expr(s.selector, scope)
             tmp = self.src.temp("sel")
             e(ind, f"{tmp} = {sel}", pos)
-            first = True
-            for br in s.branches:
+
+            def labels(br):
                 tests = []
                 for lab in br.labels:
                     if isinstance(lab, ir.CaseRange):
@@ -1080,17 +1103,9 @@ class Compiler:
                     else:
                         v, _ = self._expr(lab, scope, expect=st)
                         tests.append(f"{tmp} == {v}")
-                e(ind, f"{'if' if first else 'elif'} {' or '.join(tests)}:", br.pos or pos)
-                first = False
-                self._stmts(br.body, scope, ind + 1, loop)
-                e(ind + 1, "pass")
-            if s.else_body is not None:
-                if first:
-                    e(ind, "if True:", pos)
-                else:
-                    e(ind, "else:", pos)
-                self._stmts(s.else_body, scope, ind + 1, loop)
-                e(ind + 1, "pass")
+                return " or ".join(tests)
+            self._chain([(lambda b=br: labels(b), br.body, br.pos or pos)
+                         for br in s.branches], s.else_body, scope, ind, pos, loop)
         elif isinstance(s, ir.For):
             var = s.target or ir.Name(s.var, pos=pos)
             vcode, vt = self._expr(var, scope)

@@ -400,6 +400,10 @@ class ProgramInstance:
             pos = self.compiled.line_pos[line - 1] if line and 0 < line <= len(
                 self.compiled.line_pos) else None
             where = (pos.file, pos.line, pos.col) if pos else (self._file(program), 0, 0)
+            if isinstance(e, MemoryError):
+                raise CompileError("this program is too large for the executor to compile "
+                                   "(Python ran out of memory); split its longest bodies "
+                                   "into functions or function blocks", *where) from None
             raise CompileError("this statement is nested too deeply for the executor "
                                f"({getattr(e, 'msg', None) or type(e).__name__}); split it "
                                "with intermediate variables", *where) from None
