@@ -124,8 +124,11 @@ class IRBuilder:
 
     def bit_access(self, base, bit):
         text = bit.value.replace("_", "")
-        if not text.isdigit() or int(text) > 63:
-            raise self._err(f"bit access .{bit.value}: a bit number 0..63 in decimal",
+        # the length first: int() of thousands of digits is an error of its own
+        if not (text.isascii() and text.isdigit()) or len(text.lstrip("0")) > 2 \
+                or int(text) > 63:
+            shown = bit.value if len(bit.value) <= 20 else bit.value[:20] + "..."
+            raise self._err(f"bit access .{shown}: a bit number 0..63 in decimal",
                             self._pos(bit))
         return ir.BitAccess(base, int(text), pos=base.pos)
 
@@ -170,7 +173,8 @@ class IRBuilder:
         try:
             value, type_name = parse_time_literal(str(tok))
         except ValueError as e:
-            raise self._err(f"bad time literal {tok!s}: {e}", self._pos(tok)) from None
+            shown = str(tok) if len(str(tok)) <= 40 else str(tok)[:40] + "..."
+            raise self._err(f"bad time literal {shown}: {e}", self._pos(tok)) from None
         return ir.Literal(value, type_name, pos=self._pos(tok))
 
     def string_lit(self, tok):

@@ -17,7 +17,9 @@ from . import ir
 from .errors import ProgramError, ProgramWarning, at
 from .build import anonymous_at_name
 from .generics import readable, specialize
+from .literals import INT_TYPES
 from .stdlib import ELEMENTARY_TYPES, STANDARD_FBS, is_standard_function, std_fb_pins
+from .typegraph import MAX_INHERITANCE_DEPTH, check_type_graph
 
 _LOCAL_KINDS = ("VAR", "VAR_TEMP", "VAR_STAT", "VAR_INST")
 
@@ -122,9 +124,12 @@ class _Globals:
                 if b.kind in ("VAR", "VAR_STAT", "VAR_INST") for d in b.decls}
 
     def fb_chain(self, pou: ir.Pou) -> list[ir.Pou]:
-        """The POU, its base, its base's base ... (stopping at an unknown base or a cycle)."""
+        """The POU, its base, its base's base ... (stopping at an unknown base, a cycle or
+        past MAX_INHERITANCE_DEPTH: the type graph reports those, and a chain of thousands
+        followed for every POU would take minutes)."""
         chain, seen = [], set()
-        while pou is not None and pou.name.upper() not in seen:
+        while pou is not None and pou.name.upper() not in seen \
+                and len(chain) <= MAX_INHERITANCE_DEPTH:
             seen.add(pou.name.upper())
             chain.append(pou)
             pou = self.pous.get(pou.extends.upper()) if pou.extends else None
@@ -134,7 +139,8 @@ class _Globals:
         t = self.types.get(type_name.upper())
         seen = set()
         members = set()
-        while t is not None and isinstance(t.type, ir.StructType) and t.name.upper() not in seen:
+        while t is not None and isinstance(t.type, ir.StructType) \
+                and t.name.upper() not in seen and len(seen) <= MAX_INHERITANCE_DEPTH:
             seen.add(t.name.upper())
             members |= {d.name.upper() for d in t.type.members}
             t = self.types.get(t.type.extends.upper()) if t.type.extends else None
@@ -545,7 +551,10 @@ class Checker:
             self._check_member(e, scope, ctx)
             if ctx is not None and not writing and self._gvl_qualified(e, scope):
                 ctx.usage.read.add(e.member.upper())
-        elif t in (ir.BitAccess, ir.Deref):
+        elif t is ir.BitAccess:
+            self._expr(e.base, scope, ctx, writing)
+            self._check_bit(e, scope)
+        elif t is ir.Deref:
             self._expr(e.base, scope, ctx, writing)
         elif t is ir.Index:
             self._expr(e.base, scope, ctx, writing)
@@ -572,6 +581,24 @@ class Checker:
                 self.error(e.pos, f"unknown enumeration type '{e.type_name}'")
             elif e.value.upper() not in {v.upper() for v, _ in td.type.values}:
                 self.error(e.pos, f"enumeration {e.type_name} has no value '{e.value}'")
+
+    def _check_bit(self, e: ir.BitAccess, scope):
+        """``v.n`` of a variable declared BOOL or an integer: n within its width (the
+        compiler checks every other base, whose type takes resolving)."""
+        if type(e.base) is not ir.Name:
+            return
+        var = scope.get(e.base.name.upper()) or self.g.vars.get(e.base.name.upper())
+        if var is None or not isinstance(var.decl.type, ir.NamedType):
+            return
+        name = var.decl.type.name.upper()
+        if name in ("BOOL", "BIT"):
+            self.error(e.pos, f"bit access .{e.bit} on a BOOL, which has no bits to take")
+        elif name in INT_TYPES and e.bit >= INT_TYPES[name]:
+            self.error(e.pos, f"bit {e.bit} of a {name}: a {name} has bits "
+                              f"0..{INT_TYPES[name] - 1}")
+        elif name in _BITLESS:
+            self.error(e.pos, f"bit access .{e.bit} on a value of type {name}: only "
+                              "integers and bit strings (BYTE, WORD, DWORD, LWORD) have bits")
 
     def _gvl_qualified(self, e, scope):
         """``GVL.var`` as the Name ``var`` it stands for, else None."""
@@ -722,6 +749,11 @@ def _sub_bodies(s):
         yield from (b for b in (s.body, s.catch_body, s.finally_body) if b)
 
 
+# elementary types that are no integer: ``v.3`` takes no bit of them
+_BITLESS = frozenset("""REAL LREAL TIME LTIME DATE LDATE TOD TIME_OF_DAY LTOD LTIME_OF_DAY
+DT DATE_AND_TIME LDT LDATE_AND_TIME STRING WSTRING CHAR WCHAR""".split())
+
+
 class ExternalWarning(ProgramWarning):
     """A name taken as declared by a library that is not at hand (``allow_external``)."""
 
@@ -732,9 +764,16 @@ def check_program(program: ir.Program, context: list[ir.Program] = (),
     ``allow_external``, names nothing at hand declares are warnings (ExternalWarning)."""
     try:
         program = specialize(program, context)
+        # cycles and runaway nesting of types first: the checks below follow types
+        check_type_graph([*context, program], _builtin_type, own=program)
     except ProgramError as e:
-        return [e], []
+        return readable([e], program), []
     c = Checker(program, context, allow_external).run()
     key = lambda e: (e.file, e.line, e.col)  # noqa: E731
     return (sorted(readable(c.errors, program), key=key),
             sorted(readable(c.warnings, program), key=key))
+
+
+def _builtin_type(up: str) -> bool:
+    """A type name the checker takes as built in, whatever the program declares."""
+    return up in ELEMENTARY_TYPES or up in STANDARD_FBS

@@ -17,6 +17,7 @@ import re
 from . import ir
 from .errors import ProgramError
 from .printer import expr as expr_text
+from .typegraph import MAX_INHERITANCE_DEPTH
 
 
 def _generic_block(pou: ir.Pou) -> list[ir.VarDecl]:
@@ -112,8 +113,10 @@ def specialize(program: ir.Program, context=()) -> ir.Program:
             kept.append(_copy_with(pou, pou.name, [d.init for d in decls]))
     out.pous = kept + added
     # a block extending a generic one (EXTENDS FB_Base<7>) extends the base's copy for
-    # those values; a copy may extend another generic block in turn
+    # those values; a copy may extend another generic block in turn, but not without end
+    # (FB_G EXTENDS FB_G<(N + 1)> would make copies forever)
     done, seen = 0, len(added)
+    level: dict[int, int] = {}      # id of a copy made for an EXTENDS -> how many deep
     while done < len(out.pous):
         pou = out.pous[done]
         done += 1
@@ -121,6 +124,17 @@ def specialize(program: ir.Program, context=()) -> ir.Program:
             pou.extends = visit(ir.NamedType(pou.extends, pos=pou.pos,
                                              generic_args=pou.extends_args)).name
             pou.extends_args = []
+            deeper = level.get(id(pou), 0) + 1
+            for new in added[seen:]:
+                level[id(new)] = deeper
+            if added[seen:] and deeper >= MAX_INHERITANCE_DEPTH:
+                shown = next((p[len(GENERIC_PRAGMA):] for p in pou.pragmas
+                              if p.startswith(GENERIC_PRAGMA)), pou.name)
+                if len(shown) > 60:
+                    shown = shown[:60] + "...>"
+                raise ProgramError(f"{shown} EXTENDS copies of generic blocks more than "
+                                   f"{MAX_INHERITANCE_DEPTH} levels deep (each EXTENDS "
+                                   "with other values makes one more)", *_where(pou))
             out.pous += added[seen:]
             seen = len(added)
     return out

@@ -81,14 +81,17 @@ def parse_duration_ns(text: str) -> int:
     pos = 0
     for m in _TIME_PART.finditer(text):
         if m.start() != pos:
-            raise ValueError(f"malformed duration {text!r}")
-        total += Fraction(m.group(1).replace("_", "")) * NS_PER_UNIT[m.group(2).lower()]
+            raise ValueError(f"malformed duration {text[:40]!r}")
+        number = m.group(1).replace("_", "")
+        if len(number) > 40:   # longer than LTIME holds, or finer than a nanosecond
+            raise ValueError(f"a number of {len(number)} digits in a duration")
+        total += Fraction(number) * NS_PER_UNIT[m.group(2).lower()]
         pos = m.end()
     if pos != len(text) or pos == 0:
-        raise ValueError(f"malformed duration {text!r}")
+        raise ValueError(f"malformed duration {text[:40]!r}")
     ns = sign * round(total)
     if abs(ns) > DURATION_MAX_NS:
-        raise ValueError(f"duration {text!r} is longer than LTIME holds (about 584 years)")
+        raise ValueError(f"duration {text[:40]!r} is longer than LTIME holds (about 584 years)")
     return ns
 
 

@@ -40,10 +40,17 @@ MAX_NAME_LENGTH = 255
 MAX_EXPRESSION_DEPTH = 100   # operators, calls, indexing nested in one expression
 MAX_STATEMENT_DEPTH = 40     # IF / CASE / loops nested in one body
 MAX_LOOP_DEPTH = 12          # FOR / WHILE / REPEAT nested in one body
+# ARRAY (each dimension), POINTER TO / REFERENCE TO and STRUCT nested in one declaration;
+# through named types the nesting is bounded again, as a whole (see .typegraph)
+MAX_TYPE_DEPTH = 32
+MAX_INITIALIZER_DEPTH = 32   # [...] and (a := ...) initialisers nested in one another
 _STATEMENTS = (ir.If, ir.Case, ir.For, ir.While, ir.Repeat, ir.Try)
 _LOOPS = (ir.For, ir.While, ir.Repeat)
 _EXPRESSIONS = (ir.Unary, ir.Binary, ir.Call, ir.Index, ir.Member, ir.BitAccess, ir.Deref,
                 ir.Arg, ir.AssignExpr)
+_TYPES = (ir.ArrayType, ir.PointerType, ir.StructType)
+_INITIALIZERS = (ir.ArrayInit, ir.StructInit)
+_NO_DEPTH = (0, 0, 0, 0, 0)
 
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*", re.ASCII)
 _HAS_ALNUM = re.compile(r"[A-Za-z0-9]", re.ASCII)
@@ -119,7 +126,7 @@ def validate_names(program: ir.Program) -> ir.Program:
     """Check every string of ``program`` against what its field allows (module docstring).
     Returns the program; raises :class:`ProgramError` at the offending node's position (or
     the nearest enclosing node that has one)."""
-    stack = [(program, None, None, (0, 0, 0))]
+    stack = [(program, None, None, _NO_DEPTH)]
     while stack:
         node, pos, ctx, depth = stack.pop()
         if isinstance(node, ir.Pos):
@@ -181,9 +188,21 @@ def validate_names(program: ir.Program) -> ir.Program:
 
 
 def _deeper(node, depth, pos):
-    """The (expression, statement, loop) nesting inside ``node``; an error past a limit."""
-    expr, stmt, loop = depth
-    if isinstance(node, _EXPRESSIONS):
+    """The (expression, statement, loop, type, initialiser) nesting inside ``node``; an
+    error past a limit."""
+    expr, stmt, loop, typ, init = depth
+    if isinstance(node, _TYPES):
+        typ += len(node.dims) if isinstance(node, ir.ArrayType) else 1
+        if typ > MAX_TYPE_DEPTH:
+            raise at(pos, f"type nested more than {MAX_TYPE_DEPTH} levels deep (ARRAY "
+                          "dimensions, POINTER TO, REFERENCE TO and STRUCT inside each "
+                          "other); name the inner types with TYPE declarations")
+    elif isinstance(node, _INITIALIZERS):
+        init += 1
+        if init > MAX_INITIALIZER_DEPTH:
+            raise at(pos, f"initial value nested more than {MAX_INITIALIZER_DEPTH} levels "
+                          "deep ([...] and (name := ...) inside each other)")
+    elif isinstance(node, _EXPRESSIONS):
         expr += 3 if isinstance(node, ir.Index) else 1  # a bounds check wraps each index
         if expr > MAX_EXPRESSION_DEPTH:
             raise at(pos, f"expression nested more than {MAX_EXPRESSION_DEPTH} levels deep; "
@@ -198,8 +217,8 @@ def _deeper(node, depth, pos):
             if loop > MAX_LOOP_DEPTH:
                 raise at(pos, f"loops nested more than {MAX_LOOP_DEPTH} levels deep")
     elif isinstance(node, (ir.Pou, ir.Method, ir.PropertyAccessor, ir.SfcAction)):
-        return (0, 0, 0)
-    return (expr, stmt, loop)
+        return _NO_DEPTH
+    return (expr, stmt, loop, typ, init)
 
 
 def _what(cls, field_name: str) -> str:

@@ -44,6 +44,9 @@ from .types import BOOL, STRING, TIME, ArrayT, Elem, EnumT, FbT, ItfT, PtrT, Std
 # loop iterations one scan may run, all loops together (nested loops, and loops in the
 # FBs a loop calls, share it): a PLC's cycle watchdog, in work instead of time
 WATCHDOG_ITERATIONS = 1_000_000
+# an observed name followed by this: a bit of that variable is read (``wCount.2``), which
+# a count's shift from one period to the next does not keep, so it is compared even then
+BIT_READ = "."
 # longest if/elif chain generated at once (Compiler._chain)
 ELIF_CHAIN = 100
 
@@ -618,7 +621,8 @@ class Compiler:
             # what flows into it; a count of parts may stay out (the executor shifts a
             # repeated period's counts, _LeftOut)
             shown = {k for k in sinks & self.observed
-                     if self._count_width(k, flow, sinks, scope) is None}
+                     if k + BIT_READ in self.observed
+                     or self._count_width(k, flow, sinks, scope) is None}
             if not shown:
                 break
             flow.used |= shown
@@ -1184,6 +1188,7 @@ class Compiler:
         e = self.src.emit
         if isinstance(target, ir.BitAccess):
             bcode, bt = self._expr(target.base, scope)
+            _check_bit(target, bt)
             self._store(target.base, f"_setbit({bcode}, {target.bit}, {code})", bt, scope,
                         ind, pos, raw=True)
             return
@@ -1448,6 +1453,7 @@ class Compiler:
             return f"{lst}[{idx}]", et
         if isinstance(x, ir.BitAccess):
             code, t = self._expr(x.base, scope)
+            _check_bit(x, t)
             return f"_getbit({code}, {x.bit})", BOOL
         if isinstance(x, ir.AssignExpr):
             return self._assign_expr(x, scope)
@@ -2396,6 +2402,13 @@ def _is_null_test(lt, rt, x: ir.Binary) -> bool:
         return isinstance(e, ir.Literal) and e.value == 0 and not isinstance(e.value, bool)
     return (lt.cat in ("ptr", "itf") and zero(x.right)) or (
         rt.cat in ("ptr", "itf") and zero(x.left))
+
+
+def _check_bit(x: ir.BitAccess, t):
+    """An error unless ``x.bit`` is a bit of a value of type ``t`` (0..15 of a WORD)."""
+    why = ty.bit_access_error(t, x.bit)
+    if why is not None:
+        raise _err(x, why)
 
 
 def _deref_t(t):

@@ -5,10 +5,12 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from ..parser import ir
-from ..parser.errors import at
-from ..parser.literals import INT_TYPES
+from ..parser.errors import ProgramError, at
+from ..parser.generics import readable
+from ..parser.literals import INT_LITERAL_MAX, INT_TYPES
 from ..parser.names import ident
 from ..parser.stdlib import STANDARD_FBS
+from ..parser.typegraph import MAX_INHERITANCE_DEPTH, check_type_graph
 
 SIGNED = {"SINT", "INT", "DINT", "LINT"}
 BIT_STRINGS = {"BYTE", "WORD", "DWORD", "LWORD"}
@@ -122,6 +124,24 @@ def cells(t, table: "TypeTable", _active=None) -> int:
     return 1
 
 
+def bit_access_error(t, bit: int) -> str | None:
+    """Why ``value.bit`` cannot name a bit of a value of type ``t`` (None: it can). An
+    integer or bit string has as many bits as its width (a WORD 0..15); an untyped number
+    or an enumeration is taken as the widest (0..63)."""
+    if isinstance(t, PtrT) and t.reference:
+        t = t.target
+    name = getattr(t, "name", None) or t.cat
+    if t.cat == "int":
+        width = getattr(t, "bits", 0) or 64
+        if 0 <= bit < width:
+            return None
+        return f"bit {bit} of a {name}: a {name} has bits 0..{width - 1}"
+    if t.cat == "bool":
+        return f"bit access .{bit} on a BOOL, which has no bits to take"
+    return (f"bit access .{bit} on a value of type {name}: only integers and bit strings "
+            "(BYTE, WORD, DWORD, LWORD) have bits")
+
+
 # bytes of the elementary types whose size their name does not give (TwinCAT's, 64-bit)
 _ELEM_BYTES = {"BOOL": 1, "BIT": 1, "REAL": 4, "LREAL": 8, "TIME": 4, "LTIME": 8,
                "DATE": 4, "TOD": 4, "TIME_OF_DAY": 4, "DT": 4, "DATE_AND_TIME": 4,
@@ -178,10 +198,16 @@ class FbT:
     cat = "fb"
 
     def chain(self):
-        t = self
+        """This FB, its base, its base's base ... (the type graph is checked: the chain
+        ends, within MAX_INHERITANCE_DEPTH; a hand-made cycle is an error, not a hang)."""
+        t, n = self, 0
         while t is not None:
             yield t
             t = t.base
+            n += 1
+            if t is not None and n > MAX_INHERITANCE_DEPTH:
+                raise at(self.pou.pos, f"{self.name} EXTENDS a chain of more than "
+                                       f"{MAX_INHERITANCE_DEPTH} types, or itself")
 
     def var(self, key: str):
         """The declaration of variable ``key`` (upper case), its own or inherited."""
@@ -282,10 +308,27 @@ def is_object(t) -> bool:
     return t.cat in OBJECT_CATS
 
 
+# resolve() calls nested in one another (three Python frames each at most). The type
+# graph bounds what values hold (MAX_TYPE_NESTING, one call a level); pointers may chain
+# types further, which only this stops before Python's recursion limit does
+MAX_RESOLVE_DEPTH = 200
+
+
+def _builtin(up: str) -> bool:
+    """Names TypeTable.named resolves before any declaration."""
+    return elementary(up) is not None or up in STANDARD_FBS
+
+
 class TypeTable:
     """Named types of a project, resolved lazily (types may refer to later ones)."""
 
     def __init__(self, program: ir.Program):
+        # no type holds itself, inheritance ends, nesting is bounded: what the recursive
+        # resolution below (and everything using its types) relies on
+        try:
+            check_type_graph([program], _builtin)
+        except ProgramError as e:   # a generic FB's copy named as the program writes it
+            raise readable([e], program)[0] from None
         self.program = program
         self.decls = {ident(t.name): t for t in program.types}
         self.pous = {ident(p.name): p for p in program.pous}
@@ -297,6 +340,8 @@ class TypeTable:
         self.enum_values: dict[str, list[tuple[EnumT, int]]] = {}
         self.constants: dict[str, int] = {}  # integer constants for array bounds
         self._every_enum = False
+        self._depth = 0          # resolve() calls in progress
+        self._aliases: list[str] = []  # the type aliases being resolved, outermost first
 
     def enum_candidates(self, key: str):
         """(type, number) of each enumeration with a value ``key``; enumerations no
@@ -325,6 +370,9 @@ class TypeTable:
                 self.resolved[up] = t
                 self.structs.append(t)
                 base = self.named(decl.type.extends, decl.pos) if decl.type.extends else None
+                if base is not None and not isinstance(base, StructT):
+                    raise at(decl.pos, f"STRUCT {decl.name} EXTENDS {decl.type.extends}, "
+                                       "which is not a structure")
                 if base is not None:
                     t.members.update(base.members)
                     t.decls.extend(base.decls)
@@ -336,7 +384,16 @@ class TypeTable:
                 t = self._enum(decl.name, decl.type)
                 self.resolved[up] = t
                 return t
-            t = self.resolve(decl.type)
+            if up in self._aliases:
+                ring = [self.decls[k].name for k in self._aliases[self._aliases.index(up):]]
+                ring.append(decl.name)
+                raise at(decl.pos, f"type {decl.name} is defined in terms of itself "
+                                   f"({' > '.join(ring)})")
+            self._aliases.append(up)
+            try:
+                t = self.resolve(decl.type)
+            finally:
+                self._aliases.pop()
             self.resolved[up] = t
             return t
         if up in self.pous and self.pous[up].kind in ("FUNCTION_BLOCK", "PROGRAM"):
@@ -387,7 +444,11 @@ class TypeTable:
             return -self.const_int(e.operand)
         if isinstance(e, ir.Binary) and e.op in ("+", "-", "*"):
             a, b = self.const_int(e.left), self.const_int(e.right)
-            return a + b if e.op == "+" else a - b if e.op == "-" else a * b
+            v = a + b if e.op == "+" else a - b if e.op == "-" else a * b
+            if abs(v) > INT_LITERAL_MAX:   # before products of products grow without end
+                raise at(getattr(e, "pos", None), "constant expression out of range: "
+                                                  "larger than any integer type (64 bits)")
+            return v
         if isinstance(e, ir.Name):
             c = self.constants.get(ident(e.name))
             if c is not None:
@@ -395,6 +456,20 @@ class TypeTable:
         raise at(getattr(e, "pos", None), "expected a constant integer here")
 
     def resolve(self, tr, pos=None):
+        # types refer to types through pointers, which the type graph allows without
+        # bound: resolving them must stop before Python's recursion limit does
+        self._depth += 1
+        try:
+            if self._depth > MAX_RESOLVE_DEPTH:
+                raise at(getattr(tr, "pos", None) or pos,
+                         f"types refer to each other more than {MAX_RESOLVE_DEPTH} levels "
+                         "deep (through POINTER TO or REFERENCE TO): name fewer types in a "
+                         "row")
+            return self._resolve(tr, pos)
+        finally:
+            self._depth -= 1
+
+    def _resolve(self, tr, pos):
         if isinstance(tr, ir.NamedType):
             return self.named(tr.name, tr.pos or pos)
         if isinstance(tr, ir.StringType):
