@@ -34,7 +34,8 @@ from ..parser import ir
 from ..parser.names import ident
 from . import runtime as rtm
 from . import types
-from .compiler import WATCHDOG_ITERATIONS, CompileError, Compiled, compile_program
+from .compiler import (BIT_READ, WATCHDOG_ITERATIONS, CompileError, Compiled,
+                       compile_program)
 from .plant import CylinderPlant, valve_command
 from .sfc import ActionSpec, SfcRuntime, SfcSpec
 from .stdfb import TON, TOF, TP, TONR, make_standard_fb
@@ -1204,6 +1205,11 @@ class Sequencer:
                 if nxt is None:
                     break  # nothing will ever change again
                 t = max(t + scan, -(-nxt // scan) * scan)
+                if inst.every is not None:
+                    # a task that does not run at this scan sees the event (a timer's
+                    # PT, a step's time) only at its next run: no fixed point until
+                    # every program has run from here on
+                    k_change = t // scan - 1
         except PlcpredError:    # ours, with its own message (the plant's among them)
             raise
         except Exception as e:  # a fault inside the compiled program
@@ -1283,6 +1289,7 @@ class Sequencer:
 
 
 _WORD = re.compile(r"[A-Za-z_][A-Za-z_0-9]*")
+_BIT_AT_END = re.compile(r"\.\s*\d+\s*$")
 
 
 def observed_names(machine, program=None) -> frozenset:
@@ -1290,7 +1297,8 @@ def observed_names(machine, program=None) -> frozenset:
     inputs, the cycle signal; addresses through ``[signals]`` and the program's AT
     declarations): :func:`compile_program` keeps variables of these names in the state
     the executor compares, whatever the program does with them. A superset (``fbCyl[2].q``
-    gives FBCYL and Q) costs at most a repeat found later, never a wrong timeline."""
+    gives FBCYL and Q) costs at most a repeat found later, never a wrong timeline. A
+    variable read by its bits (``wCount.2``) is also named with BIT_READ after it."""
     if machine is None:
         return frozenset()
     signals = [s.signal for s in machine.inputs]
@@ -1311,7 +1319,10 @@ def observed_names(machine, program=None) -> frozenset:
                     addresses = program_addresses(program)
                 mapped = addresses.get(s.upper())
             s = mapped or ""
-        names.update(w.upper() for w in _WORD.findall(s))
+        words = [w.upper() for w in _WORD.findall(s)]
+        names.update(words)
+        if words and _BIT_AT_END.search(s):
+            names.add(words[-1] + BIT_READ)
     return frozenset(names)
 
 
