@@ -564,6 +564,10 @@ def build_parser() -> argparse.ArgumentParser:
     ap.add_argument("--version", action="version", version=f"plcpred {__version__}")
     ap.add_argument("--debug", action="store_true",
                     help="show the Python traceback of an internal error (any position)")
+    ap.add_argument("--allow-root", action="append", default=[], metavar="DIR",
+                    help="also read programs, libraries and project files from under DIR "
+                         "(repeatable, any position). By default only files under the "
+                         "machine file's folder (or the project's) are read")
     sub = ap.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
@@ -1068,6 +1072,27 @@ def _on_sigterm(signum, frame):
     raise Terminated()
 
 
+def _allowed_roots(argv: list[str]) -> tuple[list[str], list[str]]:
+    """``--allow-root DIR`` (or ``=DIR``) taken out wherever it stands, as ``--debug`` is:
+    it belongs to no one command. (argv without them, the folders)."""
+    rest, roots = [], []
+    it = iter(argv)
+    for a in it:
+        if a == "--":
+            rest += [a, *it]
+        elif a == "--allow-root":
+            root = next(it, None)
+            if root is None:
+                rest.append(a)              # argparse says what is missing
+            else:
+                roots.append(root)
+        elif a.startswith("--allow-root="):
+            roots.append(a.partition("=")[2])
+        else:
+            rest.append(a)
+    return rest, roots
+
+
 def main(argv=None) -> int:
     """Run one command. Exit codes: 0 ok, 1 a finding (invalid program, gate failed), 2 a
     usage or input error, 3 an internal error (a bug: one line; ``--debug`` shows the
@@ -1078,8 +1103,10 @@ def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
     argv = [a for a in argv if a != "--debug"]
+    argv, roots = _allowed_roots(argv)
     args = build_parser().parse_args(argv)
     args.argv = argv
+    args.allow_root = list(args.allow_root) + roots
     from .memory import use_large_malloc_thresholds
     use_large_malloc_thresholds()      # a third of a prediction's time otherwise (memory.py)
     try:
@@ -1087,7 +1114,9 @@ def main(argv=None) -> int:
     except ValueError:  # not the main thread (a library caller): leave signals alone
         previous = None
     try:
-        code = args.func(args)
+        from .parser.files import extra_roots
+        with extra_roots(args.allow_root):
+            code = args.func(args)
         sys.stdout.flush()
         return code
     except BrokenPipeError:

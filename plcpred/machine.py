@@ -172,13 +172,22 @@ class Machine:
     cycle_signal: str | None = None
     # declarations of vendor libraries the program uses (files or folders)
     library_paths: list[Path] = field(default_factory=list)
+    # the folders its program and libraries may be read from: the machine file's, and
+    # those the user allows (--allow-root); () for a machine made in code: the program's
+    # own folder
+    allowed_roots: tuple = ()
 
     def read_program(self, path=None):
-        """The machine's program (or the one at ``path``), with what it uses from its
-        libraries."""
+        """The machine's program (or the one at ``path``, which the user names: its
+        folder may be read too), with what it uses from its libraries."""
         from .parser import load_program
+        from .parser.files import resolved
+        roots = tuple(self.allowed_roots) or None
+        if path is not None and roots is not None:
+            own = resolved(Path(path))
+            roots += (own if own.is_dir() else own.parent,)
         return load_program(self.program_path if path is None else path,
-                            lib_dirs=self.library_paths)
+                            lib_dirs=self.library_paths, allowed_roots=roots)
 
     def consumer(self, name: str) -> Consumer:
         for c in self.consumers:
@@ -517,9 +526,53 @@ _PROGRAM_SUFFIXES = {".st", ".iecst", ".seq", ".xml", ".tcpou", ".tcgvl", ".tcdu
                      ".tctto", ".plcproj"}
 
 
-def load_machine(path) -> Machine:
-    """Read and validate a machine file. Raises :class:`MachineError`."""
-    return machine_from_data(read_machine_data(path), path)
+def load_machine(path, allowed_roots=None) -> Machine:
+    """Read and validate a machine file. Raises :class:`MachineError`. Its program and
+    libraries must be under its folder, or one of ``allowed_roots`` (see
+    :func:`machine_roots`)."""
+    return machine_from_data(read_machine_data(path), path, allowed_roots)
+
+
+MAX_MACHINE_BYTES = 16_000_000    # a machine file (a few kB in practice)
+
+
+def machine_roots(path, allowed_roots=None) -> tuple[Path, ...]:
+    """The folders a machine file's program and libraries may be in: the file's own
+    folder, the ``allowed_roots`` given (a command line's ``--allow-root``), and those of
+    the ``PLCPRED_ALLOW_ROOTS`` environment variable (os.pathsep-separated)."""
+    from .parser.files import env_roots, resolved
+    roots = [resolved(Path(path).parent)]
+    roots += [resolved(Path(r)) for r in allowed_roots or ()]
+    roots += env_roots()
+    return tuple(dict.fromkeys(roots))
+
+
+def _contained_path(r: "_Reader", key: str, value: str, path: Path, roots) -> Path:
+    """The path ``value`` of ``key`` (relative to the machine file's folder) resolved,
+    when it is a regular file (at most MAX_FILE_BYTES) or a folder under ``roots``; else
+    a MachineError naming the key (and the path, never what the file holds)."""
+    from .parser import files
+    shown = value if len(value) <= 200 else value[:200] + "..."
+    what = "program file" if key == "program" else "library"
+    if "\0" in value:
+        raise r.error(f"{key}: '{shown}' is not a path (it holds a NUL character)")
+    target = files.resolved(path.parent / value)
+    if not files.is_under(target, roots):
+        raise r.error(f"{key}: " + files.outside_message(value, roots))
+    try:
+        st = target.stat()
+    except (OSError, ValueError):
+        raise r.error(f"{what} '{shown}' not found (looked for {target})") from None
+    import stat as stat_module
+    if stat_module.S_ISDIR(st.st_mode):
+        return target
+    if not stat_module.S_ISREG(st.st_mode):
+        raise r.error(f"{key}: '{shown}' is not a regular file or a folder (a device, a "
+                      "pipe or a socket): plcpred reads programs and libraries from files")
+    if st.st_size > files.MAX_FILE_BYTES:
+        raise r.error(f"{key}: '{shown}' is {files.size_text(st.st_size)}; plcpred reads "
+                      f"files of at most {files.size_text(files.MAX_FILE_BYTES)}")
+    return target
 
 
 def read_machine_data(path) -> dict:
@@ -531,10 +584,15 @@ def read_machine_data(path) -> dict:
                                      "run a machine take its TOML machine file, which names "
                                      "the program (program = \"...\"); `plcpred check` reads "
                                      "programs")
+    from .parser import ProgramError
+    from .parser.files import read_bytes
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except OSError as e:
-        raise MachineError(file, "", f"cannot read file: {e.strerror}") from None
+        with _anywhere():
+            raw = read_bytes(path, MAX_MACHINE_BYTES)   # a regular file, bounded
+        # newlines as a text file reads them (\r\n and \r as \n)
+        data = tomllib.loads(raw.decode("utf-8").replace("\r\n", "\n").replace("\r", "\n"))
+    except ProgramError as e:
+        raise MachineError(file, "", e.message) from None
     except UnicodeDecodeError as e:
         raise MachineError(file, "", f"not UTF-8 text (byte {e.start}): TOML files are "
                                      "UTF-8") from None
@@ -545,10 +603,18 @@ def read_machine_data(path) -> dict:
     return data
 
 
-def machine_from_data(data: dict, path) -> Machine:
+def _anywhere():
+    """The machine file itself is named by the user: read from wherever it is."""
+    from .parser.files import confined_to
+    return confined_to(None)
+
+
+def machine_from_data(data: dict, path, allowed_roots=None) -> Machine:
     """Validate a machine file's TOML data (as read, or with a sweep's settings applied:
     both go through the same checks). ``path`` is where it came from: the program path
-    is relative to it and errors name it."""
+    is relative to it and errors name it. The program and libraries must be regular
+    files or folders under the file's folder or ``allowed_roots`` (:func:`machine_roots`),
+    reached without leaving them through ``..`` or a symbolic link."""
     path = Path(path)
     file = str(path)
     unknown = sorted(set(data) - {"machine", "signals", "input", "consumer", "meter", "line",
@@ -561,10 +627,12 @@ def machine_from_data(data: dict, path) -> Machine:
         raise MachineError(file, "", "missing the [machine] table")
     r = _Reader(file, "[machine]", data["machine"], _MACHINE_KEYS)
     program = r.string("program", required=True)
+    roots = machine_roots(path, allowed_roots)
     machine = Machine(
         name=r.string("name", path.stem),
         path=path,
-        program_path=(path.parent / program).resolve(),
+        program_path=_contained_path(r, "program", program, path, roots),
+        allowed_roots=roots,
         scan_ms=r.number("scan_ms", 10.0, positive=True),
         supply_bar_g=r.number("supply_bar_g", required=True, nonneg=True),
         atmosphere_kpa=r.number("atmosphere_kpa", 101.325, positive=True),
@@ -577,13 +645,10 @@ def machine_from_data(data: dict, path) -> Machine:
     libraries = data["machine"].get("libraries", [])
     if not isinstance(libraries, list) or not all(isinstance(x, str) and x for x in libraries):
         raise r.error('libraries must be a list of paths, like ["libs/MyLib/"]')
+    if len(libraries) > 100:
+        raise r.error(f"libraries: {len(libraries)} of them; at most 100")
     for lib in libraries:
-        machine.library_paths.append((path.parent / lib).resolve())
-        if not machine.library_paths[-1].exists():
-            raise r.error(f"library '{lib}' not found (looked for {machine.library_paths[-1]})")
-    if not machine.program_path.exists():
-        raise r.error(f"program file '{program}' not found (looked for "
-                      f"{machine.program_path})")
+        machine.library_paths.append(_contained_path(r, "libraries", lib, path, roots))
     signals = data.get("signals", {})
     if not isinstance(signals, dict) or not all(
             isinstance(v, str) and v and len(v) <= 255 and v.isprintable()
@@ -697,7 +762,7 @@ def check_against_program(machine: Machine, program) -> list[str]:
         if name.upper() in used_addresses:
             return name.upper()  # an address the code uses directly
         base, dot, bit = name.rpartition(".")
-        if dot and bit.isdigit() and base.upper() in names:
+        if dot and re.fullmatch(r"[0-9]+", bit) and base.upper() in names:
             name = base  # one bit of a WORD/BYTE variable
         if name.upper() not in names:
             # a path into a variable (aValve[3], fbCyl[2].q, PRG.stCell.xOut): its
@@ -772,5 +837,7 @@ def save_machine(data: dict, source: Machine, path, header: str = "") -> None:
     data["machine"]["program"] = near(source.program_path)
     if source.library_paths:
         data["machine"]["libraries"] = [near(p) for p in source.library_paths]
-    machine_from_data(data, path)
+    # where the source's program may be read from, the written file's may too (a file
+    # written outside the source's folder then needs --allow-root to be read again)
+    machine_from_data(data, path, source.allowed_roots)
     atomic_write_text(path, dump_machine_toml(data, header))

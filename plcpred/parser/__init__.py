@@ -15,8 +15,8 @@ __all__ = ["ir", "ProgramError", "ProgramWarning", "parse_st", "load_program"]
 DIALECTS = ("auto", "iec", "bnr")
 
 
-def load_program(path, libraries: bool = True, lib_dirs=(), dialect: str = "auto"
-                 ) -> "ir.Program":
+def load_program(path, libraries: bool = True, lib_dirs=(), dialect: str = "auto",
+                 allowed_roots=None) -> "ir.Program":
     """Read and parse a program: an ST file (``.st``, also ``.iecst``, ``.txt``), a
     ``.seq`` chart, a PLCopen ``.xml`` export, a TwinCAT 3 object file (``.TcPOU``,
     ``.TcGVL``, ``.TcDUT``, ``.TcIO``, ``.TcTTO``), or a whole project: a TwinCAT
@@ -27,14 +27,30 @@ def load_program(path, libraries: bool = True, lib_dirs=(), dialect: str = "auto
     and declarations under ``lib_dirs``) is added to it (see :mod:`.libraries`).
     ``dialect`` settles what vendors read differently: "auto" tells a B&R Automation
     Studio program by its files (``.var``/``.typ``/``.fun``, ``PROGRAM _CYCLIC``), "bnr"
-    reads ST the B&R way (``Act;`` calls an action), "iec" never does."""
+    reads ST the B&R way (``Act;`` calls an action), "iec" never does.
+
+    Files are read only from under ``allowed_roots`` (folders; a machine file's, see
+    :mod:`.files`): the program, what its project lists, the libraries. None (a path the
+    user gave on the command line): from under the program's own folder (the folder
+    itself, or the one holding the file), each library from under its own, and the
+    folders ``PLCPRED_ALLOW_ROOTS`` allows (--allow-root). Only regular files of at most
+    :data:`.files.MAX_FILE_BYTES` are read."""
+    from pathlib import Path
+
+    from .files import confined_to, env_roots, resolved
     if dialect not in DIALECTS:
         raise ValueError(f"dialect must be one of {', '.join(DIALECTS)}, not {dialect!r}")
-    program = _load(path, dialect)
+    p = Path(path)
+    roots = allowed_roots
+    if roots is None:
+        own = resolved(p)
+        roots = (own if p.is_dir() else own.parent,) + env_roots()
+    with confined_to(roots):
+        program = _load(p, dialect)
     if not libraries:
         return program
     from .libraries import library_program
-    return program.merge(library_program([program], lib_dirs))
+    return program.merge(library_program([program], lib_dirs, allowed_roots=allowed_roots))
 
 
 def _load(path, dialect: str = "auto") -> "ir.Program":
@@ -69,9 +85,10 @@ def _load(path, dialect: str = "auto") -> "ir.Program":
         has_cyclic(text) or (dialect == "bnr" and only_actions(text))))
     if dialect != "iec" and part_of_folder:
         # one file of a B&R program: the program is its folder
+        from .files import listing
         folder = p.parent
-        files = sorted(f for f in folder.iterdir() if f.is_file()
-                       and f.suffix.lower() in BNR_SUFFIXES + (".st",))
+        files = [f for f in listing(folder, depth=0)
+                 if f.suffix.lower() in BNR_SUFFIXES + (".st",)]
         return load_bnr(folder, files, twincat.read_source)
     kind = _sniff(text) or p.suffix.lower()
     if kind == ".seq":

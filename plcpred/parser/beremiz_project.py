@@ -13,10 +13,14 @@ Anything else an extension generates (C code, Python) does not run in plcpred.
 """
 from __future__ import annotations
 
+import os
+import re
 from pathlib import Path
 
 from . import ir
 from .errors import ProgramError
+from . import files
+from .files import read_source
 from .plcopen import _El, _Importer, _parse_xml
 
 _VARIABLE_FILES = {"py_ext": ("pyfile.xml", "PyFile"), "c_ext": ("cfile.xml", "CFile")}
@@ -30,7 +34,7 @@ def confnode_globals(folder: Path) -> list[ir.GlobalVars]:
     """The globals the extensions of the Beremiz project in ``folder`` declare (one
     block per extension, in the folder's order)."""
     blocks = []
-    for node in sorted(p for p in folder.iterdir() if p.is_dir() and "@" in p.name):
+    for node in _extensions(folder):
         kind = node.name.rsplit("@", 1)[1]
         decls: list[ir.VarDecl] = []
         if kind in _VARIABLE_FILES:
@@ -50,8 +54,26 @@ def confnode_globals(folder: Path) -> list[ir.GlobalVars]:
     return blocks
 
 
+def _extensions(folder: Path) -> list[Path]:
+    """The extension folders (``NAME@KIND``) of the project in ``folder``, in name order
+    (at most :data:`.files.MAX_FOLDER_ENTRIES` entries looked at)."""
+    out = []
+    try:
+        with os.scandir(folder) as entries:
+            for n, e in enumerate(entries):
+                if n >= files.MAX_FOLDER_ENTRIES:
+                    raise ProgramError(f"the folder holds more than {files.MAX_FOLDER_ENTRIES} "
+                                       "files and folders, more than plcpred looks through",
+                                       str(folder), 0, 0)
+                if "@" in e.name and e.is_dir(follow_symlinks=False):
+                    out.append(Path(e.path))
+    except OSError as e:
+        raise ProgramError(f"cannot read folder: {e.strerror}", str(folder), 0, 0) from None
+    return sorted(out)
+
+
 def _read(path: Path, root: str) -> tuple[_El, _Importer]:
-    text = path.read_text(encoding="utf-8", errors="replace")
+    text = read_source(path)    # a regular file, bounded, under the load's folders
     return _parse_xml(text, str(path), root, f"a Beremiz {root} file"), _Importer(str(path))
 
 
@@ -79,4 +101,5 @@ def _channel(node: Path) -> str | None:
     except ProgramError:
         return None
     channel = el.attrib.get("IEC_Channel", "")
-    return channel if channel.isdigit() else None
+    # ASCII digits only: '²'.isdigit() is true, and the name must be an identifier
+    return channel if re.fullmatch(r"[0-9]{1,9}", channel) else None

@@ -117,18 +117,33 @@ def shipped_declaring(name: str):
             yield from _shipped_file(file)
 
 
-def user_libraries(paths) -> list[Library]:
+def user_libraries(paths, allowed_roots=None) -> list[Library]:
     """Libraries from files or folders the user names; the namespace is the file's or
     folder's name (a .plcproj's stem). Each is read once while its files stay as they
-    are (a check of many files against one library project reads it once)."""
-    return [_user_library(Path(p).resolve(), _stamp(Path(p))) for p in paths]
+    are (a check of many files against one library project reads it once).
+
+    Its files are read only from under ``allowed_roots`` (a machine file's folders), or
+    with None (a library named on the command line), from under its own folder and those
+    ``PLCPRED_ALLOW_ROOTS`` allows."""
+    from .files import env_roots, resolved
+    out = []
+    for p in paths:
+        path = resolved(Path(p))
+        if allowed_roots is None:
+            roots = (path if path.is_dir() else path.parent,) + env_roots()
+        else:
+            roots = tuple(resolved(Path(r)) for r in allowed_roots)
+        out.append(_user_library(path, _stamp(path, roots), roots))
+    return out
 
 
-def _stamp(path: Path) -> tuple:
-    """What changes when a library's files change: their names, sizes and times."""
+def _stamp(path: Path, roots) -> tuple:
+    """What changes when a library's files change: their names, sizes and times (a
+    folder walked as :func:`.files.listing` bounds it)."""
+    from .files import confined_to, listing
     folder = path.parent if path.suffix.lower() == ".plcproj" else path
-    files = [path] if folder.is_file() else sorted(f for f in folder.rglob("*")
-                                                   if f.is_file())
+    with confined_to(roots):
+        files = [path] if folder.is_file() else listing(folder)
     try:
         return tuple((str(f), f.stat().st_size, f.stat().st_mtime_ns) for f in files)
     except OSError:
@@ -136,26 +151,28 @@ def _stamp(path: Path) -> tuple:
 
 
 @functools.lru_cache(maxsize=16)
-def _user_library(path: Path, _stamp: tuple) -> Library:
+def _user_library(path: Path, _stamp: tuple, roots: tuple = ()) -> Library:
     """One library the user names. A library project (a folder or .plcproj) is read
     file by file when one of its files cannot be read: the rest still declares what it
     declares, and the files left out are named where a name is missing
     (:func:`unread_library_files`)."""
     from . import _load, load_program
     from .errors import ProgramError
+    from .files import confined_to
     from .twincat import project_files
     namespace = path.stem or path.name
     try:
-        return _library(load_program(path, libraries=False), namespace)
+        return _library(load_program(path, libraries=False, allowed_roots=roots), namespace)
     except ProgramError:
         if not (path.is_dir() or path.suffix.lower() == ".plcproj"):
             raise
     read, unread = [], []
-    for f in project_files(path):
-        try:
-            read.append(_load(f))
-        except ProgramError as e:
-            unread.append(str(e))
+    with confined_to(roots):
+        for f in project_files(path):
+            try:
+                read.append(_load(f))
+            except ProgramError as e:
+                unread.append(str(e))
     program = functools.reduce(ir.Program.merge, read) if read else ir.Program()
     lib = _library(program, namespace)
     lib.unread = unread
@@ -332,10 +349,12 @@ def _defined(programs) -> set[tuple[str, str]]:
     return out
 
 
-def library_program(programs: list[ir.Program], paths=()) -> ir.Program:
+def library_program(programs: list[ir.Program], paths=(), allowed_roots=None
+                    ) -> ir.Program:
     """What ``programs`` use from the libraries (user libraries first, then the shipped
-    stubs), as one Program; library qualifiers in ``programs`` are dropped."""
-    users = user_libraries(paths)
+    stubs), as one Program; library qualifiers in ``programs`` are dropped. The user's
+    libraries are read from under ``allowed_roots`` (see :func:`user_libraries`)."""
+    users = user_libraries(paths, allowed_roots)
     namespaces = {lib.namespace for lib in users} | BUILTIN_NAMESPACES | shipped_namespaces()
     for p in programs:
         strip_namespaces(p, namespaces)

@@ -34,6 +34,7 @@ _POU_KINDS = {"program": "PROGRAM", "functionBlock": "FUNCTION_BLOCK", "function
 _XSD_DURATION = re.compile(r"P(?:(?P<d>\d+(?:\.\d+)?)D)?T?(?:(?P<h>\d+(?:\.\d+)?)H)?"
                            r"(?:(?P<m>\d+(?:\.\d+)?)M)?(?:(?P<s>\d+(?:\.\d+)?)S)?")
 _CLOCK = re.compile(r"(?P<d>)(?P<h>\d{1,2}):(?P<m>\d{1,2}):(?P<s>\d{1,2}(?:\.\d+)?)")
+_WHOLE = re.compile(r"[+-]?[0-9]{1,12}")   # ASCII digits: int() refuses '²', isdigit() not
 MAX_XML_DEPTH = 500  # a PLCopen file nests about 12 deep; FBD/LD layouts a few more
 
 
@@ -79,7 +80,15 @@ class _El:
 
 def _parse_xml(text: str, filename: str, root: str = "project",
                what: str = "a PLCopen XML file") -> _El:
-    parser = expat.ParserCreate()
+    """The element tree of ``text``: a str is already decoded (its XML declaration's
+    encoding is not applied again), bytes are decoded as a file is (:func:`.files.decode`:
+    byte order mark, declaration)."""
+    if isinstance(text, (bytes, bytearray)):
+        from .files import decode
+        text = decode(bytes(text), filename)
+    # the encoding given here overrides the document's: the declaration (ISO-8859-1,
+    # UTF-16) says what the file's bytes were, not what the str's UTF-8 encoding is
+    parser = expat.ParserCreate("UTF-8")
     root_holder: list[_El] = []
     stack: list[_El] = []
 
@@ -121,7 +130,7 @@ def _parse_xml(text: str, filename: str, root: str = "project",
     parser.CharacterDataHandler = chars
     parser.buffer_text = False  # with buffering, positions are those of the run's end
     try:
-        parser.Parse(text.encode("utf-8") if isinstance(text, str) else text, True)
+        parser.Parse(text.encode("utf-8", "surrogatepass"), True)
     except expat.ExpatError as e:
         raise ProgramError(f"not well-formed XML: {expat.ErrorString(e.code)}", filename,
                            e.lineno, e.offset + 1) from None
@@ -182,7 +191,7 @@ class _Importer:
         text = (el.attrib.get(name) or "").strip()
         if not text:
             return default
-        if not text.lstrip("+-").isdigit() or not low <= int(text) <= high:
+        if not _WHOLE.fullmatch(text) or not low <= int(text) <= high:
             raise self.error(el, f"<{el.tag}> attribute {name}={text[:40]!r}: expected a "
                                  f"whole number {low}..{high}")
         return int(text)
@@ -256,6 +265,8 @@ class _Importer:
             return ir.PointerType(self.type_of(t.find("baseType"), t))
         if tag in ("subrangeSigned", "subrangeUnsigned"):
             rng = t.find("range")
+            if rng is None:
+                raise self.error(t, f"<{tag}> needs a <range lower=... upper=...> element")
             base = self.type_of(t.find("baseType"), t)
             return ir.SubrangeType(base.name, self.value_text(rng, self.req(rng, "lower")),
                                    self.value_text(rng, self.req(rng, "upper")))

@@ -18,6 +18,7 @@ front end reads is read here too.
 """
 from __future__ import annotations
 
+import hashlib
 import os
 import re
 from pathlib import Path
@@ -75,10 +76,14 @@ class _Stitch:
 
 
 class _Importer:
-    def __init__(self, filename: str):
+    def __init__(self, filename: str, text: str = ""):
         self.file = filename
         self.gvl_names: list[str] = []
         self.opaque: list[ir.Opaque] = []
+        # the markers of graphical bodies carry a digest of the file, which its own text
+        # cannot hold (a file's ``{{#0}}`` is its own inline code, not one of them)
+        data = text if isinstance(text, bytes) else text.encode("utf-8", "surrogatepass")
+        self.nonce = hashlib.sha256(data).hexdigest()[:24]
 
     def error(self, el: _El, message: str) -> ProgramError:
         return ProgramError(message, self.file, el.line, el.col)
@@ -112,7 +117,7 @@ class _Importer:
                 return
             # any other language: a marker parsed as an inline-code statement, swapped
             # for the Opaque after
-            marker = f"{{{{#{len(self.opaque)}}}}}"
+            marker = f"{{{{#{self.nonce}:{len(self.opaque)}}}}}"
             self.opaque.append(ir.Opaque(f"the {lang.tag} body of {what}",
                                          pos=ir.Pos(self.file, lang.line, lang.col)))
             out.place(marker, lang.line, lang.col)
@@ -172,7 +177,7 @@ class _Importer:
         cycle = el.find("CycleTime")
         if cycle is not None:
             text = cycle.all_text()[0].strip()
-            if not text.isdigit() or not 0 < int(text) <= 3_600_000_000:
+            if not re.fullmatch(r"[0-9]{1,10}", text) or not 0 < int(text) <= 3_600_000_000:
                 raise self.error(cycle, f"<CycleTime> {text[:40]!r}: expected a whole number "
                                         "of microseconds, 1..3600000000")
             params["INTERVAL"] = ir.Literal(int(text) * 1000, "TIME", pos=pos)
@@ -215,18 +220,21 @@ class _Importer:
             for g in prog.globals:
                 g.name = self.gvl_names[0]
         if self.opaque:
-            _replace_markers(prog, self.opaque)
+            _replace_markers(prog, {f"#{self.nonce}:{k}": op
+                                    for k, op in enumerate(self.opaque)})
         return prog
 
 
-def _replace_markers(prog: ir.Program, opaque: list[ir.Opaque]) -> None:
-    """Swap the parsed ``{{#k}}`` marker statements for the Opaque nodes they stand for."""
+def _replace_markers(prog: ir.Program, opaque: dict[str, ir.Opaque]) -> None:
+    """Swap the parsed ``{{#nonce:k}}`` marker statements for the Opaque nodes they stand
+    for (``opaque``: by the marker's text). Inline code the file holds itself, whatever
+    it says, stays what it is."""
     def fix(body):
         if not isinstance(body, list):
             return
         for i, s in enumerate(body):
-            if isinstance(s, ir.Opaque) and s.text.startswith("#") and s.text[1:].isdigit():
-                body[i] = opaque[int(s.text[1:])]
+            if isinstance(s, ir.Opaque) and s.text in opaque:
+                body[i] = opaque[s.text]
 
     for pou in prog.pous:
         fix(pou.body)
@@ -243,7 +251,7 @@ def parse_twincat(text: str, filename: str = "<input>") -> ir.Program:
     """Import one TwinCAT 3 object file (``.TcPOU``, ``.TcGVL``, ``.TcDUT``, ``.TcIO``,
     ``.TcTTO``) into the IR."""
     root = _parse_xml(text, filename, "TcPlcObject", "a TwinCAT 3 object file")
-    return validate_names(_Importer(filename).object_file(root))
+    return validate_names(_Importer(filename, text).object_file(root))
 
 
 # --------------------------------------------------------------------------- projects
@@ -254,9 +262,15 @@ def project_files(path: Path, missing: list | None = None) -> list[Path]:
     object and ST file under it (sorted). A file the ``.plcproj`` lists that is not there
     (left out of source control) is left out and added to ``missing`` as (file, where the
     .plcproj lists it): the project still loads, and a name it would have declared is
-    then reported with it."""
+    then reported with it.
+
+    A folder is walked as :func:`.files.listing` bounds it. A listed file must be under
+    the folders the load may read (:func:`.files.confined_to`; when none are set, the
+    .plcproj's own folder), reached without leaving them through ``..`` or a link."""
+    from .files import current_roots, is_under, listing, outside_message, resolved
     if path.is_dir():
-        projects = sorted(p for p in path.rglob("*") if p.suffix.lower() == ".plcproj")
+        found = listing(path)
+        projects = [p for p in found if p.suffix.lower() == ".plcproj"]
         if len(projects) > 1:
             listed = ", ".join(str(p.relative_to(path)) for p in projects[:5])
             raise ProgramError(f"the folder holds {len(projects)} PLC projects ({listed}"
@@ -265,23 +279,32 @@ def project_files(path: Path, missing: list | None = None) -> list[Path]:
         if projects:
             return project_files(projects[0], missing)
         from .bnr import BNR_SUFFIXES
-        files = sorted(p for p in path.rglob("*") if p.is_file()
-                       and p.suffix.lower() in OBJECT_SUFFIXES + _ST_SUFFIXES + BNR_SUFFIXES)
+        files = [p for p in found
+                 if p.suffix.lower() in OBJECT_SUFFIXES + _ST_SUFFIXES + BNR_SUFFIXES]
         if not files:
             raise ProgramError("the folder holds no program files (.TcPOU, .TcGVL, .TcDUT, "
                                ".TcIO, .TcTTO, .st; B&R .var, .typ, .fun)", str(path), 0, 0)
         return files
     root = _parse_xml(read_source(path), str(path), "Project", "a TwinCAT .plcproj file")
+    roots = current_roots() or (resolved(path).parent,)
     files = []
     for group in root.findall("ItemGroup"):
         for item in group.findall("Compile"):
             include = item.attrib.get("Include", "").replace("\\", "/")
             if Path(include).suffix.lower() not in OBJECT_SUFFIXES + _ST_SUFFIXES:
                 continue
+            if "\0" in include or os.path.isabs(include) or re.match(r"[A-Za-z]:", include):
+                raise ProgramError(f"<Compile Include={include[:200]!r}>: a project's files "
+                                   "are named relative to its .plcproj, not by an absolute "
+                                   "path", str(path), item.line, item.col)
             target = Path(os.path.normpath(path.parent / include))
+            if not is_under(target, roots):
+                raise ProgramError(f"<Compile Include={include[:200]!r}>: "
+                                   + outside_message(None, roots), str(path),
+                                   item.line, item.col)
             if not target.is_file():
                 if missing is None:
-                    raise ProgramError(f"<Compile Include={include!r}>: file not found",
+                    raise ProgramError(f"<Compile Include={include[:200]!r}>: file not found",
                                        str(path), item.line, item.col)
                 missing.append((include, ir.Pos(str(path), item.line, item.col)))
                 continue
@@ -292,8 +315,9 @@ def project_files(path: Path, missing: list | None = None) -> list[Path]:
 def project_references(path: Path) -> list[str]:
     """The namespaces of the libraries a project references (its .plcproj's
     PlaceholderReference and LibraryReference items), for naming the ones not at hand."""
+    from .files import listing
     if path.is_dir():
-        projects = [p for p in path.rglob("*") if p.suffix.lower() == ".plcproj"]
+        projects = [p for p in listing(path) if p.suffix.lower() == ".plcproj"]
         if len(projects) != 1:
             return []
         path = projects[0]
@@ -313,10 +337,9 @@ def project_references(path: Path) -> list[str]:
 
 
 def read_source(path: Path) -> str:
-    """A program file's text: UTF-8 (a BOM dropped), else Latin-1 as older tools write it."""
-    try:
-        return path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError:
-        return path.read_text(encoding="latin-1")
-    except OSError as e:
-        raise ProgramError(f"cannot read file: {e.strerror}", str(path), 0, 0) from None
+    """A program file's text: by its byte order mark (UTF-8, UTF-16, UTF-32), else its XML
+    declaration's encoding, else UTF-8, and Latin-1 where that fails, as older tools
+    write. Only a regular file of at most :data:`.files.MAX_FILE_BYTES` is read, and
+    while a load is confined (:func:`.files.confined_to`), only one under its folders."""
+    from .files import read_source as read
+    return read(path)
