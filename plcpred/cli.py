@@ -1024,8 +1024,8 @@ def cmd_diagnose(args) -> int:
         if "columns_guessed" in r.source:
             print(f"note: {r.name}: {r.source['columns_guessed']} (name them with "
                   "--time-col, --flow-col and --flow-unit if not)", file=sys.stderr)
-    io = [read_io_timeline(p, horizon_s=r.span_s) for p, r in zip(args.io, runs)] \
-        if args.io else None
+    io = [read_io_timeline(p, horizon_s=r.span_s, machine=machine)
+          for p, r in zip(args.io, runs)] if args.io else None
     d = diagnose(machine, runs, io=io, offsets=args.offset, max_offset_s=args.max_offset,
                  effects=effects, program=args.program, dynamic=not args.no_plant)
     if args.write_machine:

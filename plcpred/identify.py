@@ -46,6 +46,17 @@ class IdentifyError(PlcpredError):
     pass
 
 
+class _OverBudget(Exception):
+    """The tank model's evaluations ran past MAX_TANK_EVALUATIONS."""
+
+
+# right-hand-side evaluations of one tank curve (a curve takes a few hundred; an absurd
+# one, a C far too large for its time steps, would take without end)
+MAX_TANK_EVALUATIONS = 100_000
+VOLUME_L = (1e-4, 1e6)           # a test tank's volume, litres
+MAX_PRESSURE_PA = 1e8            # 1000 bar
+
+
 @dataclass
 class FlowFit:
     """Identified D2 parameters with 95 % half-widths."""
@@ -73,12 +84,14 @@ class FlowData:
     p_down_pa: np.ndarray
     flow_l_min: np.ndarray
     t_up_k: np.ndarray
+    path: str = ""          # the file it was read from (for errors)
 
 
 @dataclass
 class TankData:
     time_s: np.ndarray
     p_pa: np.ndarray
+    path: str = ""
 
 
 def _pressure(row_get, stem, atm_pa, default=None):
@@ -90,41 +103,78 @@ def _pressure(row_get, stem, atm_pa, default=None):
     return default
 
 
+# Limits of the data read (inputs are untrusted): points, and what each column may hold
+# (wider than any test bench; they catch unit mix-ups and numbers that would overflow)
+MAX_POINTS = 200_000
+COLUMN_RANGES = {"flow_l_min": (-1e8, 1e8), "_bar_g": (-1.0, 1e3), "_bar": (0.0, 1e3),
+                 "_kpa": (0.0, 1e5), "t_up_c": (-100.0, 500.0), "time_s": (-1e7, 1e7)}
+TEMPERATURE_C = (-100.0, 500.0)
+
+
+def _column_range(name: str) -> tuple[float, float] | None:
+    if name in COLUMN_RANGES:
+        return COLUMN_RANGES[name]
+    for stem in ("p_up", "p_down", "p"):
+        for suffix in ("_bar_g", "_bar", "_kpa"):
+            if name == stem + suffix:
+                return COLUMN_RANGES[suffix]
+    return None
+
+
 def read_flow_data(path, atmosphere_kpa: float = 101.325, temperature_c: float = 20.0):
     """Steady-flow or tank data from a CSV (see the module note). Errors name the file,
-    line and column."""
+    line and column. The file is read a line at a time: at most MAX_POINTS rows, each
+    value of a known column within COLUMN_RANGES."""
+    from .diagnose.io import _Lines
+
     path = Path(path)
     atm = atmosphere_kpa * 1e3
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except OSError as e:
-        raise IdentifyError(f"{path}: cannot read: {e.strerror}") from None
-    except UnicodeDecodeError:
-        raise IdentifyError(f"{path}: not UTF-8 text") from None
-    rows = list(csv.reader(line for line in text.splitlines() if line.strip()
-                           and not line.lstrip().startswith("#")))
-    if len(rows) < 2:
-        raise IdentifyError(f"{path}: needs a header and data rows")
-    header = [h.strip().lower() for h in rows[0]]
-    col = {h: i for i, h in enumerate(header)}
-    values: list[dict] = []
-    for k, row in enumerate(rows[1:], start=2):
-        parsed = {}
-        for name, i in col.items():
-            if i >= len(row) or not row[i].strip():
+    if not (math.isfinite(temperature_c) and
+            TEMPERATURE_C[0] <= temperature_c <= TEMPERATURE_C[1]):
+        raise IdentifyError(f"the temperature {temperature_c:g} C is outside "
+                            f"{TEMPERATURE_C[0]:g} to {TEMPERATURE_C[1]:g} C")
+    header: list[str] | None = None
+    col: dict[str, int] = {}
+    ranges: dict[str, tuple[float, float] | None] = {}
+    values: list[tuple[int, dict]] = []     # (line, column -> value)
+    with _Lines(path, extra=0, error=IdentifyError) as lines:
+        for k, line in enumerate(lines, start=1):
+            if not line.strip() or line.lstrip().startswith("#"):
                 continue
             try:
-                v = float(row[i])
-            except ValueError:
-                raise IdentifyError(f"{path}:{k}:{i + 1}: {name}: not a number: "
-                                    f"{row[i]!r}") from None
-            if not math.isfinite(v):
-                raise IdentifyError(f"{path}:{k}:{i + 1}: {name}: not a finite number")
-            parsed[name] = v
-        values.append(parsed)
+                row = next(csv.reader([line]))
+            except csv.Error as e:
+                raise IdentifyError(f"{path}:{k}: not CSV: {e}") from None
+            if header is None:
+                header = [h.strip().lower() for h in row]
+                col = {h: i for i, h in enumerate(header)}
+                ranges = {h: _column_range(h) for h in col}
+                continue
+            if len(values) >= MAX_POINTS:
+                raise IdentifyError(f"{path}:{k}: more than {MAX_POINTS:,} data rows")
+            parsed = {}
+            for name, i in col.items():
+                if i >= len(row) or not row[i].strip():
+                    continue
+                try:
+                    v = float(row[i])
+                except ValueError:
+                    raise IdentifyError(f"{path}:{k}:{i + 1}: {name}: not a number: "
+                                        f"{row[i][:40]!r}") from None
+                if not math.isfinite(v):
+                    raise IdentifyError(f"{path}:{k}:{i + 1}: {name}: not a finite number")
+                lo_hi = ranges[name]
+                if lo_hi is not None and not lo_hi[0] <= v <= lo_hi[1]:
+                    raise IdentifyError(f"{path}:{k}:{i + 1}: {name}: {row[i].strip()[:40]} "
+                                        f"is outside {lo_hi[0]:g} to {lo_hi[1]:g} (a unit "
+                                        "mix-up?)")
+                parsed[name] = v
+            values.append((k, parsed))
+    if header is None or not values:
+        raise IdentifyError(f"{path}: needs a header and data rows")
     if "flow_l_min" in col:
         pu, pd, q, tk = [], [], [], []
-        for k, v in enumerate(values, start=2):
+        for k, v in values:
             p_up = _pressure(v.get, "p_up", atm)
             if p_up is None or "flow_l_min" not in v:
                 raise IdentifyError(f"{path}:{k}: needs p_up_bar_g (or p_up_bar, "
@@ -136,22 +186,51 @@ def read_flow_data(path, atmosphere_kpa: float = 101.325, temperature_c: float =
             pd.append(p_down)
             q.append(v["flow_l_min"])
             tk.append(v.get("t_up_c", temperature_c) + 273.15)
-        return FlowData(*(np.array(x) for x in (pu, pd, q, tk)))
+        return FlowData(*(np.array(x) for x in (pu, pd, q, tk)), path=str(path))
     if "time_s" in col:
         t, p = [], []
-        for k, v in enumerate(values, start=2):
+        for k, v in values:
             pk = _pressure(v.get, "p", atm)
             if pk is None or "time_s" not in v:
                 raise IdentifyError(f"{path}:{k}: needs time_s and p_bar_g (or p_bar, p_kpa)")
+            if pk <= 0:
+                raise IdentifyError(f"{path}:{k}: the pressure must be above absolute zero")
             t.append(v["time_s"])
             p.append(pk)
         t, p = np.array(t), np.array(p)
         if np.any(np.diff(t) <= 0):
             raise IdentifyError(f"{path}: time_s must increase")
-        return TankData(t, p)
+        return TankData(t, p, path=str(path))
     raise IdentifyError(f"{path}: columns {', '.join(header)}: expected steady-flow data "
                         "(p_up_bar_g, p_down_bar_g, flow_l_min) or a tank's pressure "
                         "(time_s, p_bar_g)")
+
+
+# what an identified component may be (the machine file's ranges for a nozzle or leak)
+C_RANGE = (1e-15, 1e-3)          # m^3/(s Pa)
+
+
+def _source(data, what: str) -> str:
+    return f"{data.path}: {what}" if getattr(data, "path", "") else what
+
+
+def _checked(fit: FlowFit, what: str, check: str = "the flow and pressure units") -> FlowFit:
+    """``fit`` if its parameters are finite and a component can have them, else an
+    IdentifyError saying the data do not describe one."""
+    values = {"C": fit.C, "b": fit.b, "m": fit.m, "a": fit.a, "rms": fit.rms}
+    bad = [k for k, v in values.items() if not math.isfinite(v)]
+    if bad:
+        raise IdentifyError(f"{what}: the fit gives no finite {', '.join(bad)}: the data do "
+                            f"not describe a pneumatic component (check {check})")
+    if not C_RANGE[0] <= fit.C <= C_RANGE[1]:
+        raise IdentifyError(f"{what}: the fitted C of {fit.C:.3g} m^3/(s Pa) is outside "
+                            f"{C_RANGE[0]:g} to {C_RANGE[1]:g}, what a machine file takes: "
+                            f"check {check}")
+    if not (-1.0 < fit.b < 1.0 and 0.0 < fit.m <= 10.0 and 0.0 < fit.a <= 1.0):
+        raise IdentifyError(f"{what}: the fitted b {fit.b:.3g}, m {fit.m:.3g}, a "
+                            f"{fit.a:.3g} are outside -1 < b < 1, 0 < m <= 10, 0 < a <= 1: "
+                            f"the data do not describe a pneumatic component (check {check})")
+    return fit
 
 
 # ---------------------------------------------------------------------- steady flow
@@ -229,7 +308,8 @@ def identify_steady(data: FlowData, method: str = "improved", fit_a: bool = Fals
             else math.inf
         fitted = C * scale * phi(r, b, 0.5)
         rms = float(np.sqrt(np.mean((fitted - q_m3_s) ** 2))) * 60_000.0
-        return FlowFit(C, b, 0.5, 1.0, {"C": C_ci, "b": b_ci}, "iso6358", n, rms)
+        return _checked(FlowFit(C, b, 0.5, 1.0, {"C": C_ci, "b": b_ci}, "iso6358", n, rms),
+                        _source(data, "steady flow (iso6358)"))
     # improved: b, m (a) on the flow ratio against the pressure ratio
     lo2 = [-0.5, 0.1] + ([0.5] if fit_a else [])
     hi2 = [0.95, 3.0] + ([1.0] if fit_a else [])
@@ -252,7 +332,8 @@ def identify_steady(data: FlowData, method: str = "improved", fit_a: bool = Fals
     out = {"C": C_ci, "b": ci[0], "m": ci[1]}
     if fit_a:
         out["a"] = ci[2]
-    return FlowFit(C, b, m, a, out, "improved", n, rms)
+    return _checked(FlowFit(C, b, m, a, out, "improved", n, rms),
+                    _source(data, "steady flow"))
 
 
 # ---------------------------------------------------------------------- tank
@@ -264,16 +345,30 @@ def tank_pressure_pa(time_s, p_start_pa, C, b, m, volume_m3, mode="discharge",
     from scipy.integrate import solve_ivp
 
     k = R_J_KG_K * temperature_k / volume_m3 * RHO0_KG_M3 * C * math.sqrt(T0_K / temperature_k)
+    calls = [0]
 
     def rate(t, p):
+        calls[0] += 1
+        if calls[0] > MAX_TANK_EVALUATIONS:
+            raise _OverBudget()
         if mode == "discharge":
             r = atmosphere_pa / p[0]
             return [-k * p[0] * float(phi(r, b, m, a))] if r < 1 else [0.0]
         r = p[0] / supply_pa
         return [k * supply_pa * float(phi(r, b, m, a))] if r < 1 else [0.0]
     t = np.asarray(time_s, dtype=float)
-    sol = solve_ivp(rate, (t[0], t[-1]), [p_start_pa], t_eval=t, method="LSODA",
-                    rtol=1e-8, atol=1.0)
+    try:
+        sol = solve_ivp(rate, (t[0], t[-1]), [p_start_pa], t_eval=t, method="LSODA",
+                        rtol=1e-8, atol=1.0)
+    except _OverBudget:
+        raise IdentifyError(
+            f"the tank model needs more than {MAX_TANK_EVALUATIONS:,} steps for this curve "
+            f"(C {C:.3g} m^3/(s Pa) emptying {volume_m3 * 1000:g} l over "
+            f"{t[-1] - t[0]:.3g} s): check time_s (seconds), the pressures' unit and "
+            "--volume-l") from None
+    if sol.status < 0 or sol.y.shape[1] != len(t):
+        raise IdentifyError(f"the tank model cannot follow this curve ({sol.message}): "
+                            "check time_s (seconds), the pressures' unit and --volume-l")
     return sol.y[0]
 
 
@@ -289,12 +384,29 @@ def identify_tank(data: TankData, volume_l: float, mode: str = "discharge",
         raise IdentifyError("a charge needs the supply pressure (--supply-bar-g)")
     if len(data.time_s) < 6:
         raise IdentifyError("a tank curve needs at least 6 points")
+    if not (math.isfinite(volume_l) and VOLUME_L[0] <= volume_l <= VOLUME_L[1]):
+        raise IdentifyError(f"the tank's volume {volume_l:g} l is outside {VOLUME_L[0]:g} "
+                            f"to {VOLUME_L[1]:g} l")
+    if supply_pa is not None and not (math.isfinite(supply_pa)
+                                      and atmosphere_pa < supply_pa <= MAX_PRESSURE_PA):
+        raise IdentifyError(f"the supply of {(supply_pa - atmosphere_pa) / 1e5:g} bar(g) "
+                            "must lie above atmospheric and at most "
+                            f"{(MAX_PRESSURE_PA - atmosphere_pa) / 1e5:g} bar(g)")
+    if not (math.isfinite(temperature_k) and 173.15 <= temperature_k <= 773.15):
+        raise IdentifyError(f"the temperature {temperature_k - 273.15:g} C is outside "
+                            "-100 to 500 C")
     v = volume_l / 1000.0
     p = data.p_pa
     # a first C from the start of the curve (choked there in a discharge from high pressure)
     dp0 = abs(p[1] - p[0]) / (data.time_s[1] - data.time_s[0])
     p_up0 = p[0] if mode == "discharge" else supply_pa
     c0 = dp0 * v / (R_J_KG_K * temperature_k * RHO0_KG_M3 * p_up0)
+    if not (math.isfinite(c0) and C_RANGE[0] <= c0 <= C_RANGE[1]):
+        raise IdentifyError(
+            f"the curve's first step ({(p[1] - p[0]) / 1e5:.3g} bar in "
+            f"{data.time_s[1] - data.time_s[0]:.3g} s from a {volume_l:g} l tank) needs a C "
+            f"of {c0:.3g} m^3/(s Pa), outside {C_RANGE[0]:g} to {C_RANGE[1]:g}: check "
+            "time_s (seconds), the pressures' unit and --volume-l")
     span = float(np.ptp(p)) or 1.0
     # the last 2 % of the way to equilibrium is left out of the fit: there the flow is tiny,
     # laminar rather than D2, and a pressure sensor's offset or the tank's last cooling
@@ -314,9 +426,10 @@ def identify_tank(data: TankData, volume_l: float, mode: str = "discharge",
                         diff_step=1e-4)
     ci = _ci(fit.jac, fit.fun, 3)
     rms = float(np.sqrt(np.mean(fit.fun ** 2))) * span / 1e5
-    return FlowFit(float(fit.x[0] * c0), float(fit.x[1]), float(fit.x[2]), 1.0,
-                   {"C": ci[0] * c0, "b": ci[1], "m": ci[2]}, f"tank {mode}",
-                   len(p), rms, "bar")
+    return _checked(FlowFit(float(fit.x[0] * c0), float(fit.x[1]), float(fit.x[2]), 1.0,
+                            {"C": ci[0] * c0, "b": ci[1], "m": ci[2]}, f"tank {mode}",
+                            len(p), rms, "bar"), _source(data, f"tank {mode}"),
+                    "time_s (seconds), the pressures' unit and --volume-l")
 
 
 def plot_fit(data, fit: FlowFit, path, volume_l=None, mode="discharge", supply_pa=None,

@@ -34,6 +34,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import PlcpredError
 from ..machine import CYLINDER_KINDS
 from ..output import SHOWN_CONSUMERS, atomic_writer, write_json
 from ..sequencer.timeline import NS, seconds_texts
@@ -106,12 +107,26 @@ def sonic_conductance(consumer) -> float:
 
 # ---------------------------------------------------------------------- edges
 
+_INT64_MAX = int(np.iinfo(np.int64).max)
+
+
+class DemandError(PlcpredError, ValueError):
+    """A timeline the air model cannot turn into a profile."""
+
+
 def _signal(timeline, name: str, signal_map: dict | None, until_ns=None):
     """Edges of a machine file's signal (up to ``until_ns``): the timeline may know it by
     another name (an address resolved to its variable), recorded in ``timeline.info``."""
     if signal_map is None:
         signal_map = timeline.info.get("machine_signals", {})
-    return timeline.edge_times_ns(signal_map.get(name, name), until_ns)
+    try:
+        return timeline.edge_times_ns(signal_map.get(name, name), until_ns)
+    except KeyError:
+        if timeline.info.get("mode") != "recorded":
+            raise                       # the sequencer's own timeline: a bug
+        raise DemandError(f"{timeline.info.get('source', 'recorded I/O')}: no rows for "
+                          f"the valve '{name}' (read_io_timeline with the machine holds "
+                          "valves a trace lacks at their initial value)") from None
 
 
 def valve_transitions(timeline, model: ConsumerModel, signal_map=None, until_ns=None):
@@ -151,7 +166,10 @@ def passive_intervals(timeline, model: ConsumerModel, signal_map=None, until_ns=
     starts = t[on & ~prev]
     ends = t[~on & prev]
     if len(ends) < len(starts):
-        ends = np.concatenate([ends, [timeline.horizon_ns]])
+        # a horizon beyond int64 nanoseconds (292 years: a timeline built by hand; no
+        # command runs one) ends the interval as a float
+        h = timeline.horizon_ns
+        ends = np.concatenate([ends, [h if h <= _INT64_MAX else float(h)]])
     return starts, ends
 
 
@@ -949,7 +967,14 @@ def demand_profile(timeline, models: list[ConsumerModel], dt_s: float = 0.01,
         """(base, template, repetitions of each template item within the horizon)."""
         base = origin_ns <= t2
         tmpl = (origin_ns > t2) & (origin_ns <= t2 + p)
-        reps = (horizon_ns - origin_ns[tmpl]) // p + 1
+        # (horizon - origin) // p + 1 in exact integers: the horizon may lie beyond what
+        # int64 nanoseconds hold (292 years), an item's offset in its period never does
+        whole, rest = divmod(horizon_ns - t2, p)
+        if whole > _INT64_MAX // 4:
+            raise DemandError(f"a horizon of {horizon_s:.3g} s repeats the machine's "
+                              f"{p / NS:g} s cycle more often than the air model counts "
+                              "(plcpred runs 10 years at most)")
+        reps = whole + 1 - (origin_ns[tmpl] - t2 > rest).astype(np.int64)
         return (tuple(np.asarray(x)[base] for x in rect),
                 tuple(np.asarray(x)[tmpl] for x in rect), base, tmpl, reps)
 

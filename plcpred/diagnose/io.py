@@ -16,16 +16,24 @@ that samples faster are spread evenly over their second. Flows are in ``l/min``,
 ISO 8778 reference every other part of plcpred uses (docs/physics.md: reference
 conditions: ``V_2 = V_1 * (P_1/P_2) * (T_2/T_1)``). Fields separated by ``,``, ``;`` or
 tabs; with ``;`` a decimal comma is read too (European loggers).
+
+Logs and traces are untrusted: they are read a block of lines at a time, keeping only
+their numbers, and refused with an error naming the file and line beyond MAX_ROWS rows,
+MAX_LINE_BYTES a line, a csv field over the csv module's limit (131,072 characters), a
+flow over MAX_FLOW, or times spanning more than the ten years plcpred runs at most.
 """
 from __future__ import annotations
 
 import csv
 import functools
+import itertools
 import math
 import re
+from array import array
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
@@ -37,7 +45,15 @@ FLOW_UNITS = {"l/min": 1.0, "m3/h": 1000.0 / 60.0, "l/s": 60.0, "scfm": 28.31684
 # reference conditions: (pressure Pa, temperature K)
 REFERENCES = {"iso8778": (P0_PA, T0_K), "din1343": (101_325.0, 273.15),
               "iso2533": (101_325.0, 288.15)}
-MAX_ROWS = 20_000_000
+# Limits of what a flow log or an I/O trace may hold. Both are read a line at a time and
+# keep only their numbers (8 bytes a value: a flow log of MAX_ROWS rows holds at most about
+# 500 MB, an I/O trace about 400 MB as the timeline it becomes), so memory stays bounded
+# whatever the file's size; beyond a limit reading stops with an error naming the line.
+MAX_ROWS = 20_000_000          # samples, and lines after the header's (blank too)
+MAX_LINE_BYTES = 100_000       # one line (a logger writes well under 1,000)
+MAX_IO_SIGNALS = 100_000       # distinct signals of an I/O trace
+MAX_FLOW = 1e9                 # a flow reading (in the log's unit): more is no meter's
+MAX_SUPPLY_BAR = 1e3           # a supply reading beyond this is taken as not read
 
 
 class MeasuredDataError(PlcpredError):
@@ -325,13 +341,107 @@ def _timestamp(cell: str, fmt: str | None = None) -> tuple[float, str]:
     raise ValueError(cell)
 
 
-def _read_text(path: Path) -> str:
-    try:
-        return path.read_text(encoding="utf-8-sig")
-    except OSError as e:
-        raise MeasuredDataError(f"{path}: cannot read file: {e.strerror}") from None
-    except UnicodeDecodeError as e:
-        raise MeasuredDataError(f"{path}: not UTF-8 text (byte {e.start})") from None
+_CHUNK_BYTES = 1 << 20
+
+
+class _Lines:
+    """A text file's lines without their line ends (split where ``str.splitlines``
+    splits), read and decoded a block at a time: none longer than MAX_LINE_BYTES, at
+    most MAX_ROWS + ``extra`` of them. Iterate it once (in a ``with`` block)."""
+
+    def __init__(self, path: Path, extra: int = 0, error=None):
+        self.file = str(path)
+        self.limit = MAX_ROWS + extra
+        self._exc = error or MeasuredDataError     # the class of the errors it raises
+        try:
+            self._f = open(path, "rb")
+        except OSError as e:
+            raise self._exc(f"{path}: cannot read file: {e.strerror}") from None
+        self._it = self._read()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self._it.close()
+        self._f.close()
+
+    def __iter__(self):
+        return self._it
+
+    def _error(self, line: int, what: str) -> PlcpredError:
+        return self._exc(f"{self.file}: line {line}: {what}")
+
+    def _too_long(self, line: int) -> PlcpredError:
+        return self._error(line, f"longer than {MAX_LINE_BYTES:,} bytes (a data file's "
+                                 "lines are short: is this the right file?)")
+
+    def _read(self) -> Iterator[str]:
+        number = 0              # lines read before the block
+        encoding = "utf-8-sig"  # a byte order mark at the start is no text
+        tail = b""
+        while True:
+            try:
+                block = self._f.read(_CHUNK_BYTES)
+            except OSError as e:
+                raise self._exc(f"{self.file}: cannot read file: {e.strerror}") from None
+            data = tail + block
+            if not data:
+                return
+            problem = None      # (line, what): raised after the lines before it
+            if block:
+                # whole lines only: up to the last line end (a CR at the very end may be
+                # the first half of a CR LF)
+                cut = max(data.rfind(b"\n"), data.rfind(b"\r", 0, len(data) - 1)) + 1
+                data, tail = data[:cut], data[cut:]
+                long_tail = len(tail) > MAX_LINE_BYTES
+            else:
+                tail, long_tail = b"", False
+            try:
+                lines = data.decode(encoding).splitlines()
+            except UnicodeDecodeError as e:
+                # the lines before the one that holds the byte (its start is their last)
+                lines = (data[:e.start].decode(encoding) + "x").splitlines()[:-1]
+                problem = (number + len(lines) + 1, "not UTF-8 text")
+            else:
+                if long_tail:
+                    problem = (number + len(lines) + 1, None)
+            if data:
+                encoding = "utf-8"
+            if max(map(len, lines), default=0) > MAX_LINE_BYTES:
+                k = next(k for k, line in enumerate(lines) if len(line) > MAX_LINE_BYTES)
+                lines, problem = lines[:k], (number + k + 1, None)
+            if number + len(lines) > self.limit:
+                yield from lines[:self.limit - number]
+                raise self._error(self.limit + 1, f"more than {MAX_ROWS:,} rows, the most "
+                                  "plcpred reads from one file (split the log into runs)")
+            number += len(lines)
+            yield from lines
+            if problem is not None:
+                line, what = problem
+                raise self._error(line, what) if what else self._too_long(line)
+
+
+def _csv_rows(reader, file: str, offset: int) -> Iterator[tuple[int, list[str]]]:
+    """(line number, row) of a csv reader over lines from ``offset + 1`` on; a row the
+    csv module cannot read (a quoted field that never ends) is a MeasuredDataError."""
+    while True:
+        try:
+            row = next(reader)
+        except StopIteration:
+            return
+        except csv.Error as e:
+            raise MeasuredDataError(f"{file}: line {offset + reader.line_num}: "
+                                    f"{_csv_problem(e)}") from None
+        yield offset + reader.line_num, row
+
+
+def _csv_problem(e: csv.Error) -> str:
+    text = str(e)
+    if "field larger than field limit" in text:
+        return (f"a field longer than {csv.field_size_limit():,} characters (a quote "
+                "that is never closed?)")
+    return f"not CSV: {text}"
 
 
 def read_measured(path, time_col=None, flow_col=None, flow_unit: str | None = None,
@@ -344,20 +454,40 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str | None = No
     given (else l/min); ``source["columns_guessed"]`` says what was taken.
     Raises :class:`MeasuredDataError` naming the file, the line and the column."""
     path = Path(path)
-    file = str(path)
     unit_k = flow_unit_factor(flow_unit or "l/min")
     ref_k = reference_factor(reference)
-    text = _read_text(path)
-    lines = text.splitlines()
-    if not any(line.strip() for line in lines):
-        raise MeasuredDataError(f"{file}: empty file (expected a header such as "
-                                "time_s,flow_l_min and rows of samples)")
-    start = _header_line(lines, time_col, flow_col)
-    first = lines[start]
-    delimiter = _delimiter(first)
+    with _Lines(path, extra=MAX_PREAMBLE_LINES + 1) as lines:
+        return _read_measured(path, lines, time_col, flow_col, flow_unit, reference,
+                              supply_col, unit_k, ref_k)
+
+
+def _read_measured(path: Path, lines: _Lines, time_col, flow_col, flow_unit, reference,
+                   supply_col, unit_k: float, ref_k: float) -> MeasuredRun:
+    file = str(path)
+    # the header is among the first MAX_PREAMBLE_LINES lines (or, after blank ones only,
+    # the first line with anything on it); the rows after it are read as they come
+    head = list(itertools.islice(lines, MAX_PREAMBLE_LINES))
+    if any(line.strip() for line in head):
+        try:
+            start = _header_line(head, time_col, flow_col)
+        except csv.Error as e:
+            raise MeasuredDataError(f"{file}: {_csv_problem(e)}") from None
+        top = head[start:]
+    else:
+        start = len(head)
+        for first in lines:
+            if first.strip():
+                break
+            start += 1
+        else:
+            raise MeasuredDataError(f"{file}: empty file (expected a header such as "
+                                    "time_s,flow_l_min and rows of samples)")
+        top = [first]
+    delimiter = _delimiter(top[0])
     decimal_comma = delimiter != ","
-    rows = csv.reader(lines[start:], delimiter=delimiter)
-    header = next(rows)
+    rows = _csv_rows(csv.reader(itertools.chain(top, lines), delimiter=delimiter), file,
+                     start)
+    _, header = next(rows)
     t_idx = _column(file, header, time_col, "time_s", "time", "--time-col")
     f_idx = _column(file, header, flow_col, "flow_l_min", "flow", "--flow-col")
     guessed = None
@@ -380,13 +510,16 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str | None = No
             f"file has {', '.join(h.strip() for h in header) or 'no columns'}); name "
             "the columns with --time-col and --flow-col")
     s_idx = _column(file, header, supply_col, "supply_bar_g", "supply", "--supply-col")
+    from ..sequencer.timeline import MAX_HORIZON_NS, MAX_HORIZON_TEXT, NS
+    max_span_s = MAX_HORIZON_NS / NS
     time_unit_s = _time_unit_s(header[t_idx])     # numeric times only: t_ms, Zeit [ms]
-    times, flows, supplies = [], [], []
+    # the numbers only, 8 bytes each (a list of floats takes four times that)
+    times, flows, supplies = array("d"), array("d"), array("d")
     skipped = 0
     iso = None          # False: seconds; else the date-time format of the first row
     repeated = None     # (line, time) of the first time equal to the one before
     day_s = 0.0         # a time of day alone: the days passed midnight adds
-    for lineno, row in enumerate(rows, start=start + 2):
+    for lineno, row in rows:
         if not row or not "".join(row).strip():
             continue
         if len(times) >= MAX_ROWS:
@@ -426,6 +559,15 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str | None = No
         if not math.isfinite(t):
             raise MeasuredDataError(f"{file}: line {lineno}, column {t_idx + 1}: the time "
                                     "is not a finite number")
+        if abs(q) > MAX_FLOW:
+            raise MeasuredDataError(f"{file}: line {lineno}, column {f_idx + 1}: flow "
+                                    f"{row[f_idx].strip()[:40]} is beyond any meter's "
+                                    f"(at most {MAX_FLOW:g} in the log's unit)")
+        if times and t - times[0] > max_span_s:
+            raise MeasuredDataError(f"{file}: line {lineno}, column {t_idx + 1}: time "
+                                    f"{cell.strip()[:40]} is more than {MAX_HORIZON_TEXT} "
+                                    "after the first sample, longer than plcpred runs a "
+                                    "machine")
         if times and t <= times[-1]:
             if t < times[-1] or t != math.floor(t):
                 raise _not_increasing(file, lineno, t_idx, cell.strip())
@@ -434,20 +576,23 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str | None = No
         flows.append(q)
         if s_idx is not None and s_idx < len(row):
             try:
-                supplies.append(_number(row[s_idx], decimal_comma))
+                p = _number(row[s_idx], decimal_comma)
             except ValueError:
-                supplies.append(math.nan)
+                p = math.nan
+            supplies.append(p if abs(p) <= MAX_SUPPLY_BAR else math.nan)   # nan: not read
     if len(times) < 3:
         raise MeasuredDataError(f"{file}: a flow log needs at least 3 samples with a "
                                 f"flow, found {len(times)}"
                                 + (f" ({skipped} rows without a number in the flow "
                                    "column)" if skipped else ""))
-    time_s = np.asarray(times, dtype=float)
+    # the arrays' own memory, not a copy (writable: an array.array's buffer is)
+    time_s = np.frombuffer(times, dtype=float)
     if repeated and np.any(time_s != np.floor(time_s)):
         raise _not_increasing(file, repeated[0], t_idx, repeated[1])
     time_s, spread = _spread_whole_seconds(time_s)
-    flow = np.asarray(flows, dtype=float) * unit_k * ref_k
-    supply = np.asarray(supplies, dtype=float) if s_idx is not None and len(
+    flow = np.frombuffer(flows, dtype=float)
+    flow *= unit_k * ref_k
+    supply = np.frombuffer(supplies, dtype=float) if s_idx is not None and len(
         supplies) == len(times) else None
     source = {}
     if guessed is not None:
@@ -484,63 +629,124 @@ def _spread_whole_seconds(t: np.ndarray) -> tuple[np.ndarray, int]:
     return out, int(np.count_nonzero(j))
 
 
-def read_io_timeline(path, horizon_s: float | None = None):
+def read_io_timeline(path, horizon_s: float | None = None, machine=None):
     """A recorded I/O trace in ``timeline.csv`` form (``time_s,signal,value``, one row
     per change, as a PLC trace or an OPC logger records it) as a
     :class:`~plcpred.sequencer.Timeline`. Signals first seen after time 0 start at 0
-    (FALSE). The horizon is the last change unless ``horizon_s`` is longer."""
-    from ..sequencer.timeline import NS, Signal, Timeline
+    (FALSE). The horizon is the last change unless ``horizon_s`` is longer.
+
+    With ``machine``, a valve of its consumers that the trace never records (traces often
+    hold only some signals) is held at its initial value for the whole run: 0 (off), or
+    1 for the single solenoid of a cylinder that starts extended, so that it neither
+    moves nor blows; a warning naming them goes to ``machine.warnings`` (and the
+    timeline's ``info["warnings"]``). A trace that records none of the machine's valves
+    is an error (the wrong file, or other names). Times beyond ten years (the longest
+    horizon plcpred runs), more than MAX_ROWS rows or MAX_IO_SIGNALS signals, and lines
+    longer than MAX_LINE_BYTES are errors naming the line."""
+    from ..sequencer.timeline import MAX_HORIZON_NS, MAX_HORIZON_TEXT, NS, Signal, \
+        Timeline, parse_horizon
 
     path = Path(path)
     file = str(path)
-    text = _read_text(path)
-    rows = csv.reader(text.splitlines())
-    header = [h.strip().lower() for h in next(rows, [])]
-    if header[:3] != ["time_s", "signal", "value"]:
-        raise MeasuredDataError(f"{file}: line 1: expected the header time_s,signal,value "
-                                "(the timeline.csv form)")
+    max_t = MAX_HORIZON_NS / NS
     index: dict[str, int] = {}
     names: list[str] = []
-    t_ns, sig, val = [], [], []
-    for lineno, row in enumerate(rows, start=2):
-        if not row or not "".join(row).strip():
-            continue
-        if len(row) < 3:
-            raise MeasuredDataError(f"{file}: line {lineno}: expected time_s,signal,value")
-        try:
-            t = float(row[0])
-            v = float(row[2])
-        except ValueError:
-            raise MeasuredDataError(f"{file}: line {lineno}: time and value must be "
-                                    "numbers") from None
-        if not (math.isfinite(t) and math.isfinite(v)) or t < 0:
-            raise MeasuredDataError(f"{file}: line {lineno}: time must be >= 0 and values "
-                                    "finite")
-        name = row[1].strip()
-        if not name:
-            raise MeasuredDataError(f"{file}: line {lineno}: empty signal name")
-        key = name.upper()
-        if key not in index:
-            index[key] = len(names)
-            names.append(name)
-            if t > 0:   # first seen later: it was FALSE before
-                t_ns.append(0)
-                sig.append(index[key])
-                val.append(0.0)
-        t_ns.append(round(t * NS))
-        sig.append(index[key])
-        val.append(v)
+    # the numbers only (8 + 4 + 8 bytes a row: lists of Python numbers take four times it)
+    t_ns, sig, val = array("q"), array("i"), array("d")
+    with _Lines(path, extra=1) as lines:
+        rows = _csv_rows(csv.reader(lines), file, 0)
+        header = [h.strip().lower() for h in next(rows, (0, []))[1]]
+        if header[:3] != ["time_s", "signal", "value"]:
+            raise MeasuredDataError(f"{file}: line 1: expected the header "
+                                    "time_s,signal,value (the timeline.csv form)")
+        for lineno, row in rows:
+            if not row or not "".join(row).strip():
+                continue
+            if len(row) < 3:
+                raise MeasuredDataError(f"{file}: line {lineno}: expected "
+                                        "time_s,signal,value")
+            try:
+                t = float(row[0])
+                v = float(row[2])
+            except ValueError:
+                raise MeasuredDataError(f"{file}: line {lineno}: time and value must be "
+                                        "numbers") from None
+            if not (math.isfinite(t) and math.isfinite(v)) or t < 0:
+                raise MeasuredDataError(f"{file}: line {lineno}: time must be >= 0 and "
+                                        "values finite")
+            if t > max_t:
+                raise MeasuredDataError(
+                    f"{file}: line {lineno}: time {row[0].strip()[:40]} s is beyond "
+                    f"{MAX_HORIZON_TEXT}, the longest run plcpred models (times are "
+                    "seconds from the run's start)")
+            name = row[1].strip()
+            if not name:
+                raise MeasuredDataError(f"{file}: line {lineno}: empty signal name")
+            key = name.upper()
+            k = index.get(key)
+            if k is None:
+                if len(names) >= MAX_IO_SIGNALS:
+                    raise MeasuredDataError(f"{file}: line {lineno}: more than "
+                                            f"{MAX_IO_SIGNALS:,} signals")
+                k = index[key] = len(names)
+                names.append(name)
+                if t > 0:   # first seen later: it was FALSE before
+                    t_ns.append(0)
+                    sig.append(k)
+                    val.append(0.0)
+            t_ns.append(round(t * NS))
+            sig.append(k)
+            val.append(v)
     if not names:
         raise MeasuredDataError(f"{file}: no rows")
-    order = np.argsort(np.asarray(t_ns, dtype=np.int64), kind="stable")
-    t_arr = np.asarray(t_ns, dtype=np.int64)[order]
+    warnings = _hold_missing_valves(file, machine, index, names, t_ns, sig, val) \
+        if machine is not None else []
+    t_arr = np.frombuffer(t_ns, dtype=np.int64)
+    s_arr = np.frombuffer(sig, dtype=np.int32)
+    v_arr = np.frombuffer(val, dtype=float)
+    if np.any(t_arr[1:] < t_arr[:-1]):
+        order = np.argsort(t_arr, kind="stable")
+        t_arr, s_arr, v_arr = t_arr[order], s_arr[order], v_arr[order]
     horizon_ns = int(t_arr[-1])
-    if horizon_s is not None:
-        horizon_ns = max(horizon_ns, round(horizon_s * NS))
+    if horizon_s is not None and horizon_s > 0:
+        horizon_ns = max(horizon_ns, parse_horizon(float(horizon_s)))
     signals = [Signal(n, "output", "bool") for n in names]
-    return Timeline(signals, t_arr, np.asarray(sig, dtype=np.int32)[order],
-                    np.asarray(val, dtype=float)[order], max(horizon_ns, 1),
-                    info={"mode": "recorded", "source": file})
+    return Timeline(signals, t_arr, s_arr, v_arr, max(horizon_ns, 1),
+                    info={"mode": "recorded", "source": file, "warnings": warnings})
+
+
+def _hold_missing_valves(file: str, machine, index: dict, names: list, t_ns, sig, val
+                         ) -> list[str]:
+    """Add the machine's valves a trace lacks, each held at its initial value from time
+    0 (see :func:`read_io_timeline`); the warning that says so, if any."""
+    held: dict[str, tuple[str, float, list[str]]] = {}   # KEY -> (name, value, consumers)
+    for c in machine.consumers:
+        for v in c.valve:
+            if v.upper() in index:
+                continue
+            value = 1.0 if (c.is_cylinder and len(c.valve) == 1
+                            and c.initial == "extended") else 0.0
+            held.setdefault(v.upper(), (v, value, []))[2].append(c.name)
+    if not held:
+        return []
+    if len(held) == len({v.upper() for c in machine.consumers for v in c.valve}):
+        raise MeasuredDataError(
+            f"{file}: records none of the valves of {machine.name} "
+            f"({', '.join(v for v, _, _ in held.values())}); its signals are "
+            f"{', '.join(names[:12])}" + (" ..." if len(names) > 12 else "")
+            + " (the wrong trace, or the valves under other names?)")
+    for key, (v, value, _) in held.items():
+        index[key] = len(names)
+        names.append(v)
+        t_ns.append(0)
+        sig.append(index[key])
+        val.append(value)
+    listed = "; ".join(f"{v} ({', '.join(who)})" for v, _, who in held.values())
+    warning = (f"{file}: no rows for the valve(s) {listed}: held at their initial value "
+               "(off, or on for a cylinder that starts extended) for the whole run; record "
+               "them for a diagnosis of those consumers")
+    machine.warnings.append(warning)
+    return [warning]
 
 
 # ---------------------------------------------------------------------- machine files

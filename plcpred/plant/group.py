@@ -46,10 +46,20 @@ TIME_EPS_S = 1e-10        # switch times are compared with the sequencer's whole
 
 MAX_TINY_PIECES = 10_000  # consecutive pieces shorter than a microsecond: chattering
 MAX_PIECES = 1_000_000    # per group held in memory (about 0.3 KB each)
+# right-hand-side evaluations of one piece, for one drive (a group of n drives may take
+# 1/n of it, at least a tenth): a real piece takes a few hundred, at most 2,000 in the
+# samples; equations too stiff for any step (a regulator's C of 1e-4 into a 1 l line)
+# would take without end while the solver's memory grows. About 4 s of work.
+MAX_PIECE_EVALUATIONS = 200_000
+STIFF_TAU_S = 1e-5        # a time constant below this is named as the likely cause
 
 
 class PlantError(PlcpredError):
     """The plant cannot integrate a machine (parameters far outside what moves)."""
+
+
+class _OverBudget(Exception):
+    """A piece's right-hand-side evaluations ran past its budget."""
 
 
 class _DriveConsts(NamedTuple):
@@ -649,8 +659,13 @@ class Group:
         n = self.n
         x0 = self.x.copy()
         x0[self.cum] = 0.0
+        budget = max(MAX_PIECE_EVALUATIONS // max(1, n), MAX_PIECE_EVALUATIONS // 10)
+        calls = [0]
 
         def f(tr, x):
+            calls[0] += 1
+            if calls[0] > budget:
+                raise _OverBudget()
             return self.rhs(t0 + tr, x, c)
 
         events = []
@@ -686,6 +701,8 @@ class Group:
             sol = solve_ivp(f, (0.0, span), x0, method="LSODA", dense_output=True,
                             events=events or None, rtol=1e-6, atol=atol,
                             first_step=min(1e-5, span))
+        except _OverBudget:
+            raise PlantError(self._too_stiff(t0, budget)) from None
         except (ArithmeticError, ValueError) as e:
             raise PlantError(f"the plant cannot integrate drive(s) {self._names()} from "
                              f"{t0:.6g} s ({type(e).__name__}: {e}); check sizes, "
@@ -702,6 +719,41 @@ class Group:
 
     def _names(self) -> str:
         return ", ".join(f'"{d.name}"' for d in self.drives) or "(none)"
+
+    def _time_constants(self) -> list[tuple[float, str]]:
+        """(seconds, what to change) of the fastest processes of the group's equations:
+        the line's regulator refilling its volume, and each chamber filling or
+        emptying its dead volume through its supply and exhaust paths."""
+        rt0 = R_J_KG_K * self.t_amb * 1.185         # (Pa m^3 / kg) * kg/m^3 at ISO 8778
+        out = []
+        s = self.supply
+        if self.has_line and s.C > 0 and s.network_pa > 0:
+            tau = s.volume_m3 * s.droop_pa / (rt0 * s.C * s.network_pa)
+            out.append((tau, f'[[line]] "{s.line}": its regulator (C = {s.C:.3g} '
+                             f'm^3/(s Pa), droop_bar = {s.droop_pa / 1e5:g}) refills its '
+                             f'volume_l = {s.volume_m3 * 1e3:g} in about {tau:.2g} s; '
+                             "regulators have C of 1e-8 to 1e-6, lines hold 0.01 to 100 l"))
+        for d in self.drives:
+            for j, dead in enumerate((d.dead1_m3, d.dead2_m3)):
+                C = max(d.C_supply[j], d.C_exhaust[j])
+                if C > 0 and dead > 0:
+                    tau = dead / (rt0 * C)
+                    out.append((tau, f'consumer "{d.name}": its {("cap", "rod")[j]} end '
+                                     f"({dead * 1e6:.3g} cm^3 dead volume) fills through C "
+                                     f"= {C:.3g} m^3/(s Pa) in about {tau:.2g} s (check "
+                                     "supply_C, exhaust_C and dead_volume_cm3)"))
+        return sorted(out)
+
+    def _too_stiff(self, t0: float, budget: int) -> str:
+        what = (f'line "{self.supply.line}" (drives {self._names()})' if self.has_line
+                else f"drive(s) {self._names()}")
+        fast = [msg for tau, msg in self._time_constants()[:2] if tau < STIFF_TAU_S]
+        cause = ("; the fastest: " + "; ".join(fast)) if fast else (
+            "; check the conductances (C), volumes and droop of the line and drives for "
+            "values far outside real ones")
+        return (f"the plant cannot integrate {what} from {t0:.6g} s: more than "
+                f"{budget:,} evaluations of its equations between two events, which are "
+                f"too stiff{cause}")
 
     # ------------------------------------------------------------------ queries
     def switches(self, i: int, t: float) -> tuple[bool, bool]:

@@ -386,12 +386,28 @@ def format_seconds(t_ns: int) -> str:
 
 _PLAIN = re.compile(r"^\s*(\d+(?:\.\d*)?|\.\d+)\s*(d|h|min|m|s|ms|us|ns)?\s*$", re.I)
 
+# the longest horizon any command runs: ten years of 365.25 days (3652.5 d, 87,660 h). A
+# machine's air over longer is ten years' scaled; beyond 292 years nanoseconds no longer
+# fit the int64 edge times at all
+MAX_HORIZON_NS = 36_525 * 86_400 * NS // 10
+MAX_HORIZON_TEXT = "10 years (3652.5 d, 87,660 h)"
+
+
+class HorizonError(PlcpredError, ValueError):
+    """A horizon (or grid step) that cannot be read or is out of range. A ValueError
+    too, so callers that catch those for a bad option keep doing so."""
+
 
 def parse_horizon(text) -> int:
     """A horizon in nanoseconds from ``T#1m30s``, ``TIME#8h``, ``90s``, ``1.5h``, ``8h``,
-    ``500ms`` or a plain number of seconds. ``m`` is minutes, as in IEC literals."""
+    ``500ms`` or a plain number of seconds. ``m`` is minutes, as in IEC literals. At most
+    :data:`MAX_HORIZON_NS` (ten years); raises :class:`HorizonError` otherwise."""
     if isinstance(text, (int, float)):
-        ns = round(float(text) * NS)
+        if isinstance(text, float) and not math.isfinite(text):
+            raise HorizonError(f"the horizon must be a finite number of seconds, not {text!r}")
+        # compared before rounding: 1e300 s is no integer number of ns to work with
+        ns = round(text * NS) if abs(text) <= MAX_HORIZON_NS // NS else \
+            (MAX_HORIZON_NS + 1 if text > 0 else -1)
     else:
         s = str(text).strip()
         up = s.upper()
@@ -407,8 +423,12 @@ def parse_horizon(text) -> int:
                 else:
                     ns = parse_duration_ns(s.replace(" ", ""))
         except ValueError:
-            raise ValueError(f"cannot read the horizon {text!r}: write e.g. 60s, 1m30s, 8h "
-                             "or T#1m30s") from None
+            raise HorizonError(f"cannot read the horizon {text!r}: write e.g. 60s, 1m30s, 8h "
+                               "or T#1m30s") from None
     if ns <= 0:
-        raise ValueError(f"the horizon must be positive, not {text!r}")
+        raise HorizonError(f"the horizon must be positive, not {text!r}")
+    if ns > MAX_HORIZON_NS:
+        raise HorizonError(f"the horizon {text!r} is longer than {MAX_HORIZON_TEXT}, the "
+                           "most plcpred runs (for a longer period, scale a shorter run's "
+                           "air)")
     return ns
