@@ -285,3 +285,46 @@ def test_a_stiff_line_stops_emulate_with_an_error_naming_it(tmp_path, capsys, mo
     assert "more than 3,000 evaluations" in err
     assert '[[line]] "main": its regulator (C = 0.001' in err and "volume_l" in err
     assert "Traceback" not in err and not out.exists()
+
+
+# ---------------------------------------------------------------------- digits and offsets
+
+def test_a_superscript_column_number_is_a_clean_error(tmp_path, capsys):
+    """'²'.isdigit() is true and int('²') fails: --time-col ² was an internal error."""
+    log = _write(tmp_path / "run.csv", LOG)
+    code = main(["diagnose", str(PICK), "--measured", str(log), "--time-col", "\u00b2",
+                 "--no-plant"])
+    err = capsys.readouterr().err
+    assert code == 2 and "internal error" not in err and "\u00b2" in err, err
+
+
+@pytest.mark.parametrize("digit", ["\u0663", "\u00b2", "\uff13"])
+def test_non_ascii_digits_are_no_number_in_a_program(digit):
+    """Arabic-Indic, superscript and full-width digits were read as numbers by the lexer
+    (\\d): 'x := ٣' checked as 3."""
+    from plcpred.parser import ProgramError, parse_st
+    with pytest.raises(ProgramError) as e:
+        parse_st(f"PROGRAM P VAR x : INT; END_VAR x := {digit}; END_PROGRAM", "p.st")
+    assert e.value.line == 1
+
+
+def test_a_bit_read_as_a_member_is_checked_against_its_type():
+    from plcpred.parser import parse_st
+    from plcpred.sequencer import CompileError, compile_program
+    src = "PROGRAM P VAR b : BYTE; q : BOOL; END_VAR q := b.{bit}; END_PROGRAM"
+    compile_program(parse_st(src.format(bit=7), "p.st"))
+    with pytest.raises((CompileError, PlcpredError), match="bit"):
+        compile_program(parse_st(src.format(bit=8), "p.st"))
+
+
+def test_a_huge_max_offset_is_searched_within_the_log(tmp_path, capsys):
+    """--max-offset 1e7 took 30 s and 8 GB: the search is held to the log's length."""
+    import time
+    log = _write(tmp_path / "run.csv", LOG)
+    t0 = time.perf_counter()
+    code = main(["diagnose", str(PICK), "--measured", str(log), "--max-offset", "1e7",
+                 "--no-plant", "--effects", "leak"])
+    err = capsys.readouterr().err
+    assert code == 0, err
+    assert "--max-offset 1e+07 s is longer than the log" in err
+    assert time.perf_counter() - t0 < 60

@@ -346,6 +346,12 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     for run, tl, off in zip(runs, io, offsets):
         window = max_offset_s if max_offset_s is not None else min(
             120.0, max(2.0, 0.5 * run.span_s))
+        if window > max(2.0, run.span_s):
+            # an offset beyond the log's own length leaves no overlap to correlate, and
+            # the search's grid grew with it (1e7 s: 8 GB)
+            warnings.append(f"--max-offset {window:g} s is longer than the log "
+                            f"({run.span_s:g} s): searched within {max(2.0, run.span_s):g} s")
+            window = max(2.0, run.span_s)
         if off is None:
             horizon = run.span_s + window + 3.0
         else:

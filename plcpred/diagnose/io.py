@@ -152,6 +152,12 @@ def flow_unit_factor(unit: str) -> float:
     return FLOW_UNITS[canonical_flow_unit(unit)]
 
 
+def _column_number(text) -> bool:
+    """``--time-col 2``: a column by its number (ASCII digits: '²'.isdigit() is true too,
+    and int() refuses it)."""
+    return re.fullmatch(r"[0-9]{1,9}", str(text)) is not None
+
+
 def _column(path: str, header: list[str], wanted, default: str | None, what: str,
             option: str) -> int | None:
     names = [h.strip() for h in header]
@@ -160,7 +166,7 @@ def _column(path: str, header: list[str], wanted, default: str | None, what: str
             return names.index(default)
         return None
     text = str(wanted).strip()
-    if text.isdigit():
+    if _column_number(text):
         k = int(text)
         if not 1 <= k <= len(names):
             raise MeasuredDataError(f"{path}: {option} {k}: the file has {len(names)} "
@@ -253,7 +259,7 @@ def _header_line(lines: list[str], time_col, flow_col) -> int:
         return [default] if wanted is None else [str(wanted).strip()]
 
     t_names, f_names = names(time_col, "time_s"), names(flow_col, "flow_l_min")
-    numbered = str(t_names[0]).isdigit() and str(f_names[0]).isdigit()
+    numbered = _column_number(t_names[0]) and _column_number(f_names[0])
     for k, line in enumerate(lines[:MAX_PREAMBLE_LINES]):
         if not line.strip():
             continue
@@ -262,8 +268,8 @@ def _header_line(lines: list[str], time_col, flow_col) -> int:
             ti, fi = int(t_names[0]) - 1, int(f_names[0]) - 1
             if k and max(ti, fi) < len(row) and _reads_as_sample(row[ti], row[fi]):
                 return max(j for j in range(k) if lines[j].strip())
-        elif (str(t_names[0]).isdigit() or t_names[0].lower() in row) and \
-                (str(f_names[0]).isdigit() or f_names[0].lower() in row):
+        elif (_column_number(t_names[0]) or t_names[0].lower() in row) and \
+                (_column_number(f_names[0]) or f_names[0].lower() in row):
             return k
         elif time_col is None and flow_col is None and _guess_columns(row):
             return k

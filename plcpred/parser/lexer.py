@@ -111,28 +111,29 @@ _BEFORE_A_NAME = {"_ASSIGN", "_LPAR", "_COMMA", "PLUS", "MINUS", "STAR", "SLASH"
                   "LT", "GT", "LE", "GE", "_LSQB", "_OUTASSIGN"}
 _WORD = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 
-# Leading white space is part of every match, which halves the number of matches.
+# Leading white space is part of every match, which halves the number of matches. Digits
+# are ASCII ([0-9], not \d): int() of a literal must mean what the PLC reads.
 _MASTER = re.compile(r"""\s*(?:
  (?P<lc>//[^\n]*)
 |(?P<bc>/\*)
 |(?P<pc>\(\*)
 |(?P<pragma>\{)
 |(?P<ident>[A-Za-z_][A-Za-z0-9_]*)
-|(?P<num>\d[\d_]*(?:\#[0-9A-Fa-f_]+|(?P<frac>\.\d[\d_]*)?(?P<exp>[eE][+-]?\d+)?))
-|(?P<addr>%[IQM](?:[XBWDL]?(?:\d+(?:\.\d+)*|\*)|\*))
-|(?P<part>%[Xx]\d+)
+|(?P<num>[0-9][0-9_]*(?:\#[0-9A-Fa-f_]+|(?P<frac>\.[0-9][0-9_]*)?(?P<exp>[eE][+-]?[0-9]+)?))
+|(?P<addr>%[IQM](?:[XBWDL]?(?:[0-9]+(?:\.[0-9]+)*|\*)|\*))
+|(?P<part>%[Xx][0-9]+)
 |(?P<str>'(?:[^'$]|\$[\s\S]|'')*')
 |(?P<wstr>"(?:[^"$]|\$[\s\S]|"")*")
 |(?P<op>:=|=>|<=|>=|<>|\*\*|\.\.|\?=|->|[-+*/<>=()\[\],;:.^&])
 )""", re.X)
 
 _TIME_VALUE = re.compile(
-    r"[-+]?(?:\d[\d_]*(?:\.\d+)?(?:d|h|ms|m|s|us|ns)_?)+(?![A-Za-z0-9_])", re.I)
-_TOD_VALUE = re.compile(r"\d+:\d+(?::\d+(?:\.\d+)?)?")
-_DATE_VALUE = re.compile(r"\d{4}-\d{1,2}-\d{1,2}")
-_DT_VALUE = re.compile(r"\d{4}-\d{1,2}-\d{1,2}-\d+:\d+(?::\d+(?:\.\d+)?)?")
+    r"[-+]?(?:[0-9][0-9_]*(?:\.[0-9]+)?(?:d|h|ms|m|s|us|ns)_?)+(?![A-Za-z0-9_])", re.I)
+_TOD_VALUE = re.compile(r"[0-9]+:[0-9]+(?::[0-9]+(?:\.[0-9]+)?)?")
+_DATE_VALUE = re.compile(r"[0-9]{4}-[0-9]{1,2}-[0-9]{1,2}")
+_DT_VALUE = re.compile(r"[0-9]{4}-[0-9]{1,2}-[0-9]{1,2}-[0-9]+:[0-9]+(?::[0-9]+(?:\.[0-9]+)?)?")
 _TYPED_VALUE = re.compile(
-    r"[-+]?(?:\d[\d_]*\#[0-9A-Fa-f_]+|\d[\d_]*(?:\.\d[\d_]*)?(?:[eE][+-]?\d+)?)"
+    r"[-+]?(?:[0-9][0-9_]*\#[0-9A-Fa-f_]+|[0-9][0-9_]*(?:\.[0-9][0-9_]*)?(?:[eE][+-]?[0-9]+)?)"
     r"|TRUE\b|FALSE\b|'(?:[^'$]|\$[\s\S]|'')*'|\"(?:[^\"$]|\$[\s\S]|\"\")*\"", re.I)
 _IDENT = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 

@@ -1578,7 +1578,10 @@ class Compiler:
             if p is not None:
                 return f"{bcode}.p_get_{key}()", self.types.resolve(p[0].type, p[0].pos)
             raise _err(x, f"{bt.name} has no variable or property '{x.member}'")
-        if bt.cat == "int" and x.member.isdigit():
+        if bt.cat == "int" and re.fullmatch(r"[0-9]{1,3}", x.member):
+            why = ty.bit_access_error(bt, int(x.member))
+            if why is not None:
+                raise _err(x, why)
             return f"_getbit({bcode}, {int(x.member)})", BOOL
         raise _err(x, f"'.{x.member}' applied to a value of type {getattr(bt, 'name', bt)}")
 
