@@ -574,3 +574,31 @@ def test_a_codesys_export_keeps_a_bare_string_initial_value_as_a_constant_name()
     # the same file as Beremiz writes it: the bare value is the string
     init = parse_plcopen(text, "b.xml").pous[0].var_blocks[0].decls[0].init
     assert init == ir.Literal("C_NAME", "STRING")
+
+
+def test_st_bodies_on_one_long_line_parse_in_linear_time_at_their_columns():
+    """Each ST fragment was padded to its line and column with newlines and spaces: a
+    0.9 MB file on one line took 53 s. The tokenizer now starts at the fragment's place.
+    An error in the last body still names its true column."""
+    import time
+
+    from plcpred.parser import ProgramError
+    pou = ('<pou name="F{k}" pouType="function"><interface><returnType><BOOL/></returnType>'
+           '</interface><body><ST><xhtml:p>F{k} := {value};</xhtml:p></ST></body></pou>')
+    head = ('<?xml version="1.0" encoding="utf-8"?><project xmlns="http://www.plcopen.org/'
+            'xml/tc6_0201" xmlns:xhtml="http://www.w3.org/1999/xhtml"><types><dataTypes/>'
+            '<pous>')
+    pous = "".join(pou.format(k=k, value="TRUE") for k in range(3000))
+    bad = pou.format(k=3000, value="TRUE +")
+    text = head + pous + bad + "</pous></types></project>"
+    assert "\n" not in text and len(text) > 400_000
+    t0 = time.perf_counter()
+    program = parse_plcopen(text.replace(bad, ""), "one_line.xml")
+    assert len(program.pous) == 3000
+    with pytest.raises(ProgramError) as e:
+        parse_plcopen(text, "one_line.xml")
+    assert time.perf_counter() - t0 < 30          # minutes before
+    assert e.value.line == 1
+    # the ';' after the dangling '+', at its column of the file's one line
+    assert text[e.value.col - 1:].startswith(";</xhtml:p>")
+    assert e.value.col == text.index("F3000 := TRUE +;") + len("F3000 := TRUE +") + 1

@@ -143,9 +143,12 @@ class Tokenizer:
     positions. ``keywords`` is the reserved-word set (ST by default)."""
 
     def __init__(self, text: str, filename: str = "<input>", keywords=KEYWORDS,
-                 context_keywords=CONTEXT_KEYWORDS, kept=KEPT_KEYWORDS):
+                 context_keywords=CONTEXT_KEYWORDS, kept=KEPT_KEYWORDS, origin=None):
         self.text = text
         self.filename = filename
+        # (line of the text, line in the file, its first column): a fragment of a larger
+        # file (a PLCopen ST body) placed where it stands there, without padding it
+        self.origin = origin
         upper = text.upper()
         enabled = {kw for kw, closer in context_keywords.items() if closer in upper}
         # keyword (upper case) -> token type
@@ -154,7 +157,19 @@ class Tokenizer:
         self.pragmas: list[tuple[str, int, int]] = []
 
     def error(self, message: str, line: int, col: int) -> ProgramError:
-        return ProgramError(message, self.filename, line, col)
+        return ProgramError(message, self.filename, *self.place(line, col))
+
+    def place(self, line: int, col: int) -> tuple[int, int]:
+        """Where a position of the text lies in its file (``origin``): lines before the
+        origin's (a header of the front end's own) at the origin itself."""
+        if self.origin is None:
+            return line, col
+        text_line, file_line, file_col = self.origin
+        if line < text_line:
+            return file_line, file_col
+        if line == text_line:
+            return file_line, col + file_col - 1
+        return line - text_line + file_line, col
 
     def __iter__(self):
         """Tokens, with two readings that need a neighbour:
@@ -188,6 +203,8 @@ class Tokenizer:
                         nxt is None or nxt.type in _AFTER_A_NAME
                         or (prev is not None and prev.type in _BEFORE_A_NAME)))):
                 tok = Token("NAME", tok.value, tok.line, tok.column)
+            if self.origin is not None:
+                tok = Token(tok.type, tok.value, *self.place(tok.line, tok.column))
             yield tok
             prev, tok = tok, nxt
 

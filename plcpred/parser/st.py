@@ -12,15 +12,16 @@ _RUNNER = GrammarRunner(ST_GRAMMAR)
 
 
 def parse_st(text: str, filename: str = "<input>", validate: bool = True,
-             dialect: str = "iec") -> ir.Program:
+             dialect: str = "iec", origin=None) -> ir.Program:
     """Parse IEC 61131-3 Structured Text (one or more POUs, TYPE blocks, interfaces,
     configurations, global variable lists). Raises :class:`ProgramError` with the file,
     line and column of the first problem. ``validate=False`` is for front ends that
     build on this one and validate their whole result themselves; ``dialect`` "bnr"
     reads B&R Automation Studio's forms where they differ (``Action;`` calls). A file
     whose one POU left open runs to its end (as CODESYS's editor shows a POU: no
-    END_PROGRAM) is read to there, noted for :func:`unclosed_pous`."""
-    tokenizer = Tokenizer(text, filename)
+    END_PROGRAM) is read to there, noted for :func:`unclosed_pous`. ``origin`` places a
+    fragment of a larger file (:class:`~plcpred.parser.lexer.Tokenizer`)."""
+    tokenizer = Tokenizer(text, filename, origin=origin)
     token = DIALECT.set(dialect)
     unclosed = None
     try:
@@ -33,14 +34,15 @@ def parse_st(text: str, filename: str = "<input>", validate: bool = True,
                 or e.message.startswith("unexpected end of file") else None
             if unclosed is None:
                 raise
-            tokenizer = Tokenizer(f"{text}\nEND_{unclosed[0]}\n", filename)
+            tokenizer = Tokenizer(f"{text}\nEND_{unclosed[0]}\n", filename, origin=origin)
             try:
                 program = _RUNNER.parse(tokenizer, filename)
             except ProgramError:
                 raise e from None
     finally:
         DIALECT.reset(token)
-    program.pragmas = [(p, ir.Pos(filename, line, col)) for p, line, col in tokenizer.pragmas]
+    program.pragmas = [(p, ir.Pos(filename, *tokenizer.place(line, col)))
+                       for p, line, col in tokenizer.pragmas]
     if unclosed is not None:
         program.pragmas.append((_UNCLOSED_NOTE + unclosed[0] + "}",
                                 ir.Pos(filename, unclosed[1], 1)))
