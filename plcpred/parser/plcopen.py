@@ -36,6 +36,11 @@ _XSD_DURATION = re.compile(r"P(?:(?P<d>\d+(?:\.\d+)?)D)?T?(?:(?P<h>\d+(?:\.\d+)?
 _CLOCK = re.compile(r"(?P<d>)(?P<h>\d{1,2}):(?P<m>\d{1,2}):(?P<s>\d{1,2}(?:\.\d+)?)")
 _WHOLE = re.compile(r"[+-]?[0-9]{1,12}")   # ASCII digits: int() refuses '²', isdigit() not
 MAX_XML_DEPTH = 500  # a PLCopen file nests about 12 deep; FBD/LD layouts a few more
+# elements read at most: a large CODESYS export with LD/FBD layouts holds a few hundred
+# thousand; 12 MB of empty elements (3 million) took 1 GB before this bound
+MAX_XML_ELEMENTS = 1_500_000
+_NONE = ()      # the children and text of an element that has none (shared, never changed)
+_NO_ATTRS: dict = {}   # likewise its attributes (read, never written)
 
 
 class _El:
@@ -45,8 +50,9 @@ class _El:
     def __init__(self, tag, attrib, line, col):
         self.tag = tag
         self.attrib = attrib
-        self.children: list[_El] = []
-        self.text_parts: list[str] = []
+        # made on first use: most elements of a layout have neither
+        self.children: list[_El] | tuple = _NONE
+        self.text_parts: list[str] | tuple = _NONE
         self.line, self.col = line, col
         self.text_line = self.text_col = None
 
@@ -95,15 +101,25 @@ def _parse_xml(text: str, filename: str, root: str = "project",
     def local(name):
         return name.rsplit(":", 1)[-1]
 
+    count = [0]
+
     def start(name, attrs):
+        count[0] += 1
+        if count[0] > MAX_XML_ELEMENTS:
+            raise ProgramError(f"more than {MAX_XML_ELEMENTS:,} XML elements, more than "
+                               "plcpred reads in one file", filename,
+                               parser.CurrentLineNumber, parser.CurrentColumnNumber + 1)
         if len(stack) >= MAX_XML_DEPTH:
             raise ProgramError(f"XML elements nested more than {MAX_XML_DEPTH} deep",
                                filename, parser.CurrentLineNumber,
                                parser.CurrentColumnNumber + 1)
-        el = _El(local(name), {local(k): v for k, v in attrs.items()},
+        el = _El(local(name), {local(k): v for k, v in attrs.items()} if attrs else _NO_ATTRS,
                  parser.CurrentLineNumber, parser.CurrentColumnNumber + 1)
         if stack:
-            stack[-1].children.append(el)
+            parent = stack[-1]
+            if parent.children is _NONE:
+                parent.children = []
+            parent.children.append(el)
         else:
             root_holder.append(el)
         stack.append(el)
@@ -120,9 +136,11 @@ def _parse_xml(text: str, filename: str, root: str = "project",
             line = parser.CurrentLineNumber + head.count("\n")
             col = (lead - head.rfind("\n")) if "\n" in head else parser.CurrentColumnNumber + 1 + lead
             el.text_line, el.text_col = line, col
-            el.text_parts.append(data[lead:])
+            el.text_parts = [data[lead:]]
             return
         if el.text_line is not None or data.strip():
+            if el.text_parts is _NONE:
+                el.text_parts = []
             el.text_parts.append(data)
 
     parser.StartElementHandler = start
