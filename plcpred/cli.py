@@ -885,6 +885,13 @@ def cmd_identify(args) -> int:
 
     if args.write_machine and not (args.machine and args.consumer):
         return _fail("--write-machine needs --machine and --consumer")
+    from .output import OutputError, check_out_file
+    try:
+        check_out_file(getattr(args, "json", None), "--json")
+        check_out_file(args.write_machine, "--write-machine")
+        check_out_file(args.plot, "--plot")
+    except OutputError as e:
+        return _fail(str(e))
     if not 50.0 <= args.atmosphere_kpa <= 120.0:
         return _fail("--atmosphere-kpa must lie between 50 and 120")
     atm = args.atmosphere_kpa * 1e3
@@ -998,10 +1005,13 @@ def cmd_diagnose(args) -> int:
     from .diagnose import diagnose, read_io_timeline, read_measured
     from .diagnose.core import write_fixed_machine
     from .machine import load_machine
-    from .output import OutputError, atomic_write_text, check_out_dir, output_dir, write_json
+    from .output import (OutputError, atomic_write_text, check_out_dir, check_out_file,
+                         output_dir, write_json)
 
     try:
         out = check_out_dir(args.out) if args.out else None
+        check_out_file(args.json, "--json")
+        check_out_file(args.write_machine, "--write-machine")
         if args.io and len(args.io) != len(args.measured):
             raise ValueError(f"give one --io per --measured run ({len(args.measured)}), "
                              f"not {len(args.io)}")
@@ -1028,11 +1038,12 @@ def cmd_diagnose(args) -> int:
           for p, r in zip(args.io, runs)] if args.io else None
     d = diagnose(machine, runs, io=io, offsets=args.offset, max_offset_s=args.max_offset,
                  effects=effects, program=args.program, dynamic=not args.no_plant)
-    if args.write_machine:
-        write_fixed_machine(d, args.write_machine)
     for w in d.warnings:
         print(f"warning: {w}", file=sys.stderr)
+    # the report first: a file that cannot be written must not lose it
     print(d.report(), file=sys.stderr if args.json == "-" else sys.stdout)
+    if args.write_machine:
+        write_fixed_machine(d, args.write_machine)
     summary = d.summary()
     if args.json == "-":
         import json

@@ -168,6 +168,29 @@ def check_out_dir(path) -> Path:
     return out
 
 
+def check_out_file(path, option: str) -> None:
+    """Raise :class:`OutputError` before any work when ``path`` (a ``--json`` or
+    ``--write-machine`` file; ``-`` is stdout) cannot be written: a folder, a path under a
+    file, or an unwritable folder."""
+    if path is None or str(path) == "-":
+        return
+    if str(path) == "":
+        raise OutputError(f"{option}: empty path")
+    target = Path(path)
+    if target.is_dir():
+        raise OutputError(f"{option} {path}: is a folder; give a file name")
+    probe = target.parent
+    while not probe.exists():
+        if probe.parent == probe:
+            break
+        probe = probe.parent
+    if not probe.is_dir():
+        raise OutputError(f"{option} {path}: {probe} is a file, so no folder can be made "
+                          "under it")
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise OutputError(f"{option} {path}: {probe} is not writable")
+
+
 def _real_out(out: Path) -> Path:
     """``out`` absolute, its parent's links resolved (the staging folder must sit on the
     same file system as the folder it is renamed to); the last name itself is kept."""

@@ -267,3 +267,26 @@ def test_a_planted_staging_link_is_unlinked_not_followed(tmp_path):
     os.utime(link, (past, past), follow_symlinks=False)
     clean_abandoned(tmp_path)
     assert (target / "precious").read_text() == "x"
+
+
+def test_json_and_write_machine_paths_are_checked_before_any_work(tmp_path):
+    """diagnose --json to a folder failed only after the diagnosis (and lost it)."""
+    import time
+
+    from plcpred.output import check_out_file
+    rig = ROOT / "samples" / "prototype_rig"
+    log = next(rig.glob("*measured*.csv"))
+    (tmp_path / "adir").mkdir()
+    (tmp_path / "afile").write_text("")
+    for option, value in (("--json", tmp_path / "adir"),
+                          ("--write-machine", tmp_path / "afile" / "fixed.toml")):
+        t0 = time.perf_counter()
+        r = subprocess.run([sys.executable, "-m", "plcpred", "diagnose", str(rig / "rig.toml"),
+                            "--measured", str(log), option, str(value)],
+                           capture_output=True, text=True, timeout=120)
+        assert r.returncode == 2 and option in r.stderr, r.stderr
+        assert time.perf_counter() - t0 < 20
+    check_out_file("-", "--json")
+    check_out_file(tmp_path / "new" / "deeper" / "x.json", "--json")
+    with pytest.raises(OutputError, match="is a folder"):
+        check_out_file(tmp_path, "--json")
