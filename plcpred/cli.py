@@ -763,7 +763,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--supply-col", metavar="NAME|N",
                    help="supply pressure column, bar(g) (default supply_bar_g when the log "
                         "has one): its mean is compared with the machine file's supply")
-    p.add_argument("--flow-unit", choices=("l/min", "m3/h", "l/s", "scfm"),
+    p.add_argument("--flow-unit", choices=("l/min", "m3/h", "m3/min", "l/s", "scfm"),
                    help="unit of the flow column (default: the unit its header names, as "
                         "in 'Flow (m3/h)', else l/min)")
     p.add_argument("--reference", choices=("iso8778", "din1343", "iso2533"),

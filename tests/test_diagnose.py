@@ -1137,3 +1137,18 @@ def test_a_gap_below_a_meters_accuracy_is_not_a_finding():
     d = diagnose(PICK, [run], effects=["leak"])
     assert d.effects[0].physical["flow_l_min"] == pytest.approx(0.1, abs=0.05)
     assert d.verdict == "none", d.report()
+
+
+@pytest.mark.parametrize("head,unit_l_min", [("Volumenstrom [m3/h]", 1000 / 60),
+                                             ("Flow (m3/min)", 1000.0), ("flow_m3_min", 1000.0),
+                                             ("Durchfluss [l/min]", 1.0)])
+def test_a_named_flow_column_keeps_the_unit_its_header_gives(tmp_path, head, unit_l_min):
+    """--flow-col 2 on 'Volumenstrom [m3/h]' read m3/h as l/min (a 16.7x error, no
+    warning); the header's unit is used unless --flow-unit overrides it."""
+    from plcpred.diagnose import read_measured
+    path = tmp_path / "log.csv"
+    path.write_text(f"Zeit;{head}\n" + "".join(f"{k};{1 + k % 3},5\n" for k in range(10)))
+    run = read_measured(path, time_col="1", flow_col="2")
+    assert run.flow_l_min[:3] == pytest.approx(np.array([1.5, 2.5, 3.5]) * unit_l_min)
+    forced = read_measured(path, time_col="1", flow_col="2", flow_unit="l/min")
+    assert forced.flow_l_min[:3] == pytest.approx([1.5, 2.5, 3.5])

@@ -41,7 +41,8 @@ from ..air.flow import P0_PA, T0_K
 from ..errors import PlcpredError
 
 # volume units per minute -> litres per minute
-FLOW_UNITS = {"l/min": 1.0, "m3/h": 1000.0 / 60.0, "l/s": 60.0, "scfm": 28.316846592}
+FLOW_UNITS = {"l/min": 1.0, "m3/h": 1000.0 / 60.0, "l/s": 60.0, "m3/min": 1000.0,
+              "scfm": 28.316846592}
 # reference conditions: (pressure Pa, temperature K)
 REFERENCES = {"iso8778": (P0_PA, T0_K), "din1343": (101_325.0, 273.15),
               "iso2533": (101_325.0, 288.15)}
@@ -141,7 +142,8 @@ def canonical_flow_unit(unit: str) -> str:
     key = unit.strip().lower().replace(" ", "").replace("³", "3").replace("lpm", "l/min")
     key = {"nl/min": "l/min", "nm3/h": "m3/h", "nl/s": "l/s", "l_min": "l/min",
            "m3_h": "m3/h", "l_s": "l/s", "cfm": "scfm", "m3h": "m3/h", "nm3h": "m3/h",
-           "lmin": "l/min", "nlmin": "l/min", "nl_min": "l/min"}.get(key, key)
+           "lmin": "l/min", "nlmin": "l/min", "nl_min": "l/min", "nm3/min": "m3/min",
+           "m3_min": "m3/min", "m3min": "m3/min"}.get(key, key)
     if key not in FLOW_UNITS:
         raise MeasuredDataError(f"unknown flow unit {unit!r} (known: "
                                 f"{', '.join(FLOW_UNITS)})")
@@ -198,8 +200,8 @@ def _bare(name: str) -> tuple[str, str | None]:
         unit = m.group(1)
         text = (text[:m.start()] + text[m.end():]).strip()
     else:
-        m = re.search(r"(?:_|\s+in\s+|\s+)((?:n?m3|n?m³)_?/?h|n?l_?/?(?:min|s)|lpm|s?cfm)$",
-                      text)
+        m = re.search(r"(?:_|\s+in\s+|\s+)((?:n?m3|n?m³)_?/?(?:h|min)|n?l_?/?(?:min|s)|lpm"
+                      r"|s?cfm)$", text)
         if m:
             unit = m.group(1)
             text = text[:m.start()].strip()
@@ -507,6 +509,14 @@ def _read_measured(path: Path, lines: _Lines, time_col, flow_col, flow_unit, ref
             if flow_unit is None and header_unit is not None:
                 unit_k = flow_unit_factor(header_unit)
                 flow_unit = header_unit
+    if f_idx is not None and flow_unit is None and guessed is None:
+        # a column named by --flow-col keeps the unit its header gives (Volumenstrom
+        # [m3/h] read as l/min was a 16.7x error)
+        header_unit = _bare(header[f_idx])[1]
+        if header_unit is not None and header_unit != "l/min":
+            unit_k = flow_unit_factor(header_unit)
+            flow_unit = header_unit
+            guessed = (t_idx, f_idx, header_unit)
     if t_idx is None or f_idx is None:
         missing = "time and flow columns" if t_idx is None and f_idx is None else (
             "time column" if t_idx is None else "flow column")
