@@ -156,6 +156,17 @@ def test_an_if_with_hundreds_of_elsifs_keeps_its_order():
         assert p.Y == y, (x, p.Y)
 
 
+def test_a_struct_declared_only_in_a_function_has_its_class():
+    """Structs were emitted before functions, so one that only a FUNCTION's locals named
+    had no class: NameError at the first call (found by the fuzzer)."""
+    src = ("TYPE Pt : STRUCT a : INT; next : POINTER TO Pt; END_STRUCT; END_TYPE\n"
+           "TYPE Inner : STRUCT b : INT := 4; END_STRUCT; END_TYPE\n"
+           "TYPE Outer : STRUCT i : Inner; END_STRUCT; END_TYPE\n"
+           "FUNCTION F : INT VAR p : Pt; o : Outer; END_VAR p.a := 3; F := p.a + o.i.b;\n"
+           "END_FUNCTION\n" + body("x : INT;", "x := F();"))
+    assert run(src).X == 7
+
+
 def test_arrays_structs_and_copy_semantics():
     src = """
 TYPE Pt : STRUCT x : INT; y : INT := 7; END_STRUCT END_TYPE

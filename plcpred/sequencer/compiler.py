@@ -255,10 +255,15 @@ class Compiler:
         done = set()
         for fb in sorted(fbs, key=lambda t: len(list(t.chain()))):
             self._fb_class(fb, done)
-        for s in self.types.structs:
-            self._struct_class(s)
         for f in self.functions.values():
             self._function(f)
+        # a struct is listed when a declaration first resolves it, a function's locals
+        # and a struct's members included: its class may be emitted after every user
+        # (all refer to it at run time only), and each class may list more
+        emitted = 0
+        while emitted < len(self.types.structs):
+            self._struct_class(self.types.structs[emitted])
+            emitted += 1
         # SFC specs name methods of the classes above, so they come after them
         for text, pos in self._pending_sfc:
             e(0, text, pos)
