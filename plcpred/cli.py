@@ -481,6 +481,16 @@ EXIT_NEVER_MOVES = 4   # compare: NEW never moves (a deadlock passes no air gate
 EXIT_THROUGHPUT_DROP = 5   # compare: NEW completes fewer cycles per hour than allowed
 
 
+def _seed(text: str) -> int:
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, not {text!r}") from None
+    if n < 0:
+        raise argparse.ArgumentTypeError("must be 0 or more")
+    return n
+
+
 def _positive_int(text: str) -> int:
     try:
         n = int(text)
@@ -803,7 +813,8 @@ def build_parser() -> argparse.ArgumentParser:
                      "emulate.png)", dt=False)
     p.add_argument("--truth", metavar="T.toml",
                    help="the real machine's deviations from MACHINE (a partial machine file)")
-    p.add_argument("--seed", type=int, metavar="N", help="seed of the meter's noise")
+    p.add_argument("--seed", type=_seed, metavar="N", help="seed of the meter's noise (a "
+                   "whole number >= 0)")
     p.add_argument("--no-plot", action="store_true", help="do not draw emulate.png")
     p.set_defaults(func=cmd_emulate)
 

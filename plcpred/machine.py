@@ -233,11 +233,13 @@ CALENDAR_IDLE_STATES = ("off", "program")
 RANGES = {
     "scan_ms": (0.01, 60_000.0), "supply_bar_g": (0.0, 100.0),
     "atmosphere_kpa": (50.0, 120.0), "ambient_c": (-60.0, 150.0),
-    "bore_mm": (0.0, 2_000.0), "rod_mm": (0.0, 2_000.0), "stroke_mm": (0.0, 20_000.0),
-    "tube_id_mm": (0.0, 200.0), "tube_length_m": (0.0, 1_000.0),
+    # sizes a drive can have: the smallest pneumatic cylinders have 2.5 mm bores and
+    # strokes of a few mm (5e-324 passed "> 0" and divided by zero in the plant)
+    "bore_mm": (0.1, 2_000.0), "rod_mm": (0.0, 2_000.0), "stroke_mm": (0.01, 20_000.0),
+    "tube_id_mm": (0.1, 200.0), "tube_length_m": (0.0, 1_000.0),
     "stroke_time_s": (1e-4, 3_600.0), "switch_delay_s": (0.0, 60.0),
     "pressure_bar_g": (0.0, 100.0), "C": (1e-15, 1e-3), "m": (0.0, 10.0), "a": (0.0, 1.0),
-    "orifice_mm": (0.0, 1_000.0), "Cd": (0.0, 1.0),
+    "orifice_mm": (0.001, 1_000.0), "Cd": (0.0, 1.0),
     "pulse_ms": (1e-3, 1e9), "period_s": (1e-3, 1e8), "offset_s": (0.0, 1e9),
     "jitter_s": (0.0, 1e8), "pulses_s": (0.0, 1e9), "exhaust_tau_s": (1e-4, 60.0),
     "tau_s": (0.0, 600.0), "rate_hz": (1e-4, 1e5), "noise_l_min": (0.0, 1e7),

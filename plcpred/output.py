@@ -224,7 +224,12 @@ def output_dir(path, command: str = "", warn=None):
         for message in _commit(staging, out):
             warn(message)
     except OSError as e:
-        raise OutputError(f"--out {path}: {e.strerror or e}") from None
+        # name the file in --out that stood in the way (a folder of the user's called
+        # timeline.csv), not the staging folder's
+        where = next((Path(f).name for f in (e.filename2, e.filename)
+                      if f and Path(f).parent == out), None)
+        raise OutputError(f"--out {path}: {e.strerror or e}"
+                          + (f": {where}" if where else "")) from None
     finally:
         shutil.rmtree(staging, ignore_errors=True)
         os.close(lock_fd)

@@ -328,3 +328,15 @@ def test_a_huge_max_offset_is_searched_within_the_log(tmp_path, capsys):
     assert code == 0, err
     assert "--max-offset 1e+07 s is longer than the log" in err
     assert time.perf_counter() - t0 < 60
+
+
+def test_a_sparse_log_is_diagnosed_not_an_internal_error(tmp_path, capsys):
+    """Six readings 1,000 s apart: the head of the log the timing effects align on held
+    one reading, and its interval was NaN (ValueError in the alignment, exit 3)."""
+    log = _write(tmp_path / "sparse.csv", "time_s,flow_l_min\n" + "".join(
+        f"{t},{10 + k % 3}\n" for k, t in enumerate((53000, 54000, 55000, 57000, 58000,
+                                                      59000))))
+    code = main(["diagnose", str(ROOT / "samples" / "press.toml"), "--measured", str(log),
+                 "--no-plant", "--effects", "valve_delay"])
+    err = capsys.readouterr().err
+    assert code in (0, 2) and "internal error" not in err, err

@@ -290,3 +290,31 @@ def test_json_and_write_machine_paths_are_checked_before_any_work(tmp_path):
     check_out_file(tmp_path / "new" / "deeper" / "x.json", "--json")
     with pytest.raises(OutputError, match="is a folder"):
         check_out_file(tmp_path, "--json")
+
+
+def test_a_folder_in_the_way_of_an_output_file_is_named(tmp_path):
+    out = tmp_path / "out"
+    (out / "a.csv").mkdir(parents=True)
+    (out / "a.csv" / "mine.txt").write_text("x")
+    with pytest.raises(OutputError, match=r"a\.csv"):
+        _run_into(out, {"a.csv": "1"})
+    assert (out / "a.csv" / "mine.txt").read_text() == "x"
+
+
+def test_emulate_refuses_a_negative_seed_and_a_denormal_stroke(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "plcpred", "emulate", str(PRESS), "--horizon",
+                        "1s", "--out", str(tmp_path / "o"), "--seed", "-1"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "--seed" in r.stderr, r.stderr
+    text = PRESS.read_text()
+    import re
+    m = re.search(r"stroke_mm = [0-9.]+", text)
+    assert m, "press.toml has a stroke"
+    bad = tmp_path / "m.toml"
+    bad.write_text(text.replace(m.group(0), "stroke_mm = 5e-324").replace(
+        'program = "sfc_press.st"', f'program = "{PRESS.parent / "sfc_press.st"}"'))
+    r = subprocess.run([sys.executable, "-m", "plcpred", "--allow-root", str(PRESS.parent),
+                        "emulate", str(bad), "--horizon", "1s", "--out", str(tmp_path / "o")],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode in (1, 2) and "stroke_mm" in r.stderr and "internal" not in r.stderr, \
+        r.stderr

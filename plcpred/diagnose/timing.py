@@ -166,6 +166,8 @@ def _head(run, span_s: float):
 
     end = run.time_s[0] + max(span_s, ALIGN_SPAN_MIN_S)
     n = int(np.searchsorted(run.time_s, end, side="right"))
-    if n >= len(run.time_s):
+    # a sparse log (readings 1,000 s apart) holds too few readings in its head to have
+    # an interval: then the whole log is the head
+    if n >= len(run.time_s) or n < 3:
         return run
     return MeasuredRun(run.name, run.time_s[:n], run.flow_l_min[:n], sampling=run.sampling)
