@@ -273,17 +273,24 @@ def cmd_predict(args) -> int:
     return 0
 
 
-def _fraction(text: str) -> float:
+def _fraction(text: str, option: str = "--allowance") -> float:
     """``10%`` or ``0.1``."""
     t = text.strip()
-    return float(t[:-1]) / 100 if t.endswith("%") else float(t)
+    try:
+        return float(t[:-1]) / 100 if t.endswith("%") else float(t)
+    except ValueError:
+        raise ValueError(f"{option}: cannot read {text!r}: write e.g. 10% or 0.1") from None
 
 
-def _bar(text: str) -> float:
+def _bar(text: str, option: str = "--band") -> float:
     t = text.strip().lower()
-    if t.endswith("kpa"):
-        return float(t[:-3]) / 100
-    return float(t[:-3]) if t.endswith("bar") else float(t)
+    try:
+        if t.endswith("kpa"):
+            return float(t[:-3]) / 100
+        return float(t[:-3]) if t.endswith("bar") else float(t)
+    except ValueError:
+        raise ValueError(f"{option}: cannot read {text!r}: write e.g. 1bar, 0.5 or "
+                         "50kPa") from None
 
 
 def cmd_size(args) -> int:

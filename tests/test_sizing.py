@@ -578,3 +578,40 @@ def test_peaks_in_blocks_are_the_peaks_of_the_whole_run():
     for w in (None, 1.0, 60.0):
         assert tiled.peak_l_min(w, block_rects=5) == pytest.approx(
             tiled.peak_l_min(w), rel=1e-12)
+
+
+def test_the_waiting_cells_of_a_repeating_run_are_read_from_one_period():
+    """rest_mask folds the period instead of listing every spell to the horizon (10 years
+    of the ld_ejector took 1.5 GB): the same cells as the spells listed one by one."""
+    import numpy as np
+
+    from plcpred import load_machine, predict
+    from plcpred.air.cycles import rest_mask, rest_spells_ns
+    from plcpred.air.demand import DemandSteps
+    from plcpred.sequencer.timeline import NS
+    for name in ("ld_ejector.toml", "sorter.toml", "clamp_station.toml"):
+        m = load_machine(SAMPLES / name)
+        r = predict(m, "1h")
+        assert r.timeline.tiled is not None
+        a, b = (x / NS for x in rest_spells_ns(m, r.timeline))
+        listed = DemandSteps.of([(a, b - a, b - a)], r.profile.horizon_s)
+        e = r.profile.edges_s
+        expected = np.diff(listed.cumulative_nl(e)) >= np.diff(e) * (1 - 1e-9)
+        got = rest_mask(m, r.timeline, r.profile)
+        assert expected.any() and np.array_equal(got, expected), name
+
+
+def test_sizing_ten_years_of_a_fast_machine(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "plcpred", "size",
+                        str(SAMPLES / "ld_ejector.toml"), "--horizon", "3650d", "--out",
+                        str(tmp_path / "o")], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "o" / "sizing.json").exists()
+
+
+@pytest.mark.parametrize("option,value", [("--allowance", "abc"), ("--band", "1xbar")])
+def test_unreadable_size_options_name_themselves(tmp_path, option, value):
+    r = subprocess.run([sys.executable, "-m", "plcpred", "size", str(SAMPLES / "press.toml"),
+                        "--horizon", "10s", "--out", str(tmp_path / "o"), option, value],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and f"{option}: cannot read '{value}'" in r.stderr, r.stderr
