@@ -1714,23 +1714,26 @@ def mutate_twincat(proj: Path, work: Path, rng: random.Random) -> list[str]:
                 done.append(f"emptied {target.name}")
         elif op == 7:                  # links, deep folders, many files inside the folder
             how = rng.randrange(4)
+            # (an edit may be drawn twice for one folder: each tolerates its own traces)
             if how == 0:
-                (proj / "Loop").symlink_to(".", target_is_directory=True)
+                if not os.path.lexists(proj / "Loop"):
+                    (proj / "Loop").symlink_to(".", target_is_directory=True)
                 done.append("folder link to itself")
             elif how == 1:
                 deep = proj.joinpath(*["d"] * rng.choice([10, 33, 40]))
-                deep.mkdir(parents=True)
+                deep.mkdir(parents=True, exist_ok=True)
                 shutil.copy(proj / "POUs/MAIN.TcPOU" if (proj / "POUs/MAIN.TcPOU").exists()
                             else target, deep / "Deep.TcPOU")
                 done.append("deep folder")
             elif how == 2:
                 many = proj / "Many"
-                many.mkdir()
+                many.mkdir(exist_ok=True)
                 for i in range(rng.choice([50, 500])):
                     (many / f"f{i}.TcDUT").write_text("")
                 done.append("many files")
             else:
-                (proj / "Out").symlink_to(work, target_is_directory=True)
+                if not os.path.lexists(proj / "Out"):
+                    (proj / "Out").symlink_to(work, target_is_directory=True)
                 done.append("folder link out")
         else:                          # the GVL or a DUT replaced by a type trap
             decls, var_type, init = type_trap(rng)
