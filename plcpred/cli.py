@@ -166,6 +166,15 @@ def _command_line(args) -> str:
     return " ".join(["plcpred"] + [str(a) for a in getattr(args, "argv", [])])
 
 
+def _exit_code(e: PlcpredError) -> int:
+    """2 for an error in what the user gave (a machine file, a path, a horizon), 1 for a
+    finding about the program (it is invalid, or it cannot run): CI reads 1 as "the gate
+    failed", and a typo in a machine file must never look like that."""
+    from .machine import MachineError
+    from .output import OutputError
+    return 2 if isinstance(e, (MachineError, OutputError, UsageError, ValueError)) else 1
+
+
 def _fail(message: str) -> int:
     print(f"plcpred: error: {message}", file=sys.stderr)
     return 2
@@ -184,7 +193,7 @@ def cmd_timeline(args) -> int:
                     program=args.program, max_events=args.max_events)
     except PlcpredError as e:
         print(e, file=sys.stderr)
-        return 1
+        return _exit_code(e)
     for w in machine.warnings:
         print(f"warning: {w}", file=sys.stderr)
     if tl.n_changes > args.max_rows:
@@ -238,7 +247,7 @@ def cmd_predict(args) -> int:
                          max_events=args.max_events, shown=args.consumers)
     except PlcpredError as e:
         print(e, file=sys.stderr)
-        return 1
+        return _exit_code(e)
     skipped = []
     keep_timeline = not args.no_timeline
     if keep_timeline and result.timeline.n_changes > args.max_rows:
@@ -315,7 +324,7 @@ def cmd_size(args) -> int:
                             idle_after_s=idle_after, compressor=_compressor(args))
     except PlcpredError as e:
         print(e, file=sys.stderr)
-        return 1
+        return _exit_code(e)
     except ValueError as e:
         return _fail(str(e))
     s.currency = args.currency
@@ -422,7 +431,7 @@ def cmd_sweep(args) -> int:
         return _fail(str(e))
     except PlcpredError as e:
         print(e, file=sys.stderr)
-        return 1
+        return _exit_code(e)
     except ValueError as e:
         return _fail(str(e))
     for note in notes:
@@ -986,7 +995,7 @@ def cmd_emulate(args) -> int:
                             max_events=args.max_events).profile
     except PlcpredError as e:
         print(e, file=sys.stderr)
-        return 1
+        return _exit_code(e)
     with output_dir(out, _command_line(args)) as staging:
         written = [out / f.name for f in em.write(staging, plot=not args.no_plot)]
     for w in em.machine.warnings:

@@ -273,7 +273,8 @@ def test_cli_timeline_errors_are_clear(tmp_path):
     r = subprocess.run([sys.executable, "-m", "plcpred.cli", "timeline", str(bad),
                         "--horizon", "10s", "--out", str(tmp_path / "o")],
                        capture_output=True, text=True)
-    assert r.returncode == 1 and "nothere.st" in r.stderr and "Traceback" not in r.stderr
+    # a machine file's mistake is an input error (2), never a finding (1: "the gate failed")
+    assert r.returncode == 2 and "nothere.st" in r.stderr and "Traceback" not in r.stderr
     assert not (tmp_path / "o" / "timeline.csv").exists()
     r = subprocess.run([sys.executable, "-m", "plcpred.cli", "timeline",
                         str(SAMPLES / "sorter.toml"), "--horizon", "soon", "--out",

@@ -469,14 +469,14 @@ def test_a_production_calendar_counts_leaks_all_year(tmp_path):
 def test_a_calendar_that_does_not_fit_is_named(tmp_path):
     machine = _with_calendar(tmp_path, "shifts_per_day = 3\nhours_per_shift = 9\n")
     r = run("size", machine, "--horizon", "10s", "--out", tmp_path / "a")
-    assert r.returncode == 1 and "[calendar]" in r.stderr and "more than a day" in r.stderr
+    assert r.returncode == 2 and "[calendar]" in r.stderr and "more than a day" in r.stderr
     machine = _with_calendar(tmp_path, "shifts_per_day = 3\nhours_per_shift = 8\n"
                                        "days_per_week = 7\nweeks_per_year = 53\n")
     r = run("size", machine, "--horizon", "10s", "--out", tmp_path / "c")
-    assert r.returncode == 1 and "do not fit in a year" in r.stderr
+    assert r.returncode == 2 and "do not fit in a year" in r.stderr
     machine = _with_calendar(tmp_path, "idle_state = \"sometimes\"\n")
     r = run("size", machine, "--horizon", "10s", "--out", tmp_path / "b")
-    assert r.returncode == 1 and "idle_state" in r.stderr and "Traceback" not in r.stderr
+    assert r.returncode == 2 and "idle_state" in r.stderr and "Traceback" not in r.stderr
 
 
 def test_sweep_counts_energy_and_cost_with_the_same_options(tmp_path):
