@@ -497,24 +497,23 @@ EXIT_NEVER_MOVES = 4   # compare: NEW never moves (a deadlock passes no air gate
 EXIT_THROUGHPUT_DROP = 5   # compare: NEW completes fewer cycles per hour than allowed
 
 
-def _seed(text: str) -> int:
+def _whole_number(text: str, least: int) -> int:
     try:
         n = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a whole number, not {text!r}") from None
-    if n < 0:
-        raise argparse.ArgumentTypeError("must be 0 or more")
+    if n < least:
+        raise argparse.ArgumentTypeError(f"must be at least {least}" if least else
+                                         "must be 0 or more")
     return n
+
+
+def _seed(text: str) -> int:
+    return _whole_number(text, 0)
 
 
 def _positive_int(text: str) -> int:
-    try:
-        n = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, not {text!r}") from None
-    if n <= 0:
-        raise argparse.ArgumentTypeError("must be at least 1")
-    return n
+    return _whole_number(text, 1)
 
 
 def _energy_args(p) -> None:

@@ -152,12 +152,7 @@ def check_out_dir(path) -> Path:
                               "folder, so the '..' after it names nothing")
     if out.exists() and not out.is_dir():
         raise OutputError(f"--out {path}: exists and is not a directory")
-    probe = out
-    while not probe.exists():
-        parent = probe.parent
-        if parent == probe:
-            break
-        probe = parent
+    probe = _nearest_existing(out)
     if not probe.is_dir():
         raise OutputError(f"--out {path}: {probe} is a file, so no directory can be made "
                           "under it")
@@ -166,6 +161,13 @@ def check_out_dir(path) -> Path:
     if not os.access(target, os.W_OK | os.X_OK):
         raise OutputError(f"--out {path}: {target} is not writable")
     return out
+
+
+def _nearest_existing(path: Path) -> Path:
+    """``path`` or the nearest of its parents that exists (where folders would be made)."""
+    while not path.exists() and path.parent != path:
+        path = path.parent
+    return path
 
 
 def check_out_file(path, option: str) -> None:
@@ -179,11 +181,7 @@ def check_out_file(path, option: str) -> None:
     target = Path(path)
     if target.is_dir():
         raise OutputError(f"{option} {path}: is a folder; give a file name")
-    probe = target.parent
-    while not probe.exists():
-        if probe.parent == probe:
-            break
-        probe = probe.parent
+    probe = _nearest_existing(target.parent)
     if not probe.is_dir():
         raise OutputError(f"{option} {path}: {probe} is a file, so no folder can be made "
                           "under it")

@@ -794,16 +794,7 @@ class Sequencer:
         return names
 
     def _resolve(self, signal: str) -> str:
-        """A machine file's signal: a variable name, or a hardware address named in
-        [signals] or declared with AT in the program."""
-        if self.machine is not None:
-            for addr, name in self.machine.signals.items():
-                if addr.upper() == signal.upper():
-                    return name
-        if signal.startswith("%"):
-            from ..machine import program_addresses
-            return program_addresses(self.program).get(signal.upper(), signal)
-        return signal
+        return resolve_signal(self.machine, self.program, signal)
 
     def _locate(self, inst, signal):
         name = self._resolve(signal)
@@ -1288,8 +1279,23 @@ class Sequencer:
                 inst.phase(t))
 
 
-_WORD = re.compile(r"[A-Za-z_][A-Za-z_0-9]*")
 _BIT_AT_END = re.compile(r"\.\s*\d+\s*$")
+
+
+def resolve_signal(machine, program, signal: str, addresses: dict | None = None) -> str:
+    """A machine file's signal as the program names it: a variable name, or a hardware
+    address named in [signals] or declared with AT in the program (``addresses``: the
+    program's, when the caller has them already)."""
+    if machine is not None:
+        for addr, name in machine.signals.items():
+            if addr.upper() == signal.upper():
+                return name
+    if signal.startswith("%") and program is not None and hasattr(program, "pous"):
+        if addresses is None:
+            from ..machine import program_addresses
+            addresses = program_addresses(program)
+        return addresses.get(signal.upper(), signal)
+    return signal
 
 
 def observed_names(machine, program=None) -> frozenset:
@@ -1308,18 +1314,14 @@ def observed_names(machine, program=None) -> frozenset:
         signals.append(machine.cycle_signal)
     signals += list(machine.signals.values())
     addresses = None
+    if program is not None and hasattr(program, "pous") and any(
+            s.startswith("%") for s in signals):
+        from ..machine import program_addresses
+        addresses = program_addresses(program)       # once, not once per signal
     names = set()
     for s in signals:
-        if s.startswith("%"):
-            mapped = next((n for a, n in machine.signals.items()
-                           if a.upper() == s.upper()), None)
-            if mapped is None and program is not None and hasattr(program, "pous"):
-                if addresses is None:
-                    from ..machine import program_addresses
-                    addresses = program_addresses(program)
-                mapped = addresses.get(s.upper())
-            s = mapped or ""
-        words = [w.upper() for w in _WORD.findall(s)]
+        s = resolve_signal(machine, program, s, addresses)
+        words = [w.upper() for w in _PATH_ROOT.findall(s)]
         names.update(words)
         if words and _BIT_AT_END.search(s):
             names.add(words[-1] + BIT_READ)
