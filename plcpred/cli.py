@@ -823,7 +823,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "write what a flow meter on it would log. --truth applies "
                                    "a partial machine file of the real machine's deviations "
                                    "(a hidden leak, a longer tube, a slow meter) that the "
-                                   "prediction does not see.")
+                                   "prediction does not see. The physics plant integrates every "
+                                   "stroke: horizons up to 24 h.")
     _machine_args(p, "output directory (measured.csv, timeline.csv, plant.csv, "
                      "emulate.png)", dt=False)
     p.add_argument("--truth", metavar="T.toml",

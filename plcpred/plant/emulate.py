@@ -14,6 +14,10 @@ from .meter import MeterSettings, meter_readings
 from .model import PlantModel
 
 MAX_GRID_CELLS = 400_000
+# the plant integrates every stroke of the horizon (about 20 s of work per emulated hour
+# of a small station, more pieces held the longer it runs): a day is as far as a user
+# waits for; longer questions are for predict and size, which repeat the cycle
+MAX_EMULATE_HORIZON_S = 86_400.0
 MAX_PLANT_ROWS = 200_000
 
 
@@ -133,6 +137,7 @@ def emulate(machine, horizon="60s", truth=None, seed: int | None = None,
     to it) in closed loop with the physics plant over ``horizon``."""
     from ..machine import Machine, check_against_program
     from ..sequencer import parse_horizon
+    from ..sequencer.timeline import HorizonError
     from .truth import load_real_machine
 
     wall0 = _time.perf_counter()
@@ -141,6 +146,11 @@ def emulate(machine, horizon="60s", truth=None, seed: int | None = None,
                                     truth)
     horizon_ns = parse_horizon(horizon)
     horizon_s = horizon_ns / 1e9
+    if horizon_s > MAX_EMULATE_HORIZON_S:
+        raise HorizonError(f"emulate runs the physics of every stroke and goes at most "
+                           f"{MAX_EMULATE_HORIZON_S / 3600:g} h (asked for {horizon_s / 3600:g} h); "
+                           "emulate a representative hour, and use predict or size for "
+                           "long horizons")
     if program is None or not hasattr(program, "pous"):
         program = machine.read_program(program)
     check_against_program(machine, program)

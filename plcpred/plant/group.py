@@ -711,9 +711,13 @@ class Group:
         if sol.status < 0:
             raise PlantError(f"the plant cannot integrate drive(s) {self._names()} from "
                              f"{t0:.6g} s: {sol.message}")
+        # an event at the very start: move on by at least a few of the clock's own
+        # steps, or late in a long run (4,100 s on) the piece adds nothing to the clock
+        # and the same event is found again without end
+        min_len_s = max(1e-9, 8.0 * float(np.spacing(t0)))
         t_len = float(sol.t[-1])
-        if t_len <= 0.0:
-            t_len = min(1e-9, span)  # an event at the very start: move on
+        if t_len < min_len_s:
+            t_len = min(min_len_s, span)
         dense = _Dense(sol.sol, t_len, x0, self.cum)
         return dense, t_len
 
