@@ -30,11 +30,12 @@ def _main(var_type="BOOL", body="o := NOT o;", init=None):
     return f"PROGRAM Main\nVAR\n  {decl}\n  o : BOOL;\nEND_VAR\n{body}\nEND_PROGRAM\n"
 
 
-def _refused(src, match, line=None, seconds=2.0, checked=True) -> ProgramError:
+def _refused(src, match, line=None, seconds=8.0, checked=True) -> ProgramError:
     """The program is refused with a positioned ProgramError matching ``match`` by every
     stage it reaches (parser, checker unless not ``checked``, compiler), within
-    ``seconds`` in all."""
-    start = time.perf_counter()
+    ``seconds`` of CPU time in all (a guard against work without end, such as the 19 s
+    of a 3,000-long EXTENDS chain before, not a benchmark: the suite shares its cores)."""
+    start = time.process_time()
     try:
         program = parse_st(src, FILE)
     except ProgramError as e:
@@ -45,7 +46,7 @@ def _refused(src, match, line=None, seconds=2.0, checked=True) -> ProgramError:
         with pytest.raises(ProgramError) as compiled:
             compile_program(program)
         found = errors[:1] + [compiled.value]
-    assert time.perf_counter() - start < seconds
+    assert time.process_time() - start < seconds
     for e in found:
         assert e.file == FILE and e.line >= 1 and e.col >= 1, str(e)
         assert line is None or e.line == line, str(e)

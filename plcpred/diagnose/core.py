@@ -37,13 +37,14 @@ import numpy as np
 
 from ..air.demand import stroke_cuts
 from ..errors import PlcpredError
+from .band import ModelForm, band_pct, drive_factor_range
 from .effects import (CLOSED_LOOP_EFFECTS, CUT_STROKE_EFFECTS, EFFECTS, Effect,
                       NUISANCE_METER_TAU_S, IncompleteExhaust, StrokeTime)
 from .fit import (DiagnosisError, FitResult, RunData, Score, align, fit_effects, folds,
                   heldout, score)
 from .io import TIME_OF_DAY_FORMATS, MeasuredRun
 from .locate import contexts, sample_contexts, step_contexts, windows
-from .meter import noise_level_l_min
+from .meter import flat_noise_l_min, noise_level_l_min
 from .model import MachineModel, RunModel
 from .timing import Resequencer
 from .through_plant import (MAX_VARIANT_PIECES, PLANT_FORMS, PlantVariants,
@@ -59,6 +60,12 @@ DOWN_TO_NOISE = 1.1
 # noise, the drives' physics (the plant) has nothing left to explain
 NOT_OF_THE_DRIVES = ("leak", "passive_flow", "sensor_lag")
 MAX_CELLS_PER_RUN = 200_000
+# effects that change how much air the machine takes (rather than when): a verdict among
+# them needs the total to lie outside the model-form band as well as the flow to beat it
+VOLUME_EFFECTS = ("leak", "passive_flow", "supply_pressure", "dead_volume")
+# a fitted value this close to a bound (share of the range) is at it: the effect wanted
+# more than is physical, so it is not what happened
+AT_BOUND_SHARE = 1e-3
 # instantaneous readings are suggested where they leave at most this share of the logs'
 # variance that interval means leave unexplained (healthy rigs logged either way leave
 # a twentieth of the wrong way's)
@@ -78,10 +85,13 @@ class EffectResult:
     physical: dict
     # fitted on top of the plant's reference (what the plant draws beyond D1 added)
     beyond_plant: bool = False
+    # a fitted value at a bound of its range (never a verdict: it wanted more than is
+    # physical)
+    at_bound: bool = False
 
     def summary(self) -> dict:
         return {"name": self.name, "title": self.title, "parameters": self.physical,
-                "beyond_plant": self.beyond_plant,
+                "beyond_plant": self.beyond_plant, "at_bound": self.at_bound,
                 "fitted": {k: {"value": float(v), "stderr": _num(s), "unit": u}
                            for k, v, s, u in zip(self.fit.names, self.fit.theta,
                                                  self.fit.stderr, self.fit.units)},
@@ -122,6 +132,17 @@ class Diagnosis:
     reference: "EffectResult | None" = None
     on_plant: bool = False
     dynamics_explain: bool = False
+    # the nominal model flexed within its own accuracy (diagnose.band), the band in
+    # total air (low, high error_pct), and whether it explains what the effects did
+    flexed: "EffectResult | None" = None
+    band_pct: tuple = (0.0, 0.0)
+    within_band: bool = False
+    # the meter's own noise (from flat stretches of the log, :func:`_meter_noise`), the
+    # flat neighbours it rests on, and the held-out RMS error beyond it that the best
+    # explanation leaves (NL/min)
+    meter_noise_l_min: float = 0.0
+    flat_pairs: int = 0
+    left_l_min: float = 0.0
 
     def best_params(self):
         """Per run: the model parameters of the combination (which starts with the
@@ -146,6 +167,8 @@ class Diagnosis:
                       "source": "recorded I/O" if rd.model.timeline.info.get(
                           "mode") == "recorded" else "sequencer"} for rd in self.runs],
             "noise_l_min": self.noise_l_min,
+            "meter_noise_l_min": self.meter_noise_l_min,
+            "residual_left_l_min": self.left_l_min,
             "heldout": self.fold_kind,
             "contexts": [c.summary() for c in self.contexts],
             "locations": self.locations,
@@ -171,6 +194,12 @@ class Diagnosis:
                 "heldout_rmse_l_min": _num(r.heldout_score.rmse_l_min),
                 "explains_part_of_the_gap": self.on_plant,
                 "explains_the_gap": self.dynamics_explain}
+        if self.flexed is not None:
+            out["model_form_band"] = {
+                "low_pct": _num(self.band_pct[0]), "high_pct": _num(self.band_pct[1]),
+                "heldout_rmse_l_min": _num(self.flexed.heldout_score.rmse_l_min),
+                "parameters": self.flexed.physical,
+                "explains_the_gap": self.within_band}
         if self.step_contexts:
             out["step_contexts"] = [c.summary() for c in self.step_contexts]
         return out
@@ -218,20 +247,49 @@ class Diagnosis:
                   f"  {'(baseline)':<20} {b.error_pct:>+10.1f}% "
                   f"{self.baseline_heldout.error_pct:>+8.1f}% "
                   f"{self.baseline_heldout.rmse_l_min:>14.2f}"]
-        for e in self.effects:
+        # sorted by the column the verdict rests on (held-out RMSE)
+        for e in sorted(self.effects, key=lambda e: e.heldout_score.rmse_l_min):
+            note = "(at a bound of its range: not a verdict) " if e.at_bound else ""
             lines.append(f"  {e.name:<20} {e.fit_score.error_pct:>+10.1f}% "
                          f"{e.heldout_score.error_pct:>+8.1f}% "
-                         f"{e.heldout_score.rmse_l_min:>14.2f}  {_short(e.physical)}")
+                         f"{e.heldout_score.rmse_l_min:>14.2f}  {note}{_short(e.physical)}")
         if self.reference is not None:
             r = self.reference
             lines.append(f"  {'(plant, nominal)':<20} {r.fit_score.error_pct:>+10.1f}% "
                          f"{r.heldout_score.error_pct:>+8.1f}% "
                          f"{r.heldout_score.rmse_l_min:>14.2f}  the machine file through "
                          "the physics plant, no parameter")
+        if self.flexed is not None:
+            f = self.flexed
+            lines.append(f"  {'(model accuracy)':<20} {f.fit_score.error_pct:>+10.1f}% "
+                         f"{f.heldout_score.error_pct:>+8.1f}% "
+                         f"{f.heldout_score.rmse_l_min:>14.2f}  the machine file flexed "
+                         "within the model's own accuracy: an effect must beat it")
         if self.on_plant:
             lines.append("  (the plant explains part of the gap that D1 leaves out by "
                          "design: an effect must beat it too)")
         lines += ["", f"verdict: {self.verdict}"]
+        lines.append(f"  meter noise {self.meter_noise_l_min:.2g} NL/min"
+                     + (f" (from {self.flat_pairs} neighbouring readings where nothing "
+                        "switches)" if self.flat_pairs else " (from the residual's "
+                        "differences: the log has too few flat stretches)")
+                     + f"; left beyond it on held-out samples: {self.left_l_min:.2g} NL/min "
+                       "RMS")
+        if self.verdict == "unexplained":
+            where = ", ".join(c.context for c in self.contexts[:3] if c.stands_out) or \
+                ", ".join(c.context for c in self.contexts[:2])
+            lines.append("  no effect in the library explains the gap: "
+                         + (f"the best ({self.effects[0].name}) takes away less than half "
+                            "of it; " if self.effects else "")
+                         + f"it lies mostly in {where or 'no one context'}")
+        if self.verdict == "none" and self.flexed is not None:
+            lo, hi = self.band_pct
+            lines.append(f"  within the model's accuracy: error {b.error_pct:+.1f} % against "
+                         f"a band of {lo:+.1f} to {hi:+.1f} % (a healthy machine takes a "
+                         "few per cent less than D1 books, nozzles flow within a few per "
+                         "cent of their rating)"
+                         + (": what the effects explain, the band explains as well"
+                            if self.within_band else ""))
         if self.dynamics_explain:
             lines.append("  the nominal machine through the physics plant explains the gap "
                          "as well as any effect: it is what D1 leaves out by design (air "
@@ -392,6 +450,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
             mm.resequencer = reseq
     base_score = score(rds, bases)
     noise = float(np.median([noise_level_l_min(r) for r in residuals]))
+    meter_noise, flat_pairs = _meter_noise(rds, bases, noise)
 
     # which effect
     fold_masks = folds(rds, period_s)
@@ -406,6 +465,11 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     base_all = fit_effects([], mm, rds, [np.ones(len(rd.end_s), bool) for rd in rds],
                            bases, ctx)
     base_heldout = heldout([], mm, rds, bases, ctx, fold_masks, start=base_all.theta)
+    # the nominal model flexed within its own accuracy (diagnose.band): what a healthy
+    # machine may do, which a finding must beat too
+    flexed = _evaluate([ModelForm(drive_factor_range(mm, bases[0]))], mm, rds, bases,
+                       ctx, fold_masks) if mm.models else None
+    band = _band(mm, rds, bases)
     reference_cost: dict = {}
     reference = _dynamic_reference(machine, mm, rds, bases, ctx, fold_masks, warnings,
                                    program if compiled is not None else None, compiled,
@@ -573,7 +637,13 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     on_plant = reference is not None and finding(base_heldout, reference.heldout_score)
     if on_plant:
         noise = min(noise, reference.fit_score.rmse_l_min)
-    if results and finding(base_heldout, results[0].heldout_score):
+    # a value at its bound wanted more than is physical: it never wins, however well
+    # it fits (ranked after those within their bounds)
+    for e in results:
+        e.at_bound = _at_bound(e, mm, ctx, rds, bases)
+    results = [e for e in results if not e.at_bound] + [e for e in results if e.at_bound]
+    if results and finding(base_heldout, results[0].heldout_score) \
+            and not results[0].at_bound:
         verdict = results[0].name
         # effects the held-out samples cannot tell from the verdict (a dead volume and an
         # incomplete exhaust when every dwell is the same)
@@ -619,6 +689,16 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
         combination = {"effects": [e.name for e in chosen], "fit": best.fit,
                        "heldout": best.heldout_score, "score": best.fit_score,
                        "physical": best.physical, "beyond_plant": best.beyond_plant}
+    within_band = False
+    if combination is not None and not _beats_band(combination, flexed, band, base_score,
+                                                   finding):
+        # what the effects explain, the nominal model flexed within its own accuracy
+        # explains as well (or the total lies within the band): no fault
+        within_band = True
+        verdict, combination, alternatives = "none", None, []
+    left = _left_over(combination, flexed, base_heldout, meter_noise)
+    unexplained = _unexplained_gap(left, combination, flexed, base_heldout, meter_noise,
+                                   ctx["mean_l_min"])
     dynamics_explain = False
     if (combination is not None and on_plant
             and not finding(reference.heldout_score, combination["heldout"])):
@@ -626,11 +706,133 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
         # effects do: D1's own limits, no fault (the effects stay ranked in the report)
         dynamics_explain = True
         verdict, combination, alternatives = "none", None, []
+    if unexplained and not dynamics_explain:
+        verdict = "unexplained"
     return Diagnosis(machine, rds, base_score, base_heldout, noise, ctx_list, step_list,
                      locations, results, verdict, combination, fold_kind, warnings,
                      bases=bases, machine_model=mm, alternatives=alternatives,
                      reference=reference, on_plant=on_plant,
-                     dynamics_explain=dynamics_explain)
+                     dynamics_explain=dynamics_explain, flexed=flexed, band_pct=band,
+                     within_band=within_band, meter_noise_l_min=meter_noise,
+                     flat_pairs=flat_pairs, left_l_min=left)
+
+
+# a residual beyond the meter's noise of at least this share of the mean flow (RMS) is
+# material: more than a good meter's accuracy and the model's shape error on strokes
+UNEXPLAINED_SHARE = 0.05
+# and the best explanation must take at least this share of the gap beyond the noise
+# away, else the gap is unexplained rather than that effect
+EXPLAINED_SHARE = 0.5
+
+
+def _meter_noise(rds: list[RunData], bases: list, fallback: float) -> tuple[float, int]:
+    """(the meter's noise, flat neighbours it rests on) over all runs
+    (:func:`meter.flat_noise_l_min`), else ``fallback`` (differences of the residual)."""
+    found = [flat_noise_l_min(rd.measured_l_min, rd.readings(b)) for rd, b in zip(rds, bases)]
+    known = [(v, n) for v, n in found if v is not None]
+    if not known:
+        return fallback, 0
+    return float(np.median([v for v, _ in known])), sum(n for _, n in known)
+
+
+def _beyond(score_: Score, noise: float) -> float:
+    """RMS error beyond the noise (NL/min)."""
+    return math.sqrt(max(score_.mse - noise ** 2, 0.0))
+
+
+def _left_over(combination: dict | None, flexed, base_heldout: Score,
+               meter_noise: float) -> float:
+    """The held-out RMS error beyond the meter's noise that the best explanation
+    leaves: the verdict's combination, else the nominal model flexed within its band."""
+    if combination is not None:
+        return _beyond(combination["heldout"], meter_noise)
+    return _beyond(flexed.heldout_score if flexed is not None else base_heldout,
+                   meter_noise)
+
+
+def _unexplained_gap(left: float, combination: dict | None, flexed, base_heldout: Score,
+                     meter_noise: float, mean_l_min: float) -> bool:
+    """Is a material residual left that the library does not explain: more than
+    UNEXPLAINED_SHARE of the mean flow beyond the meter's noise, after an explanation
+    that took less than EXPLAINED_SHARE of the gap away (or none at all)?"""
+    if left <= UNEXPLAINED_SHARE * mean_l_min:
+        return False
+    if combination is None:
+        return True
+    before = _beyond(flexed.heldout_score if flexed is not None else base_heldout,
+                     meter_noise)
+    return before <= 0 or 1.0 - left / before < EXPLAINED_SHARE
+
+
+def _band(mm: MachineModel, rds: list[RunData], bases: list) -> tuple[float, float]:
+    """The model-form band in total air over all runs (:func:`band.band_pct`) from
+    the air each run's nominal prediction books on drives and on nozzles and leaks."""
+    drive_nl = passive_nl = 0.0
+    for rd, base in zip(rds, bases):
+        cells = rd.model.consumer_cells(base)
+        drive_nl += float(cells[mm.drives].sum()) if mm.drives else 0.0
+        passive_nl += float(cells[mm.passives].sum()) if mm.passives else 0.0
+    return band_pct(mm, bases[0], drive_nl, passive_nl)
+
+
+def _beats_band(combination: dict, flexed: "EffectResult | None", band: tuple[float, float],
+                base: Score, finding) -> bool:
+    """Does the combination explain more than the model's own accuracy can: beat the
+    nominal model flexed within the band on held-out samples, and, where it changes how
+    much air the machine takes, with the total outside the band?"""
+    if flexed is None:
+        return True
+    if not finding(flexed.heldout_score, combination["heldout"]):
+        return False
+    volume = all(name in VOLUME_EFFECTS for name in combination["effects"])
+    return not (volume and band[0] <= base.error_pct <= band[1])
+
+
+def _at_bound(result: EffectResult, mm, ctx: dict, rds: list[RunData], bases: list
+              ) -> bool:
+    """Does any of ``result``'s effect parameters (not the clock or the meter's lag) sit
+    at a bound of its range, other than a bound of zero (a leak, a lag or an extra
+    volume of none: that part of the effect is off), where it matters: the fit on all
+    samples is materially worse with it back at its initial value? It wanted more than
+    is physical there. (A drive whose strokes the log cannot resolve lets its factor
+    drift to a bound without changing anything.)"""
+    theta = np.array(result.fit.theta, dtype=float)
+    k = 0
+    for e, part in result.fit.by_effect():
+        for j, spec in enumerate(e.params(mm, ctx)):
+            value = float(part[j]) if j < len(part) else math.nan
+            near = AT_BOUND_SHARE * (spec.upper - spec.lower)
+            if near > 0 and any(bound != 0.0 and abs(value - bound) < near
+                                for bound in (spec.lower, spec.upper)):
+                back = theta.copy()
+                back[k + j] = spec.init
+                if _matters(result, back, mm, rds, _bases_of(result, bases)):
+                    return True
+        k += len(part)
+    return False
+
+
+# a parameter matters where setting it back raises the all-sample RMSE by this share
+MATTERS_SHARE = 0.01
+
+
+def _matters(result: EffectResult, theta: np.ndarray, mm, rds: list[RunData],
+             bases: list) -> bool:
+    """Is the fit with ``theta`` (the result's values with one changed) materially worse
+    than the result's own on all samples, at the result's clock and meter lag?"""
+    params = []
+    for base, fitted in zip(bases, result.fit.params):
+        p = base
+        for e, t in result.fit.by_effect(theta):
+            p = e.apply(mm, p, t)
+        p = dataclasses.replace(p, clock_adjust_s=fitted.clock_adjust_s,
+                                meter_tau_s=fitted.meter_tau_s)
+        params.append(p)
+    try:
+        worse = score(rds, params).rmse_l_min
+    except PlcpredError:
+        return True
+    return worse > (1.0 + MATTERS_SHARE) * score(rds, result.fit.params).rmse_l_min
 
 
 def _dynamic_reference(machine, mm, rds, bases, ctx, fold_masks, warnings: list[str],

@@ -350,9 +350,10 @@ class FitResult:
     message: str
     counts: list[int] = field(default_factory=list)   # parameters per effect
 
-    def by_effect(self):
-        """(effect, its slice of ``theta``) for each effect, in order."""
-        return _by_effect(self.effects, self.counts, self.theta)
+    def by_effect(self, theta=None):
+        """(effect, its slice of ``theta``) for each effect, in order (``theta``: other
+        values of the same parameters, default the fitted ones)."""
+        return _by_effect(self.effects, self.counts, self.theta if theta is None else theta)
 
     @property
     def bic(self) -> float:

@@ -86,3 +86,29 @@ def noise_level_l_min(residual_l_min: np.ndarray) -> float:
         return 0.0
     mad = np.median(np.abs(d - np.median(d)))
     return float(1.4826 * mad / math.sqrt(2.0))
+
+
+# readings whose predicted neighbours agree to this share of the mean flow are "flat"
+FLAT_SHARE = 1e-3
+MIN_FLAT_PAIRS = 20
+
+
+def flat_noise_l_min(measured_l_min: np.ndarray, predicted_l_min: np.ndarray
+                     ) -> tuple[float | None, int]:
+    """(the meter's noise, readings it rests on) from what cannot be model error: the
+    scatter between neighbouring readings where the prediction is flat (nothing
+    switches, or only a constant flow runs), as :func:`noise_level_l_min` takes it (the
+    median absolute difference, scaled to a standard deviation). A misfit of the model
+    cannot raise it, where the differences of the residual carry every stroke the model
+    places a little off. None where fewer than MIN_FLAT_PAIRS neighbours are flat."""
+    m = np.asarray(measured_l_min, dtype=float)
+    p = np.asarray(predicted_l_min, dtype=float)
+    if len(m) < 3:
+        return None, 0
+    tol = FLAT_SHARE * max(float(np.mean(np.abs(p))), 1e-9)
+    flat = np.abs(np.diff(p)) <= tol
+    d = np.diff(m)[flat]
+    if len(d) < MIN_FLAT_PAIRS:
+        return None, int(len(d))
+    mad = np.median(np.abs(d - np.median(d)))
+    return float(1.4826 * mad / math.sqrt(2.0)), int(len(d))

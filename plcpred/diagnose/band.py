@@ -1,0 +1,108 @@
+"""The model-form band: how far a healthy machine may legitimately differ from D1 and D2.
+
+The activation model is exact for nothing real. A settled stroke takes D1 less the air
+its dead volume already held at atmospheric pressure; a fill is not isothermal and
+short dwells leave chambers hot and exhausts incomplete, so real strokes take a few per
+cent less again; a nozzle's conductance is known to a few per cent (docs/physics.md;
+the domain notes, section 7: "settled strokes take about 0.96 x D1, short dwells less").
+A diagnosis that reads that error as a fault blames healthy machines, since any free
+parameter absorbs a few per cent.
+
+So the nominal model is allowed to flex within the band before any effect is credited:
+:class:`ModelForm` is a nuisance "effect" of two parameters (the share of each drive's
+plausible shortfall that applies, one for every drive since heat and exhaust act alike on
+all of them, and one factor on every nozzle and leak), fitted like the clock and the
+meter's lag. An effect is a finding only where it beats the nominal model flexed so, on
+held-out samples (:func:`~plcpred.diagnose.core.diagnose`), and :func:`band_pct` states
+the band in total air for the report.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .effects import Effect, Param
+from .model import MachineModel, ModelParams
+
+# a stroke may take this share more than D1 (bore, stroke and tube lengths as built,
+# a supply a little above the regulator's setting)
+DRIVE_ABOVE_SHARE = 0.02
+# and below D1 beyond the air its dead volume held at atmosphere: an incomplete top-up
+# after a hot fill and an exhaust cut short (settled strokes 0.96 x D1, short dwells less)
+DRIVE_THERMAL_SHARE = 0.05
+# a nozzle's or a leak's D2 flow either way (its conductance from a catalogue or an
+# orifice and Cd, the linear model's 5 % at usual supplies)
+PASSIVE_SHARE = 0.05
+
+
+def drive_factor_range(mm: MachineModel, p: ModelParams) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high), each (drives, 2): the factors on each drive's extend and retract D1
+    air within which a healthy drive's strokes lie. A settled stroke fills its swept
+    volume, tube and the cylinder's own dead volume to supply from what they held, so
+    it takes D1 (which counts the tube from zero and leaves the inner volume out) plus
+    ``V_inner (P_s - P_atm)/P0 - V_tube P_atm/P0`` (section 7): that is where the band
+    is centred. Hot fills and exhausts cut short take up to DRIVE_THERMAL_SHARE less,
+    dimensions as built up to DRIVE_ABOVE_SHARE more."""
+    d1 = np.stack([p.extend_nl, p.retract_nl], axis=1)
+    tube_d1 = np.clip(d1 - p.swept_nl, 0.0, None)      # the tube's D1 air
+    with np.errstate(invalid="ignore", divide="ignore"):
+        # D1 less what a settled stroke takes, as a share of D1 (may be negative)
+        settled = np.where(d1 > 0, (tube_d1 - p.held_nl) / d1, 0.0)
+    centre = np.clip(1.0 - settled, 0.5, 1.5)
+    return centre - DRIVE_THERMAL_SHARE, centre + DRIVE_ABOVE_SHARE
+
+
+class ModelForm(Effect):
+    """The nominal model flexed within the band (a nuisance, never a verdict)."""
+    name, title = "model_form", "the activation model's own accuracy"
+    expressible = False
+
+    def __init__(self, factor_range: tuple[np.ndarray, np.ndarray] | None = None):
+        self.factor_range = factor_range
+
+    def params(self, mm, ctx):
+        out = []
+        if mm.drives:
+            # 0: every stroke at the band's top, 1: at its bottom
+            out.append(Param("drive_shortfall", "share of the band", 0.0, 1.0, 0.5,
+                             (0.0, 0.5, 1.0)))
+        if mm.passives:
+            out.append(Param("passive_factor", "", 1.0 - PASSIVE_SHARE,
+                             1.0 + PASSIVE_SHARE, 1.0))
+        return out
+
+    def apply(self, mm, p, theta):
+        q = p.copy()
+        k = 0
+        if mm.drives:
+            low, high = self.factor_range if self.factor_range is not None else \
+                drive_factor_range(mm, p)
+            s = float(theta[k])
+            k += 1
+            factor = high - s * (high - low)
+            q.extend_nl = p.extend_nl * factor[:, 0]
+            q.retract_nl = p.retract_nl * factor[:, 1]
+            q.swept_nl = p.swept_nl * factor
+        if mm.passives:
+            q.passive_l_min = p.passive_l_min * float(theta[k])
+        return q
+
+    def physical(self, mm, theta):
+        return dict(zip([p.name for p in self.params(mm, {})], map(float, theta)))
+
+
+def band_pct(mm: MachineModel, p: ModelParams, drive_nl: float, passive_nl: float
+             ) -> tuple[float, float]:
+    """(low, high): the error in total air, in per cent as ``error_pct`` counts it
+    (predicted - measured over measured), that a healthy machine may show, for a run
+    whose prediction books ``drive_nl`` on its drives and ``passive_nl`` on its nozzles
+    and leaks (the drives' factors averaged)."""
+    if drive_nl + passive_nl <= 0:
+        return 0.0, 0.0
+    low_f = high_f = 1.0
+    if mm.drives:
+        low, high = drive_factor_range(mm, p)
+        low_f, high_f = float(np.mean(low)), float(np.mean(high))
+    least = low_f * drive_nl + (1.0 - PASSIVE_SHARE) * passive_nl     # measured at least
+    most = high_f * drive_nl + (1.0 + PASSIVE_SHARE) * passive_nl
+    predicted = drive_nl + passive_nl
+    return 100.0 * (predicted - most) / most, 100.0 * (predicted - least) / least
