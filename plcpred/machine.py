@@ -754,7 +754,10 @@ def check_against_program(machine: Machine, program) -> list[str]:
     names, outputs, read, inputs = _program_io(program)
     by_address = program_addresses(program)
     by_address.update({addr.upper(): name for addr, name in machine.signals.items()})
-    program_file = machine.program_path.name
+    # the program checked (a --program given instead of the file's is named as itself)
+    program_file = next((Path(p.pos.file).name for p in program.pous if p.pos is not None
+                         and p.pos.file and not p.pos.file.startswith("<")),
+                        machine.program_path.name)
 
     def resolve(signal: str) -> str:
         return by_address.get(signal.upper(), signal)

@@ -117,10 +117,14 @@ def test_paths_give_what_event_jumps_tiling_and_stepping_agree_on(tmp_path):
     ("aValve[{i}]]", "cannot read ']'"),
 ])
 def test_a_wrong_path_names_the_signal(tmp_path, valve, message):
+    from plcpred.machine import MachineError
     m = load(tmp_path, machine_text(valve=valve))
     with pytest.raises(PlcpredError, match=message) as e:
         run(m)
     assert "signal '" in str(e.value) and "m.toml" in str(e.value)
+    # the machine file's mistake: exit 2 like every other, naming the table that gives it
+    assert isinstance(e.value, MachineError) and "[[consumer]]" in str(e.value)
+    assert "valve" in str(e.value)
 
 
 def test_a_path_whose_variable_does_not_exist_fails_before_the_run(tmp_path):
@@ -164,3 +168,17 @@ def test_a_two_dimensional_element_survives_timeline_csv(tmp_path):
         t2, v2 = back.edge_times_ns(name)
         assert list(t) == list(t2) and list(v) == list(v2)
 
+
+
+def test_a_signal_missing_from_a_program_given_instead_names_that_program(tmp_path, capsys):
+    from plcpred.cli import main
+    m = tmp_path / "m.toml"
+    (tmp_path / "p.st").write_text("PROGRAM Main VAR q : BOOL; END_VAR q := NOT q; END_PROGRAM\n")
+    (tmp_path / "other.st").write_text("PROGRAM Main VAR r : BOOL; END_VAR r := NOT r; "
+                                       "END_PROGRAM\n")
+    m.write_text('[machine]\nname = "m"\nprogram = "p.st"\nscan_ms = 10\nsupply_bar_g = 6\n'
+                 '[[consumer]]\nname = "n"\nkind = "nozzle"\nvalve = "q"\norifice_mm = 1\nCd = 0.8\n')
+    rc = main(["predict", str(m), "--program", str(tmp_path / "other.st"), "--horizon", "1s",
+               "--out", str(tmp_path / "o"), "--no-plot"])
+    err = capsys.readouterr().err
+    assert rc == 2 and "valve 'q' is not a variable of other.st" in err, err

@@ -53,6 +53,22 @@ class SequencerError(PlcpredError):
     """A problem running a machine (not a program syntax error)."""
 
 
+def _naming_table(machine, signal: str) -> str:
+    """Where the machine file names ``signal``: ``[[consumer]] "1A1" valve``, ``[[input]]
+    signal`` and so on (empty where no table does, e.g. a [signals] alias)."""
+    for c in machine.consumers:
+        valves = c.valve if isinstance(c.valve, (list, tuple)) else [c.valve]
+        if signal in valves:
+            return f'[[consumer]] "{c.name}" valve'
+        for role, name in (c.switches or {}).items():
+            if name == signal:
+                return f'[[consumer]] "{c.name}" switches.{role}'
+    for k, i in enumerate(machine.inputs):
+        if i.signal == signal:
+            return f"[[input]] #{k + 1} signal"
+    return ""
+
+
 # ---------------------------------------------------------------------- namespace
 
 class FbBase:
@@ -802,11 +818,19 @@ class Sequencer:
         slot = (self.compiled.address_slots or {}).get(name.upper())
         if hit is None and slot is not None:
             hit = (inst.g, slot, self.compiled.globals_types[slot][1])
-        where = f"{self.machine.path}: " if self.machine is not None else ""
-        if hit is None:
-            hit = self._locate_path(inst, name, f"{where}signal '{signal}'")
-        if hit is None:
-            raise SequencerError(f"{where}signal '{signal}' is not a variable of the program")
+        try:
+            if hit is None:
+                hit = self._locate_path(inst, name, f"signal '{signal}'")
+            if hit is None:
+                raise SequencerError(f"signal '{signal}' is not a variable of the program")
+        except SequencerError as e:
+            if self.machine is None:
+                raise
+            from ..machine import MachineError
+            # a name in the machine file the program does not have: the file's mistake
+            # (exit 2, as every machine-file error), named by the table that gives it
+            raise MachineError(str(self.machine.path), _naming_table(self.machine, signal),
+                               str(e)) from None
         return hit
 
     def _locate_path(self, inst, name: str, what: str):
