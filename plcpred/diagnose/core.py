@@ -459,7 +459,8 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     ctx = {"mean_l_min": max(base_score.measured_nl, 1e-9) * 60.0 / max(
         sum(float(rd.weight_s.sum()) for rd in rds), 1e-9),
         "meter_tau_s": meter_tau,
-        "fitted_tau_s": max(rd.fitted_tau_s for rd in rds)}
+        "fitted_tau_s": max(rd.fitted_tau_s for rd in rds),
+        "logged_supply_bar_g": _logged_supply_all(rds)}
     # the baseline's nuisances (clock, meter lag) are fitted as every effect's are: on
     # all samples, then each fold from there
     base_all = fit_effects([], mm, rds, [np.ones(len(rd.end_s), bool) for rd in rds],
@@ -1171,6 +1172,15 @@ def _clock_reading(run, offset_s: float) -> str:
 
 
 SUPPLY_NOTE_BAR = 0.2   # a logged supply this far from the machine file's is pointed out
+
+
+def _logged_supply_all(rds: list[RunData]) -> float | None:
+    """The mean supply pressure the logs record, weighted by their readings; None
+    unless every run records one."""
+    means = [(_logged_supply(rd.run), len(rd.run.time_s)) for rd in rds]
+    if not means or any(m is None for m, _ in means):
+        return None
+    return float(sum(m * n for m, n in means) / sum(n for _, n in means))
 
 
 def _logged_supply(run) -> float | None:

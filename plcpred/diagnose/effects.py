@@ -37,6 +37,9 @@ MIN_WRITTEN_TAU_S = 1e-4
 MAX_SUPPLY_CHANGE = 0.5
 # a dead volume fit that takes away more than this share of a drive's stated tube
 MAX_TUBE_OVERSTATEMENT = 0.5
+# a supply the log records may be fitted this far from the log's mean (a gauge's
+# accuracy and a regulator's swing with the flow)
+LOGGED_SUPPLY_REACH_BAR = 0.15
 NUISANCE_METER_TAU_S = 0.6   # thermal-mass meters respond in 0.1-0.6 s (docs/physics.md: figures)
 
 
@@ -207,6 +210,14 @@ class SupplyPressure(Effect):
         return max(0.2, 0.4 * p), 1.6 * p + 1.0
 
     def params(self, mm, ctx):
+        logged = ctx.get("logged_supply_bar_g")
+        if logged is not None:
+            # the log measured it: the fit may only move it by what a gauge and the
+            # regulator's swing around its mean leave open, so that a verdict cannot
+            # contradict the log (3.6 bar fitted where it read 5.0)
+            lo, hi = self._range(mm)
+            return [Param("supply_bar_g", "bar(g)", max(lo, logged - LOGGED_SUPPLY_REACH_BAR),
+                          min(hi, logged + LOGGED_SUPPLY_REACH_BAR), logged)]
         return [Param("supply_bar_g", "bar(g)", *self._range(mm), mm.machine.supply_bar_g)]
 
     def apply(self, mm, p, theta):
