@@ -1278,3 +1278,26 @@ def test_a_supply_verdict_never_contradicts_the_logs_own_reading():
     supply = next(e for e in d.effects if e.name == "supply_pressure")
     assert abs(supply.physical["supply_bar_g"] - machine.supply_bar_g) <= 0.15 + 1e-9
     assert d.verdict != "supply_pressure", d.report()
+
+
+def test_a_leak_that_opens_during_a_log_is_found_with_its_onset():
+    """A 6 NL/min leak opens 40 s into the first 100 s log and stays in the second: the
+    verdict is a leak, from about 40 s in the first log on (within 10 % of the log)."""
+    onset_s, flow = 40.0, 6.0
+
+    def leak_from(t0):
+        def transform(pred, f):
+            t = np.arange(f.shape[1]) * 0.01
+            return f.sum(axis=0) + np.where(t >= t0, flow, 0.0)
+        return transform
+    runs = [run_of(PICK, 100, rate_hz=2.0, tau_s=0.3, noise=0.5, offset_s=o, seed=s,
+                   name=f"r{s}.csv", transform=leak_from(t0))
+            for s, o, t0 in ((0, 5.0, onset_s), (1, 9.0, 0.0))]
+    d = diagnose(PICK, runs)
+    assert d.verdict == "leak", d.report()
+    found = d.summary()["combination"]["parameters"]
+    found = found.get("leak", found)
+    assert found["onset_run"] == "r0.csv"
+    assert abs(found["onset_s"] - onset_s) < 0.1 * 100, d.report()
+    assert found["flow_l_min"] == pytest.approx(flow, rel=0.15)
+    assert "into r0.csv on" in d.report()

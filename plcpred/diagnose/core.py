@@ -39,13 +39,14 @@ from ..air.demand import stroke_cuts
 from ..errors import PlcpredError
 from .band import ModelForm, band_pct, drive_factor_range
 from .effects import (CLOSED_LOOP_EFFECTS, CUT_STROKE_EFFECTS, EFFECTS, Effect,
-                      NUISANCE_METER_TAU_S, IncompleteExhaust, StrokeTime)
+                      NUISANCE_METER_TAU_S, IncompleteExhaust, LeakFrom, StrokeTime)
 from .fit import (DiagnosisError, FitResult, RunData, Score, align, fit_effects, folds,
                   heldout, score)
 from .io import TIME_OF_DAY_FORMATS, MeasuredRun
 from .locate import contexts, sample_contexts, step_contexts, windows
 from .meter import flat_noise_l_min, noise_level_l_min
 from .model import MachineModel, RunModel
+from .onset import step_onset
 from .timing import Resequencer
 from .through_plant import (MAX_VARIANT_PIECES, PLANT_FORMS, PlantVariants,
                             variant_pieces)
@@ -143,6 +144,17 @@ class Diagnosis:
     meter_noise_l_min: float = 0.0
     flat_pairs: int = 0
     left_l_min: float = 0.0
+
+    def _onset(self) -> dict | None:
+        """The verdict's onset, where it is an effect that starts during the logs."""
+        if not self.combination or not self.effects:
+            return None
+        for e, _ in self.combination["fit"].by_effect():
+            if isinstance(e, LeakFrom):
+                found = self.combination["physical"]
+                found = found.get(e.name, found) if isinstance(found, dict) else {}
+                return found if "onset_s" in found else None
+        return None
 
     def best_params(self):
         """Per run: the model parameters of the combination (which starts with the
@@ -269,6 +281,11 @@ class Diagnosis:
             lines.append("  (the plant explains part of the gap that D1 leaves out by "
                          "design: an effect must beat it too)")
         lines += ["", f"verdict: {self.verdict}"]
+        onset = self._onset()
+        if onset is not None:
+            lines.append(f"  from {onset['onset_s']:.1f} s into {onset['onset_run']} on (its "
+                         f"clock {onset['onset_logger_s']:.1f} s); before that the log "
+                         "shows no such flow")
         lines.append(f"  meter noise {self.meter_noise_l_min:.2g} NL/min"
                      + (f" (from {self.flat_pairs} neighbouring readings where nothing "
                         "switches)" if self.flat_pairs else " (from the residual's "
@@ -449,6 +466,9 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
         if waiting:
             mm.resequencer = reseq
     base_score = score(rds, bases)
+    onsets = _leak_onsets(rds, residuals, period_s)
+    if onsets is not None:
+        bases = [dataclasses.replace(b, leak_onset_s=t) for b, t in zip(bases, onsets)]
     noise = float(np.median([noise_level_l_min(r) for r in residuals]))
     meter_noise, flat_pairs = _meter_noise(rds, bases, noise)
 
@@ -490,6 +510,9 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                                 CUT_STROKE_EFFECTS.get(name) if cut else None,
                                 slowed.get(name))
                     if e is not None and e.applies(mm)] for name in names}
+    if onsets is not None and "leak" in forms:
+        forms["leak"].append(LeakFrom([(rd.run.name, t if 0.0 < t < math.inf else None,
+                                        rd.offset_s) for rd, t in zip(rds, onsets)]))
     tried: dict[str, list[EffectResult]] = {name: [] for name in names}
 
     def finding(base: Score, new: Score) -> bool:
@@ -724,6 +747,31 @@ UNEXPLAINED_SHARE = 0.05
 # and the best explanation must take at least this share of the gap beyond the noise
 # away, else the gap is unexplained rather than that effect
 EXPLAINED_SHARE = 0.5
+
+
+def _leak_onsets(rds: list[RunData], residuals: list, period_s: float | None
+                 ) -> list[float] | None:
+    """Per run where an always-on flow starts (diagnose.onset): the step's time in a
+    run whose residual steps up, 0 in a run whose residual sits at the level after the
+    steps (the flow runs throughout), infinity in one at the level before (it has not
+    started); None where no run's residual steps up."""
+    flow = sum(float(rd.measured_l_min @ rd.weight_s) for rd in rds)
+    mean_l_min = flow / max(sum(float(rd.weight_s.sum()) for rd in rds), 1e-9)
+    steps = [step_onset(rd.end_s, r, rd.weight_s, mean_l_min, period_s)
+             for rd, r in zip(rds, residuals)]
+    up = [o for o in steps if o is not None and o.step_l_min > 0]
+    if not up:
+        return None
+    before = float(np.mean([o.before_l_min for o in up]))
+    after = float(np.mean([o.after_l_min for o in up]))
+    out = []
+    for rd, r, o in zip(rds, residuals, steps):
+        if o is not None and o.step_l_min > 0:
+            out.append(o.time_s)
+            continue
+        level = float(np.average(r, weights=rd.weight_s))
+        out.append(0.0 if abs(level - after) < abs(level - before) else math.inf)
+    return out
 
 
 def _meter_noise(rds: list[RunData], bases: list, fallback: float) -> tuple[float, int]:

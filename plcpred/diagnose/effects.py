@@ -150,6 +150,30 @@ class Leak(Effect):
                 f'{theta[0]:.3g} NL/min)']
 
 
+class LeakFrom(Leak):
+    """A leak (or a blower left on) that opens during the logs: each run's extra flow
+    starts where its residual steps up (diagnose.onset), at its start in runs that have
+    it throughout, never in runs before it. ``onsets``: per run (name, onset in
+    prediction time or None, the run's clock offset) for the report."""
+    title = "an unmodelled leak from a time on"
+
+    def __init__(self, onsets: list[tuple[str, float | None, float]] = ()):
+        self.onsets = list(onsets)
+
+    def apply(self, mm, p, theta):
+        q = super().apply(mm, p, theta)
+        q.extra_leak_from_s = p.leak_onset_s
+        return q
+
+    def physical(self, mm, theta):
+        out = super().physical(mm, theta)
+        found = [(name, t, off) for name, t, off in self.onsets if t is not None]
+        if found:
+            name, t, off = found[0]
+            out.update({"onset_run": name, "onset_s": t, "onset_logger_s": t + off})
+        return out
+
+
 class PassiveFlow(Effect):
     """Nozzles and air knives flowing other than their D2 model says (a wrong
     conductance, worn nozzles, the sonic assumption at low pressure): a factor on each

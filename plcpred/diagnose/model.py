@@ -40,6 +40,11 @@ class ModelParams:
     partial_strokes: np.ndarray       # bool per drive: strokes cut short take their share
     passive_l_min: np.ndarray         # D2 flow while on (nozzles) or always (leaks)
     extra_leak_l_min: float = 0.0     # an always-on flow the machine file does not have
+    # from this time on (prediction time; inf: not in this run): a leak that opens
+    # during the log. ``leak_onset_s`` is where the run's residual steps up, if it does
+    # (diagnose.onset), for an effect to take as its start
+    extra_leak_from_s: float = 0.0
+    leak_onset_s: float = 0.0
     refill_fraction: float = 0.0      # shared supply: share of each stroke refilled later
     refill_tau_s: float = 0.0
     meter_tau_s: float = 0.0
@@ -143,6 +148,7 @@ class RunModel:
                 s, e = s_ns / NS, e_ns / NS
             self.unit_cells[k] = interval_cells(self.edges_s, s, e, 1.0)
         self.leak_unit = interval_cells(self.edges_s, [0.0], [self.horizon_s], 1.0)
+        self._leak_from: dict[float, np.ndarray] = {}
         self._drive_cache: dict[tuple, np.ndarray] = {}
         # NL per cell the physics plant draws beyond the nominal D1 model on these edges
         # (set by the diagnosis; used where ModelParams.dynamic)
@@ -202,11 +208,26 @@ class RunModel:
             out[row] = self.drive_cells(params, k)
         for k, row in enumerate(self.mm.passives):
             out[row] = self.unit_cells[k] * params.passive_l_min[k]
-        out[-1] = self.leak_unit * params.extra_leak_l_min
+        out[-1] = self._leak_cells(params)
         return out
 
+    def _leak_cells(self, params: ModelParams) -> np.ndarray:
+        """The diagnosis' extra leak per cell, from ``extra_leak_from_s`` on."""
+        if not params.extra_leak_l_min:
+            return np.zeros(self.n_cells)
+        start = params.extra_leak_from_s
+        if start <= 0.0:
+            return self.leak_unit * params.extra_leak_l_min
+        if start >= self.horizon_s:
+            return np.zeros(self.n_cells)
+        unit = self._leak_from.get(start)
+        if unit is None:
+            unit = interval_cells(self.edges_s, [start], [self.horizon_s], 1.0)
+            self._leak_from = {start: unit}
+        return unit * params.extra_leak_l_min
+
     def total_cells(self, params: ModelParams) -> np.ndarray:
-        total = self.leak_unit * params.extra_leak_l_min
+        total = self._leak_cells(params)
         if len(self.mm.passives):
             total = total + params.passive_l_min @ self.unit_cells
         for k in range(len(self.mm.drives)):
