@@ -1301,3 +1301,15 @@ def test_a_leak_that_opens_during_a_log_is_found_with_its_onset():
     assert abs(found["onset_s"] - onset_s) < 0.1 * 100, d.report()
     assert found["flow_l_min"] == pytest.approx(flow, rel=0.15)
     assert "into r0.csv on" in d.report()
+
+
+def test_a_clock_that_leaves_much_of_the_log_unused_says_so():
+    """Never silently: a clock that puts the machine's start 40 s into a 90 s log (a
+    slip by whole cycles looks like this) leaves the first 40 s out, and the warnings
+    say how many readings were used."""
+    run = run_of(PICK, 90, rate_hz=2.0, tau_s=0.3, noise=0.5, offset_s=0.0, seed=1)
+    d = diagnose(PICK, [run], offsets=[40.0])
+    note = [w for w in d.warnings if "readings fall within the prediction" in w]
+    assert note and f"of {len(run.time_s)} readings" in note[0], d.warnings
+    clean = diagnose(PICK, [run], offsets=[0.0])
+    assert not [w for w in clean.warnings if "readings fall within" in w], clean.warnings

@@ -446,6 +446,8 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                    mm.nominal(meter_tau or 0.0), window, meter_tau, off)
         _check_run(rd, rd.readings(mm.nominal(rd.meter_tau_s)), machine.name,
                    off is not None, warnings)
+        warnings += rd.notes
+        _check_coverage(rd, warnings)
         rds.append(rd)
         if run.sampling is None:
             instants.append(align(dataclasses.replace(run, sampling="instant"), rm,
@@ -1142,6 +1144,22 @@ def _meter_corrected(run: MeasuredRun, meter, warnings: list[str]) -> MeasuredRu
     return MeasuredRun(run.name, run.time_s[keep], flow[keep], None if run.supply_bar_g is
                        None else run.supply_bar_g[keep], dict(run.source),
                        run.sampling or meter.sampling)
+
+
+# a log of which the alignment uses less than this share is pointed out
+COVERAGE_SHARE = 0.9
+
+
+def _check_coverage(rd: RunData, warnings: list[str]) -> None:
+    """Say so where the alignment leaves a material part of the log unused (a clock
+    that slipped by whole cycles drops the readings before the prediction's start)."""
+    total = len(rd.run.time_s)
+    used = len(rd.end_s)
+    if total and used < COVERAGE_SHARE * total:
+        warnings.append(f"{rd.run.name}: only {used} of {total} readings fall within the "
+                        f"prediction at the clock offset {rd.offset_s:+.3f} s (the rest "
+                        "before the machine's start or after the horizon); if the machine "
+                        "ran all through the log, give its clock with --offset")
 
 
 def _check_run(rd: RunData, pred: np.ndarray, machine_name: str, given_offset: bool,

@@ -54,6 +54,8 @@ class RunData:
     # (RunModel, its alignment's offset and meter lag minus this run's), made by
     # diagnose.timing
     variants: dict = field(default_factory=dict, repr=False)
+    # what the alignment could not decide alone (another clock as good), for the report
+    notes: list = field(default_factory=list, repr=False)
 
     def __post_init__(self):
         self.weight_s = self.end_s - self.start_s
@@ -188,8 +190,10 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
         # at each coarse offset the best lag wins outright (a smooth valley of means is
         # followed from the first lag by the refinement below)
         instant = run.sampling == "instant"
+        scored = []             # (correlation, offset) of each candidate's best
         for coarse in candidates:
             here = (-2.0, coarse, taus[0]) if instant else best
+            own = (-2.0, coarse)        # this candidate's best, for the rivals below
             for tau in taus:
                 # a coarse offset may be late by up to the lag
                 step = max(rm.dt_s, tau / 50.0,
@@ -200,18 +204,38 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
                 if corr is None:
                     continue
                 k = int(np.argmax(corr))
+                own = max(own, (float(corr[k]), float(fine[k])))
                 if corr[k] > here[0] + (0.0 if instant else 2e-3):
                     here = (float(corr[k]), float(fine[k]), tau)
+            scored.append(own)
             # the first candidate (the smallest shift) wins near-ties
             if not instant or here[0] > best[0] + 2e-3:
                 best = here
         _, offset_s, tau = best
+        # a clock as good that would use more of the log: the one taken may have
+        # slipped by whole cycles (a cycling machine looks alike a cycle later), and
+        # the readings it leaves out are lost to the diagnosis. (Clocks whole cycles
+        # apart that use the whole log alike give the same diagnosis.)
+        used = len(_common_samples(run, offset_s, offset_s, rm.horizon_s))
+        rivals = [(c, o, n) for c, o in scored if abs(o - offset_s) > 2.0 * g + 1.0
+                  and c >= best[0] - RIVAL_MARGIN
+                  and (n := len(_common_samples(run, o, o, rm.horizon_s)))
+                  >= used + max(3, RIVAL_MORE_SHARE * len(run.time_s))]
+        if rivals:
+            c, o, n = max(rivals)
+            notes = [f"{run.name}: the log's clock fits as well {o - offset_s:+.1f} s from "
+                     f"the one taken (correlation {c:.4f} against {best[0]:.4f}), which "
+                     f"would use {n} of its readings instead of {used}: check it, or give "
+                     "--offset"]
+        else:
+            notes = []
         lo_o, hi_o = offset_s - g, offset_s + g
     else:
         corr = [correlations(tau, [offset_s]) for tau in taus]
         k = int(np.argmax([-2.0 if c is None else c[0] for c in corr]))
         tau = taus[k]
         lo_o = hi_o = offset_s
+        notes = []
     fitted_tau = tau
     if (meter_tau_s is not None or quick) and lo_o < hi_o:
         # the lag is known (or, quick, kept at the best of the grid): the offset alone,
@@ -259,10 +283,17 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
     p_fit.meter_tau_s = fitted_tau
     rd = RunData(run, rm, float(offset_s), float(tau), float(fitted_tau), 0.0,
                  start, end, run.flow_l_min[idx])
+    rd.notes = notes
     # how well the log matches the machine at all: with the lag the search found
     rd.correlation = _pearson(rm.readings(p_fit, rd.read_start_s, end, cells),
                               rd.measured_l_min)
     return rd
+
+
+# another clock (more than a sampling interval or two away) this close in correlation
+# to the one taken is as good: the report says so
+RIVAL_MARGIN = 2e-3
+RIVAL_MORE_SHARE = 0.05     # of the log's readings, more that a rival would use
 
 
 SETTLE_LAGS = 3.0                  # a first-order meter is within 5 % after three lags
