@@ -43,7 +43,7 @@ from .effects import (CLOSED_LOOP_EFFECTS, CUT_STROKE_EFFECTS, EFFECTS, Effect,
 from .fit import (DiagnosisError, FitResult, RunData, Score, align, fit_effects, folds,
                   heldout, score)
 from .io import TIME_OF_DAY_FORMATS, MeasuredRun
-from .locate import contexts, sample_contexts, step_contexts, windows
+from .locate import attribution, contexts, sample_contexts, step_contexts, windows
 from .meter import flat_noise_l_min, noise_level_l_min
 from .model import MachineModel, RunModel
 from .onset import step_onset
@@ -144,6 +144,8 @@ class Diagnosis:
     meter_noise_l_min: float = 0.0
     flat_pairs: int = 0
     left_l_min: float = 0.0
+    # the residual by consumer, each by its own edges and phases (locate.attribution)
+    attribution: list = field(default_factory=list)
 
     def _onset(self) -> dict | None:
         """The verdict's onset, where it is an effect that starts during the logs."""
@@ -184,6 +186,7 @@ class Diagnosis:
             "heldout": self.fold_kind,
             "contexts": [c.summary() for c in self.contexts],
             "locations": self.locations,
+            "attribution": self.attribution,
             "effects": [e.summary() for e in self.effects],
             "verdict": self.verdict,
             "alternatives": self.alternatives,
@@ -253,6 +256,12 @@ class Diagnosis:
             lines.append(f"  {c.context:<28} {c.residual_nl:+9.3f} NL  "
                          f"({100 * c.share:+6.1f} % of the gap, +/- {c.uncertainty_nl:.3f})"
                          f"{mark}")
+        if self.attribution:
+            lines.append("by consumer (the residual fitted to each one's own predicted air):")
+            for a in self.attribution[:4]:
+                how = (f"{a['flow_l_min']:+.2f} NL/min" if a["consumer"] == "always on"
+                       else f"{a['relative_pct']:+.0f} % of its predicted air")
+                lines.append(f"  {a['consumer']:<28} {a['residual_nl']:+9.3f} NL  ({how})")
         lines += ["", f"which effect (held-out: {self.fold_kind}):",
                   f"  {'effect':<20} {'error after':>11} {'held-out':>9} {'RMSE held-out':>14}"
                   "  parameters",
@@ -651,6 +660,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     for rd, lab, r in zip(rds, labels, residuals):
         locations += windows(rd, lab, r, noise, named)
     locations.sort(key=lambda x: -abs(x["residual_nl"]))
+    by_consumer = attribution(rds, bases, residuals)
     steps = [step_contexts(rd) for rd in rds]
     step_list = contexts(steps, residuals, weights, noise) if all(
         s is not None for s in steps) else []
@@ -740,7 +750,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                      reference=reference, on_plant=on_plant,
                      dynamics_explain=dynamics_explain, flexed=flexed, band_pct=band,
                      within_band=within_band, meter_noise_l_min=meter_noise,
-                     flat_pairs=flat_pairs, left_l_min=left)
+                     flat_pairs=flat_pairs, left_l_min=left, attribution=by_consumer)
 
 
 # a residual beyond the meter's noise of at least this share of the mean flow (RMS) is
