@@ -304,10 +304,13 @@ class Diagnosis:
         if self.verdict == "unexplained":
             where = ", ".join(c.context for c in self.contexts[:3] if c.stands_out) or \
                 ", ".join(c.context for c in self.contexts[:2])
+            who = ", ".join(f"{a['consumer']} {a['residual_nl']:+.2f} NL"
+                            for a in self.attribution[:2])
             lines.append("  no effect in the library explains the gap: "
                          + (f"the best ({self.effects[0].name}) takes away less than half "
                             "of it; " if self.effects else "")
-                         + f"it lies mostly in {where or 'no one context'}")
+                         + f"it lies mostly in {where or 'no one context'}"
+                         + (f" (by consumer: {who})" if who else ""))
         if self.verdict == "none" and self.flexed is not None:
             lo, hi = self.band_pct
             lines.append(f"  within the model's accuracy: error {b.error_pct:+.1f} % against "
