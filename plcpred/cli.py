@@ -758,8 +758,9 @@ def build_parser() -> argparse.ArgumentParser:
                                    "(idle, a drive's strokes, a nozzle on, SFC steps), which "
                                    "unmodelled effect causes it (leak, passive_flow, "
                                    "supply_pressure, dead_volume, incomplete_exhaust, "
-                                   "shared_supply, valve_delay, stroke_time, sensor_lag; or "
-                                   "none) and how far the gap shrinks with it on samples the "
+                                   "shared_supply, valve_delay, stroke_time, sensor_lag, "
+                                   "meter_gain; none within the model's accuracy, or "
+                                   "unexplained) and how far the gap shrinks with it on samples the "
                                    "fit never saw. Prints a report; exit 0 whatever the "
                                    "verdict, 2 on bad input.")
     p.add_argument("machine", metavar="MACHINE", help="machine file (.toml)")

@@ -1337,3 +1337,27 @@ def test_the_residual_is_attributed_to_the_consumer_whose_own_edges_explain_it()
     drives = [a for a in d.attribution if a["consumer"] not in (nozzle, "always on")]
     assert all(abs(a["residual_nl"]) < 0.15 * abs(first["residual_nl"]) for a in drives)
     assert d.summary()["attribution"][0]["consumer"] == nozzle
+
+
+@pytest.mark.parametrize("gain, reference", [(1.0 / 1.0866, "din1343"), (1.12, None)])
+def test_a_meter_reading_high_or_low_is_named_as_such(gain, reference, tmp_path):
+    """Every reading scaled alike (a DIN 1343 meter reads ISO 8778 air 8 % low; one out of
+    calibration 12 % high), the log's pressure at the file's supply (without it, a
+    higher supply fits as well and is named beside it): meter_gain, its gain found, and
+    a DIN meter written into the corrected file as its reference."""
+    supply = plcpred.load_machine(CLAMP).supply_bar_g
+    runs = []
+    for s in range(2):
+        run = run_of(CLAMP, 90, rate_hz=5.0, tau_s=0.3, noise=0.3, offset_s=2.0 + 4 * s,
+                     seed=s, name=f"r{s}.csv",
+                     transform=lambda pred, flow: flow.sum(axis=0) * gain)
+        runs.append(MeasuredRun(run.name, run.time_s, run.flow_l_min,
+                                np.full(len(run.time_s), supply)))
+    d = diagnose(CLAMP, runs)
+    assert d.verdict == "meter_gain", d.report()
+    found = next(e for e in d.effects if e.name == "meter_gain").physical
+    assert found["gain"] == pytest.approx(gain, rel=0.01)
+    assert found.get("reference") == reference
+    if reference:
+        write_fixed_machine(d, tmp_path / "fixed.toml")
+        assert plcpred.load_machine(tmp_path / "fixed.toml").meter.reference == reference

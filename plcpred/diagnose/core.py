@@ -59,11 +59,11 @@ PLANT_FORM_REACH = 3.0
 DOWN_TO_NOISE = 1.1
 # effects that change no drive: where one of them, painted on D1, explains a log to its
 # noise, the drives' physics (the plant) has nothing left to explain
-NOT_OF_THE_DRIVES = ("leak", "passive_flow", "sensor_lag")
+NOT_OF_THE_DRIVES = ("leak", "passive_flow", "sensor_lag", "meter_gain")
 MAX_CELLS_PER_RUN = 200_000
 # effects that change how much air the machine takes (rather than when): a verdict among
 # them needs the total to lie outside the model-form band as well as the flow to beat it
-VOLUME_EFFECTS = ("leak", "passive_flow", "supply_pressure", "dead_volume")
+VOLUME_EFFECTS = ("leak", "passive_flow", "supply_pressure", "dead_volume", "meter_gain")
 # a fitted value this close to a bound (share of the range) is at it: the effect wanted
 # more than is physical, so it is not what happened
 AT_BOUND_SHARE = 1e-3

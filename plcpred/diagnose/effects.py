@@ -8,7 +8,7 @@ reads them: a leak as NL/min and its sonic conductance C, a tube as metres, ...)
 ``plcpred predict`` on the fixed file carries it).
 
 The vocabulary (design contract): ``leak passive_flow supply_pressure dead_volume
-incomplete_exhaust shared_supply valve_delay stroke_time sensor_lag``.
+incomplete_exhaust shared_supply valve_delay stroke_time sensor_lag meter_gain``.
 """
 from __future__ import annotations
 
@@ -662,9 +662,56 @@ class SensorLag(Effect):
         return [f"[meter] tau_s = {theta[0]:.3g}"]
 
 
+class MeterGain(Effect):
+    """The meter reads a fixed share more or less than the air through it: a meter out
+    of calibration, or one that reports normal litres at another reference (a DIN 1343
+    meter reads ISO 8778 air 8 % low; docs/physics.md). Every reading scales alike,
+    whatever consumer draws it, which no consumer's effect does."""
+    name, title = "meter_gain", "a flow meter reading high or low"
+
+    def params(self, mm, ctx):
+        return [Param("gain", "", MIN_METER_GAIN, MAX_METER_GAIN, 1.0)]
+
+    def apply(self, mm, p, theta):
+        q = p.copy()
+        q.meter_gain = p.meter_gain * float(theta[0])
+        return q
+
+    def physical(self, mm, theta):
+        out = {"gain": float(theta[0])}
+        reference = _reference_of(float(theta[0]))
+        if reference:
+            out["reference"] = reference
+        return out
+
+    def to_machine(self, mm, data, theta):
+        gain = float(theta[0])
+        reference = _reference_of(gain)
+        if reference:
+            data.setdefault("meter", {})["reference"] = reference
+            return [f'[meter] reference = "{reference}" (the meter reads {gain:.3f}x '
+                    "ISO 8778 air)"]
+        return []
+
+
+MIN_METER_GAIN, MAX_METER_GAIN = 0.7, 1.4
+# a gain this close to another reference's ratio is read as that reference
+REFERENCE_MATCH = 0.015
+
+
+def _reference_of(gain: float) -> str | None:
+    """The normal-litre reference a meter reading ``gain`` x ISO 8778 litres reports
+    in, if one is that close (DIN 1343, ISO 2533)."""
+    from .io import REFERENCES, reference_factor
+    for name in REFERENCES:
+        if name != "iso8778" and abs(gain * reference_factor(name) - 1.0) < REFERENCE_MATCH:
+            return name
+    return None
+
+
 EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Leak(), PassiveFlow(), SupplyPressure(), DeadVolume(), IncompleteExhaust(),
-    SharedSupply(), ValveDelay(), StrokeTime(), SensorLag())}
+    SharedSupply(), ValveDelay(), StrokeTime(), SensorLag(), MeterGain())}
 VOCABULARY = ("none",) + tuple(EFFECTS)
 # the same effects where end switches start the program's next steps, so that a timing
 # change moves every later edge (diagnose.timing runs the sequencer again); tried

@@ -48,6 +48,7 @@ class ModelParams:
     refill_fraction: float = 0.0      # shared supply: share of each stroke refilled later
     refill_tau_s: float = 0.0
     meter_tau_s: float = 0.0
+    meter_gain: float = 1.0           # the meter reads this times the air through it
     clock_adjust_s: float = 0.0       # added to the run's aligned offset
     # a resequenced run's key (diagnose.timing: per drive a stroke factor and an extra
     # delay), None: the run's own prediction
@@ -246,7 +247,8 @@ class RunModel:
         cells = self.total_cells(params) if total_cells is None else total_cells
         if params.meter_tau_s > 0:
             cells = first_order_lag(cells, self.dt_s, params.meter_tau_s)
-        return cumulative_nl(cells)
+        cum = cumulative_nl(cells)
+        return cum if params.meter_gain == 1.0 else cum * params.meter_gain
 
     def readings(self, params: ModelParams, start_s: np.ndarray, end_s: np.ndarray,
                  total_cells: np.ndarray | None = None,
