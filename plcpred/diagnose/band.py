@@ -23,11 +23,11 @@ import numpy as np
 from .effects import Effect, Param
 from .model import MachineModel, ModelParams
 
-# a stroke may take this share more than D1 (bore, stroke and tube lengths as built,
-# a supply a little above the regulator's setting)
+# a stroke may take this share of D1 more than a settled stroke (bore, stroke and tube
+# lengths as built, a supply a little above the regulator's setting)
 DRIVE_ABOVE_SHARE = 0.02
-# and below D1 beyond the air its dead volume held at atmosphere: an incomplete top-up
-# after a hot fill and an exhaust cut short (settled strokes 0.96 x D1, short dwells less)
+# and this share less: an incomplete top-up after a hot fill and an exhaust cut short
+# (settled strokes take about 0.96 x D1, short dwells less)
 DRIVE_THERMAL_SHARE = 0.05
 # a nozzle's or a leak's D2 flow either way (its conductance from a catalogue or an
 # orifice and Cd, the linear model's 5 % at usual supplies)
