@@ -27,11 +27,11 @@ from .model import MachineModel, ModelParams
 # lengths as built, a supply a little above the regulator's setting)
 DRIVE_ABOVE_SHARE = 0.02
 # and this share less: an incomplete top-up after a hot fill and an exhaust cut short
-# (settled strokes take about 0.96 x D1, short dwells less)
-DRIVE_THERMAL_SHARE = 0.05
+# (settled strokes take about 0.96 x D1, short dwells and fast cycles less)
+DRIVE_THERMAL_SHARE = 0.08
 # a nozzle's or a leak's D2 flow either way (its conductance from a catalogue or an
-# orifice and Cd, the linear model's 5 % at usual supplies)
-PASSIVE_SHARE = 0.05
+# orifice and Cd known to about 10 %, the linear model's 5 % at usual supplies)
+PASSIVE_SHARE = 0.10
 
 
 def drive_factor_range(mm: MachineModel, p: ModelParams) -> tuple[np.ndarray, np.ndarray]:
@@ -52,7 +52,10 @@ def drive_factor_range(mm: MachineModel, p: ModelParams) -> tuple[np.ndarray, np
 
 
 class ModelForm(Effect):
-    """The nominal model flexed within the band (a nuisance, never a verdict)."""
+    """The nominal model flexed within the band (a nuisance, never a verdict): each
+    drive anywhere within its band, each nozzle and leak within PASSIVE_SHARE of its
+    rating. Consumer by consumer, since heat, dwell and tubing differ between drives,
+    and a catalogue's conductance errs for each nozzle on its own."""
     name, title = "model_form", "the activation model's own accuracy"
     expressible = False
 
@@ -60,30 +63,26 @@ class ModelForm(Effect):
         self.factor_range = factor_range
 
     def params(self, mm, ctx):
-        out = []
-        if mm.drives:
-            # 0: every stroke at the band's top, 1: at its bottom
-            out.append(Param("drive_shortfall", "share of the band", 0.0, 1.0, 0.5,
-                             (0.0, 0.5, 1.0)))
-        if mm.passives:
-            out.append(Param("passive_factor", "", 1.0 - PASSIVE_SHARE,
-                             1.0 + PASSIVE_SHARE, 1.0))
+        # per drive 0: its strokes at the band's top, 1: at its bottom
+        out = [Param(f"{mm.models[r].name}.shortfall", "share of the band", 0.0, 1.0, 0.5,
+                     (0.0, 0.5, 1.0)) for r in mm.drives]
+        out += [Param(f"{mm.models[r].name}.factor", "", 1.0 - PASSIVE_SHARE,
+                      1.0 + PASSIVE_SHARE, 1.0) for r in mm.passives]
         return out
 
     def apply(self, mm, p, theta):
         q = p.copy()
-        k = 0
-        if mm.drives:
+        n = len(mm.drives)
+        if n:
             low, high = self.factor_range if self.factor_range is not None else \
                 drive_factor_range(mm, p)
-            s = float(theta[k])
-            k += 1
+            s = np.asarray(theta[:n], dtype=float)[:, None]
             factor = high - s * (high - low)
             q.extend_nl = p.extend_nl * factor[:, 0]
             q.retract_nl = p.retract_nl * factor[:, 1]
             q.swept_nl = p.swept_nl * factor
         if mm.passives:
-            q.passive_l_min = p.passive_l_min * float(theta[k])
+            q.passive_l_min = p.passive_l_min * np.asarray(theta[n:], dtype=float)
         return q
 
     def physical(self, mm, theta):

@@ -61,9 +61,11 @@ DOWN_TO_NOISE = 1.1
 # noise, the drives' physics (the plant) has nothing left to explain
 NOT_OF_THE_DRIVES = ("leak", "passive_flow", "sensor_lag", "meter_gain")
 MAX_CELLS_PER_RUN = 200_000
-# effects that change how much air the machine takes (rather than when): a verdict among
-# them needs the total to lie outside the model-form band as well as the flow to beat it
-VOLUME_EFFECTS = ("leak", "passive_flow", "supply_pressure", "dead_volume", "meter_gain")
+# effects that scale the whole machine's air alike, as the model's own error does: a
+# verdict among them needs the total to lie outside the model-form band as well as the
+# flow to beat it. (A leak's flow in idle, one nozzle's or one drive's air have shapes of
+# their own, which the flexed model, consumer by consumer, already had to match.)
+VOLUME_EFFECTS = ("supply_pressure", "meter_gain")
 # a fitted value this close to a bound (share of the range) is at it: the effect wanted
 # more than is physical, so it is not what happened
 AT_BOUND_SHARE = 1e-3
@@ -729,8 +731,9 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                        "heldout": best.heldout_score, "score": best.fit_score,
                        "physical": best.physical, "beyond_plant": best.beyond_plant}
     within_band = False
-    if combination is not None and not _beats_band(combination, flexed, band, base_score,
-                                                   finding):
+    if combination is not None and not _beats_band(verdict, combination, flexed, band,
+                                                   base_score, finding,
+                                                   _supply_logged_off(rds, machine)):
         # what the effects explain, the nominal model flexed within its own accuracy
         # explains as well (or the total lies within the band): no fault
         within_band = True
@@ -839,17 +842,26 @@ def _band(mm: MachineModel, rds: list[RunData], bases: list) -> tuple[float, flo
     return band_pct(mm, bases[0], drive_nl, passive_nl)
 
 
-def _beats_band(combination: dict, flexed: "EffectResult | None", band: tuple[float, float],
-                base: Score, finding) -> bool:
+def _beats_band(verdict: str, combination: dict, flexed: "EffectResult | None",
+                band: tuple[float, float], base: Score, finding, supply_logged_off: bool
+                ) -> bool:
     """Does the combination explain more than the model's own accuracy can: beat the
-    nominal model flexed within the band on held-out samples, and, where it changes how
-    much air the machine takes, with the total outside the band?"""
-    if flexed is None:
+    nominal model flexed within the band on held-out samples, and, where the verdict
+    scales the whole machine's air (VOLUME_EFFECTS), with the total outside the band?
+    A supply the log's own pressure column shows off the file's is a reading, not a fit:
+    it needs no band."""
+    if flexed is None or (verdict == "supply_pressure" and supply_logged_off):
         return True
     if not finding(flexed.heldout_score, combination["heldout"]):
         return False
-    volume = all(name in VOLUME_EFFECTS for name in combination["effects"])
-    return not (volume and band[0] <= base.error_pct <= band[1])
+    return not (verdict in VOLUME_EFFECTS and band[0] <= base.error_pct <= band[1])
+
+
+def _supply_logged_off(rds: list[RunData], machine) -> bool:
+    """Do the logs' supply pressures differ from the machine file's by more than a
+    gauge's reading error and a regulator's swing?"""
+    logged = _logged_supply_all(rds)
+    return logged is not None and abs(logged - machine.supply_bar_g) > SUPPLY_NOTE_BAR
 
 
 def _at_bound(result: EffectResult, mm, ctx: dict, rds: list[RunData], bases: list
