@@ -1244,11 +1244,10 @@ def test_a_gap_no_effect_tried_explains_is_unexplained_with_its_place():
     assert d.summary()["residual_left_l_min"] > 0.05 * 30
 
 
-@pytest.mark.parametrize("logged_bar_g", [5.0, None])
-def test_a_logged_supply_pressure_bounds_the_supply_verdict(logged_bar_g):
-    """Every flow of the machine at 5 bar(g) where its file says 6 (D1 and choked nozzles
-    scale with the absolute supply). A log that records 5.0 bar has the verdict at its
-    reading; without the column the fit is free."""
+def _runs_at_5_bar(logged_bar_g):
+    """Two logs of pick_place with every flow at 5 bar(g) where its file says 6 (D1 and
+    choked nozzles scale with the absolute supply), the logs' pressure column reading
+    ``logged_bar_g`` (None: no column)."""
     machine = plcpred.load_machine(PICK)
     ratio = (5e5 + 101325.0) / (machine.supply_bar_g * 1e5 + 101325.0)
     runs = []
@@ -1258,7 +1257,16 @@ def test_a_logged_supply_pressure_bounds_the_supply_verdict(logged_bar_g):
                      transform=lambda pred, flow: flow.sum(axis=0) * ratio)
         supply = None if logged_bar_g is None else np.full(len(run.time_s), logged_bar_g)
         runs.append(MeasuredRun(run.name, run.time_s, run.flow_l_min, supply))
-    d = diagnose(PICK, runs, effects=["supply_pressure", "leak", "dead_volume"])
+    return runs
+
+
+@pytest.mark.parametrize("logged_bar_g", [5.0, None])
+def test_a_logged_supply_pressure_bounds_the_supply_verdict(logged_bar_g):
+    """Every flow of the machine at 5 bar(g) where its file says 6 (D1 and choked nozzles
+    scale with the absolute supply). A log that records 5.0 bar has the verdict at its
+    reading; without the column the fit is free."""
+    d = diagnose(PICK, _runs_at_5_bar(logged_bar_g),
+                 effects=["supply_pressure", "leak", "dead_volume"])
     assert d.verdict == "supply_pressure", d.report()
     fitted = d.effects[0].physical["supply_bar_g"]
     if logged_bar_g is not None:
@@ -1270,15 +1278,8 @@ def test_a_supply_verdict_never_contradicts_the_logs_own_reading():
     """The same flows, but the log reads the file's 6 bar: what the lower flows come
     from is not the supply, and the verdict may not say it is."""
     machine = plcpred.load_machine(PICK)
-    ratio = (5e5 + 101325.0) / (machine.supply_bar_g * 1e5 + 101325.0)
-    runs = []
-    for s in range(2):
-        run = run_of(PICK, 90, rate_hz=5.0, tau_s=0.3, noise=0.3, offset_s=2.0 + 4 * s,
-                     seed=s, name=f"r{s}.csv",
-                     transform=lambda pred, flow: flow.sum(axis=0) * ratio)
-        runs.append(MeasuredRun(run.name, run.time_s, run.flow_l_min,
-                                np.full(len(run.time_s), machine.supply_bar_g)))
-    d = diagnose(PICK, runs, effects=["supply_pressure", "leak", "dead_volume"])
+    d = diagnose(PICK, _runs_at_5_bar(machine.supply_bar_g),
+                 effects=["supply_pressure", "leak", "dead_volume"])
     supply = next(e for e in d.effects if e.name == "supply_pressure")
     assert abs(supply.physical["supply_bar_g"] - machine.supply_bar_g) <= 0.15 + 1e-9
     assert d.verdict != "supply_pressure", d.report()

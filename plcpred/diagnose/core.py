@@ -276,18 +276,15 @@ class Diagnosis:
             lines.append(f"  {e.name:<20} {e.fit_score.error_pct:>+10.1f}% "
                          f"{e.heldout_score.error_pct:>+8.1f}% "
                          f"{e.heldout_score.rmse_l_min:>14.2f}  {note}{_short(e.physical)}")
-        if self.reference is not None:
-            r = self.reference
-            lines.append(f"  {'(plant, nominal)':<20} {r.fit_score.error_pct:>+10.1f}% "
-                         f"{r.heldout_score.error_pct:>+8.1f}% "
-                         f"{r.heldout_score.rmse_l_min:>14.2f}  the machine file through "
-                         "the physics plant, no parameter")
-        if self.flexed is not None:
-            f = self.flexed
-            lines.append(f"  {'(model accuracy)':<20} {f.fit_score.error_pct:>+10.1f}% "
-                         f"{f.heldout_score.error_pct:>+8.1f}% "
-                         f"{f.heldout_score.rmse_l_min:>14.2f}  the machine file flexed "
-                         "within the model's own accuracy: an effect must beat it")
+        for label, ref, text in (
+                ("(plant, nominal)", self.reference,
+                 "the machine file through the physics plant, no parameter"),
+                ("(model accuracy)", self.flexed, "the machine file flexed within the "
+                 "model's own accuracy: an effect must beat it")):
+            if ref is not None:
+                lines.append(f"  {label:<20} {ref.fit_score.error_pct:>+10.1f}% "
+                             f"{ref.heldout_score.error_pct:>+8.1f}% "
+                             f"{ref.heldout_score.rmse_l_min:>14.2f}  {text}")
         if self.on_plant:
             lines.append("  (the plant explains part of the gap that D1 leaves out by "
                          "design: an effect must beat it too)")
