@@ -29,9 +29,10 @@ DRIVE_ABOVE_SHARE = 0.02
 # and this share less: an incomplete top-up after a hot fill and an exhaust cut short
 # (settled strokes take about 0.96 x D1, short dwells and fast cycles less)
 DRIVE_THERMAL_SHARE = 0.08
-# a nozzle's or a leak's D2 flow either way (its conductance from a catalogue or an
-# orifice and Cd known to about 10 %, the linear model's 5 % at usual supplies)
-PASSIVE_SHARE = 0.10
+# a nozzle's or a leak's D2 flow either way: its conductance from a catalogue or an
+# orifice and Cd known to about 10 %, and the pressure at the nozzle a few per cent
+# below the supply while it flows (a worn or a blocked nozzle is 20 % and more)
+PASSIVE_SHARE = 0.15
 
 
 def drive_factor_range(mm: MachineModel, p: ModelParams) -> tuple[np.ndarray, np.ndarray]:

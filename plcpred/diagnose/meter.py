@@ -89,8 +89,8 @@ def noise_level_l_min(residual_l_min: np.ndarray) -> float:
 
 
 # readings whose predicted neighbours agree to this share of the mean flow are "flat"
-FLAT_SHARE = 1e-3
-MIN_FLAT_PAIRS = 20
+FLAT_SHARE = 0.02
+MIN_FLAT_PAIRS = 12
 
 
 def flat_noise_l_min(measured_l_min: np.ndarray, predicted_l_min: np.ndarray
