@@ -7,6 +7,7 @@ harmless oddities are collected in ``Machine.warnings``.
 """
 from __future__ import annotations
 
+import difflib
 import math
 import re
 import tomllib
@@ -266,7 +267,9 @@ class _Reader:
             raise self.error(f"must be a table, not {type(table).__name__}")
         unknown = sorted(set(table) - allowed)
         if unknown:
-            raise self.error(f"unknown key '{unknown[0]}' (known keys: "
+            near = difflib.get_close_matches(unknown[0], sorted(allowed), n=1, cutoff=0.6)
+            hint = f"did you mean '{near[0]}'? " if near else ""
+            raise self.error(f"unknown key '{unknown[0]}' ({hint}known keys: "
                              f"{', '.join(sorted(allowed))})")
 
     def error(self, message: str) -> MachineError:
@@ -622,9 +625,13 @@ def machine_from_data(data: dict, path, allowed_roots=None) -> Machine:
     unknown = sorted(set(data) - {"machine", "signals", "input", "consumer", "meter", "line",
                                   "calendar"})
     if unknown:
-        raise MachineError(file, "", f"unknown table [{unknown[0]}] (known: [machine], "
-                                     "[signals], [[input]], [[consumer]], [[line]], "
-                                     "[meter], [calendar])")
+        near = difflib.get_close_matches(unknown[0], ["machine", "signals", "input",
+                                                      "consumer", "meter", "line",
+                                                      "calendar"], n=1, cutoff=0.6)
+        raise MachineError(file, "", f"unknown table [{unknown[0]}] ("
+                                     + (f"did you mean [{near[0]}]? " if near else "")
+                                     + "known: [machine], [signals], [[input]], "
+                                       "[[consumer]], [[line]], [meter], [calendar])")
     if "machine" not in data:
         raise MachineError(file, "", "missing the [machine] table")
     r = _Reader(file, "[machine]", data["machine"], _MACHINE_KEYS)

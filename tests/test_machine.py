@@ -101,6 +101,8 @@ def test_unknown_signal_is_an_error_naming_table_and_key(tmp_path):
 @pytest.mark.parametrize("edit, message", [
     (("stroke_mm = 25", "stroke_mm = -25"), 'consumer "clamp": stroke_mm must be > 0'),
     (("stroke_mm = 25", "stroke_mm = 25\ncolour = 'red'"), 'consumer "clamp": unknown key \'colour\''),
+    (("bore_mm = 32", "bor_mm = 32"), "unknown key 'bor_mm' (did you mean 'bore_mm'?"),
+    (("[[input]]", "[[inputs]]"), "unknown table [inputs] (did you mean [input]?"),
     (("rod_mm = 12", "rod_mm = 40"), 'consumer "clamp": rod_mm (40) must be smaller than bore_mm'),
     (("bore_mm = 32\n", ""), "consumer \"clamp\": missing required key 'bore_mm'"),
     (('kind = "nozzle"', 'kind = "fan"'), 'kind must be one of'),

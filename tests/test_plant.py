@@ -846,3 +846,16 @@ def test_emulate_refuses_a_horizon_it_cannot_finish_in_a_day_of_work(tmp_path, c
     err = capsys.readouterr().err
     assert rc == 2 and "at most 24 h" in err and "predict" in err
     assert not (tmp_path / "o").exists()
+
+
+def test_a_mistyped_consumer_in_a_truth_file_names_the_one_meant(tmp_path, capsys):
+    """A truth file that changes 'air knifes' (the rig has 'air knives') is not a new
+    consumer missing its kind: it names the table and the consumer meant, exit 2."""
+    bad = tmp_path / "t.toml"
+    bad.write_text('[[consumer]]\nname = "air knifes"\nC = 7e-9\n')
+    code = main(["emulate", str(RIG), "--horizon", "2s", "--out", str(tmp_path / "o"),
+                 "--truth", str(bad)])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert "[[consumer]] #1" in err and "no consumer 'air knifes'" in err
+    assert "did you mean 'air knives'?" in err

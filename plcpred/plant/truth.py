@@ -9,6 +9,7 @@ diagnosis see only the nominal file; ``emulate --truth`` runs the real one.
 from __future__ import annotations
 
 import copy
+import difflib
 from pathlib import Path
 
 from ..machine import MachineError, machine_from_data, read_machine_data
@@ -45,6 +46,18 @@ def merge_truth(nominal: dict, truth: dict, truth_file: str) -> dict:
                     old.update(table)
                     break
             else:
+                if key == "consumer" and "kind" not in table:
+                    # a new consumer needs its kind: without one, this was meant to change
+                    # one the machine has (a name mistyped)
+                    names = [o.get(ident) for o in existing if isinstance(o, dict)]
+                    near = difflib.get_close_matches(table[ident], [n for n in names
+                                                                    if isinstance(n, str)],
+                                                     n=1, cutoff=0.6)
+                    raise MachineError(truth_file, f"[[{key}]] #{i + 1}",
+                                       f"no consumer '{table[ident]}' in the machine file to "
+                                       "change" + (f" (did you mean '{near[0]}'?)" if near
+                                                   else "")
+                                       + "; a consumer to add needs its kind")
                 existing.append(dict(table))
     return out
 
