@@ -256,6 +256,10 @@ RANGES = {
     "days_per_week": (0.0, 7.0), "weeks_per_year": (0.0, 53.0), "production_share": (0.0, 1.0),
 }
 MAX_PULSES = 1_000_000
+# factory compressed air is 6-10 bar(g), high-pressure networks up to 16: a larger number
+# is most likely psi typed as bar (87 psi = 6 bar)
+PLAUSIBLE_SUPPLY_BAR_G = 16.0
+PSI_TO_BAR = 0.0689476
 
 
 class _Reader:
@@ -682,6 +686,11 @@ def machine_from_data(data: dict, path, allowed_roots=None) -> Machine:
         if c.name in seen:
             raise MachineError(file, f'consumer "{c.name}"', "name is used twice")
         seen.add(c.name)
+    if machine.supply_bar_g > PLAUSIBLE_SUPPLY_BAR_G:
+        machine.warnings.append(
+            f"{file}: [machine]: supply_bar_g = {machine.supply_bar_g:g} is above what "
+            f"factory air runs at (up to {PLAUSIBLE_SUPPLY_BAR_G:g} bar(g)); if it is in "
+            f"psi, that is {machine.supply_bar_g * PSI_TO_BAR:.2f} bar(g)")
     supply_context = ((machine.supply_bar_g * 1e5 + machine.atmosphere_kpa * 1e3),
                       machine.atmosphere_kpa * 1e3, machine.ambient_c + 273.15, file)
     for c in machine.consumers:

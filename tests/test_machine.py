@@ -226,6 +226,24 @@ pressure_bar_g = 5
     assert any('"knife"' in w and "cannot raise its supply" in w for w in m.warnings)
 
 
+@pytest.mark.parametrize("supply, warned", [(87, True), (16, False), (6, False)])
+def test_a_supply_in_psi_is_warned_about(tmp_path, supply, warned):
+    m = load_machine(write(tmp_path, f'''[machine]
+program = "station.st"
+supply_bar_g = {supply}
+[[consumer]]
+name = "knife"
+kind = "nozzle"
+valve = "y"
+orifice_mm = 1
+Cd = 0.7
+''', ONE_OUTPUT))
+    found = [w for w in m.warnings if "psi" in w]
+    assert bool(found) == warned
+    if warned:
+        assert "6.00 bar(g)" in found[0] and "[machine]" in found[0]
+
+
 def test_an_input_read_but_never_driven_is_warned_about(tmp_path):
     """The E-stop a machine file forgot to schedule keeps the station still: say so."""
     warnings = _lint_machine(tmp_path, """PROGRAM P
