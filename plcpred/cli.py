@@ -362,11 +362,13 @@ def cmd_compare(args) -> int:
 
     from .air.compare import compare, parse_allowance
 
+    from .output import OutputError, check_out_file, write_json
     try:
         horizon_s, dt_s = _durations(args)
         parse_allowance(args.max_increase)
         drop_pct = _percentage(args.max_throughput_drop, "--max-throughput-drop")
-    except ValueError as e:
+        check_out_file(args.json, "--json")
+    except (ValueError, OutputError) as e:
         print(f"plcpred: error: {e}", file=sys.stderr)
         return 2
     try:
@@ -379,7 +381,12 @@ def cmd_compare(args) -> int:
     except (ValueError, OSError) as e:
         print(f"plcpred: error: {e}", file=sys.stderr)
         return 2
-    print(json.dumps(result.to_dict(), indent=2) if args.json else result.table())
+    if args.json == "-":
+        print(json.dumps(result.to_dict(), indent=2))
+    else:
+        print(result.table())
+        if args.json:
+            write_json(args.json, result.to_dict())
     if not result.new_moves:
         return EXIT_NEVER_MOVES
     if not result.throughput_ok:
@@ -715,7 +722,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--program-base", metavar="PROGRAM", help="program to run on BASE")
     p.add_argument("--program-new", metavar="PROGRAM", help="program to run on NEW")
     p.add_argument("--dt", help=DT_HELP)
-    p.add_argument("--json", action="store_true", help="print the comparison as JSON")
+    p.add_argument("--json", metavar="OUT", nargs="?", const="-",
+                   help="write the comparison as JSON to OUT (- or no value: to stdout, "
+                        "instead of the table)")
     p.set_defaults(func=cmd_compare)
 
     p = sub.add_parser("sweep", help="what-if study over combinations of settings",

@@ -615,3 +615,21 @@ def test_unreadable_size_options_name_themselves(tmp_path, option, value):
                         "--horizon", "10s", "--out", str(tmp_path / "o"), option, value],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and f"{option}: cannot read '{value}'" in r.stderr, r.stderr
+
+
+def test_compare_json_takes_a_path_like_every_other_command(tmp_path, capsys):
+    """One convention: --json OUT writes the file (the table still on stdout); --json
+    alone or --json - prints the JSON instead of the table."""
+    from plcpred.cli import main
+    press = SAMPLES / "press.toml"
+    out = tmp_path / "cmp.json"
+    code = main(["compare", str(press), str(press), "--horizon", "10s", "--json", str(out)])
+    printed = capsys.readouterr().out
+    assert code == 0 and out.exists()
+    assert json.loads(out.read_text())["within_allowance"] is True
+    assert not printed.lstrip().startswith("{")
+    for flag in (["--json"], ["--json", "-"]):
+        assert main(["compare", str(press), str(press), "--horizon", "10s", *flag]) == 0
+        assert json.loads(capsys.readouterr().out)["within_allowance"] is True
+    assert main(["compare", str(press), str(press), "--horizon", "10s", "--json",
+                 str(tmp_path)]) == 2
