@@ -1168,7 +1168,7 @@ def _drives_scaled(factor):
 
 def test_drive_factor_range_by_hand(tmp_path):
     """A settled stroke fills swept volume, tube and the cylinder's own dead volume to
-    supply from what they held (domain section 7): D1 plus V_inner (Ps - Patm)/P0 less
+    supply from what they held (docs/physics.md, D4): D1 plus V_inner (Ps - Patm)/P0 less
     V_tube Patm/P0. The band runs DRIVE_THERMAL_SHARE below that and DRIVE_ABOVE_SHARE
     above."""
     from plcpred.diagnose.band import DRIVE_ABOVE_SHARE, DRIVE_THERMAL_SHARE, drive_factor_range
@@ -1364,7 +1364,7 @@ def test_a_meter_reading_high_is_named_as_such():
 
 
 def test_a_din_meter_is_recognised_and_written_as_the_files_reference(tmp_path, rig_model):
-    """A gain of 0.920 is DIN 1343 litres read as ISO 8778 ones (domain section 1:
+    """A gain of 0.920 is DIN 1343 litres read as ISO 8778 ones (docs/physics.md, D3:
     V_din = V_iso (P0/P_din)(T_din/T0)); written as the meter's reference."""
     from plcpred.diagnose.effects import MeterGain
     din = (100_000 / 101_325) * (273.15 / 293.15)

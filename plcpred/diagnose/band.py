@@ -3,16 +3,15 @@
 The activation model is exact for nothing real. A settled stroke takes D1 less the air
 its dead volume already held at atmospheric pressure; a fill is not isothermal and
 short dwells leave chambers hot and exhausts incomplete, so real strokes take a few per
-cent less again; a nozzle's conductance is known to a few per cent (docs/physics.md;
-the domain notes, section 7: "settled strokes take about 0.96 x D1, short dwells less").
-A diagnosis that reads that error as a fault blames healthy machines, since any free
-parameter absorbs a few per cent.
+cent less again; a nozzle's conductance is known to about ten per cent (docs/physics.md,
+"The dynamic model of a drive": a settled stroke takes a few per cent below D1, short dwells
+less). A diagnosis that reads that error as a fault blames healthy machines, since any
+free parameter absorbs a few per cent.
 
 So the nominal model is allowed to flex within the band before any effect is credited:
-:class:`ModelForm` is a nuisance "effect" of two parameters (the share of each drive's
-plausible shortfall that applies, one for every drive since heat and exhaust act alike on
-all of them, and one factor on every nozzle and leak), fitted like the clock and the
-meter's lag. An effect is a finding only where it beats the nominal model flexed so, on
+:class:`ModelForm` is a nuisance "effect" with a parameter per consumer (where within
+its band each drive's strokes lie, a factor on each nozzle and leak), fitted like the
+clock and the meter's lag. An effect is a finding only where it beats the nominal model flexed so, on
 held-out samples (:func:`~plcpred.diagnose.core.diagnose`), and :func:`band_pct` states
 the band in total air for the report.
 """
