@@ -66,6 +66,9 @@ MAX_CELLS_PER_RUN = 200_000
 # flow to beat it. (A leak's flow in idle, one nozzle's or one drive's air have shapes of
 # their own, which the flexed model, consumer by consumer, already had to match.)
 VOLUME_EFFECTS = ("supply_pressure", "meter_gain")
+# effects whose signature no scaling of the consumers' air makes (a flow while nothing
+# switches, a slower meter): the band, which only scales, cannot stand in for them
+SHAPE_EFFECTS = ("leak", "sensor_lag")
 # a fitted value this close to a bound (share of the range) is at it: the effect wanted
 # more than is physical, so it is not what happened
 AT_BOUND_SHARE = 1e-3
@@ -857,7 +860,8 @@ def _beats_band(verdict: str, combination: dict, flexed: "EffectResult | None",
     scales the whole machine's air (VOLUME_EFFECTS), with the total outside the band?
     A supply the log's own pressure column shows off the file's is a reading, not a fit:
     it needs no band."""
-    if flexed is None or (verdict == "supply_pressure" and supply_logged_off):
+    if flexed is None or verdict in SHAPE_EFFECTS or (
+            verdict == "supply_pressure" and supply_logged_off):
         return True
     if not finding(flexed.heldout_score, combination["heldout"]):
         return False
