@@ -211,33 +211,28 @@ def test_every_machine_file_key_is_documented():
     assert not missing, f"undocumented keys: {missing}"
 
 
-def test_a_nozzle_regulated_above_the_supply_is_warned_about(tmp_path):
-    m = load_machine(write(tmp_path, '''[machine]
+def _one_knife(tmp_path, supply_bar_g, extra: str = ""):
+    """A machine of one air knife on output y at ``supply_bar_g``."""
+    return load_machine(write(tmp_path, f'''[machine]
 program = "station.st"
-supply_bar_g = 4
+supply_bar_g = {supply_bar_g}
 [[consumer]]
 name = "knife"
 kind = "nozzle"
 valve = "y"
 orifice_mm = 1
 Cd = 0.7
-pressure_bar_g = 5
-''', ONE_OUTPUT))
+{extra}''', ONE_OUTPUT))
+
+
+def test_a_nozzle_regulated_above_the_supply_is_warned_about(tmp_path):
+    m = _one_knife(tmp_path, 4, "pressure_bar_g = 5\n")
     assert any('"knife"' in w and "cannot raise its supply" in w for w in m.warnings)
 
 
 @pytest.mark.parametrize("supply, warned", [(87, True), (16, False), (6, False)])
 def test_a_supply_in_psi_is_warned_about(tmp_path, supply, warned):
-    m = load_machine(write(tmp_path, f'''[machine]
-program = "station.st"
-supply_bar_g = {supply}
-[[consumer]]
-name = "knife"
-kind = "nozzle"
-valve = "y"
-orifice_mm = 1
-Cd = 0.7
-''', ONE_OUTPUT))
+    m = _one_knife(tmp_path, supply)
     found = [w for w in m.warnings if "psi" in w]
     assert bool(found) == warned
     if warned:
