@@ -641,7 +641,8 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     if results:
         noise = min(noise, min(e.fit_score.rmse_l_min for e in results))
     results = _tie_break(results, noise, mm)
-    results = _logged_supply_first(results, noise, _supply_logged_off(rds, machine))
+    supply_off = _supply_logged_off(ctx["logged_supply_bar_g"], machine)
+    results = _logged_supply_first(results, noise, supply_off)
 
     exhaust = next((e for e in results if e.name == IncompleteExhaust.name), None)
     # a first whose values no plant has (a drive with most of its tube gone: what an
@@ -743,7 +744,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
 
     if combination is not None and not _beats_band(verdict, combination, flexed, band,
                                                    base_score, beyond_accuracy,
-                                                   _supply_logged_off(rds, machine)):
+                                                   supply_off):
         # what the effects explain, the nominal model flexed within its own accuracy
         # explains as well (or the total lies within the band): no fault
         within_band = True
@@ -882,11 +883,11 @@ def _logged_supply_first(results: list[EffectResult], noise: float, logged_off: 
     return [supply] + [e for e in results if e is not supply]
 
 
-def _supply_logged_off(rds: list[RunData], machine) -> bool:
-    """Do the logs' supply pressures differ from the machine file's by more than a
-    gauge's reading error and a regulator's swing?"""
-    logged = _logged_supply_all(rds)
-    return logged is not None and abs(logged - machine.supply_bar_g) > SUPPLY_NOTE_BAR
+def _supply_logged_off(logged_bar_g: float | None, machine) -> bool:
+    """Does the logs' mean supply pressure (:func:`_logged_supply_all`) differ from the
+    machine file's by more than a gauge's reading error and a regulator's swing?"""
+    return logged_bar_g is not None and abs(logged_bar_g - machine.supply_bar_g) > \
+        SUPPLY_NOTE_BAR
 
 
 def _at_bound(result: EffectResult, mm, ctx: dict, rds: list[RunData], bases: list
@@ -933,7 +934,7 @@ def _matters(result: EffectResult, theta: np.ndarray, mm, rds: list[RunData],
         worse = score(rds, params).rmse_l_min
     except PlcpredError:
         return True
-    return worse > (1.0 + MATTERS_SHARE) * score(rds, result.fit.params).rmse_l_min
+    return worse > (1.0 + MATTERS_SHARE) * result.fit_score.rmse_l_min
 
 
 def _dynamic_reference(machine, mm, rds, bases, ctx, fold_masks, warnings: list[str],
