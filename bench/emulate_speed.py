@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 
 from plcpred import load_machine, predict
+from plcpred.outputs.files import write_emulation
 from plcpred.plant import emulate
 from plcpred.sequencer import parse_horizon
 
@@ -30,7 +31,7 @@ def case(label, path, horizon, target_s):
     t0 = time.perf_counter()
     em = emulate(path, horizon)
     with tempfile.TemporaryDirectory() as d:
-        em.write(Path(d), plot=False)
+        write_emulation(em, Path(d), plot=False)
     wall_s = time.perf_counter() - t0
     info = em.info
     verdict = "ok" if wall_s < target_s else "SLOWER THAN TARGET"

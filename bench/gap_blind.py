@@ -8,7 +8,7 @@ verdict), top-1 accuracy where the effect is larger than three times the noise, 
 verdict on cases without an effect, and the median held-out shrink of the gap.
 
 The generator applies each effect to the prediction's per-consumer flows with its own
-code, written from the physics (docs/physics.md: cylinders, restrictions, what D4 adds) and sharing nothing with
+code, written from the physics (docs/reference/physics.md: cylinders, restrictions, what D4 adds) and sharing nothing with
 the diagnosis' effect models: an exhaust is integrated as an ISO 6358 flow out of the dead
 volume, a refill as an explicit exponential kernel, a meter as a step-by-step lag, a valve
 delay as a dead time before the stroke.
@@ -48,7 +48,7 @@ P0, T0, P_ATM = 100_000.0, 293.15, 101_325.0
 # ---------------------------------------------------------------------- physics, ours
 
 def iso6358_phi(r, b, m):
-    """ISO 6358 subsonic flow function (docs/physics.md D2)."""
+    """ISO 6358 subsonic flow function (docs/reference/physics.md D2)."""
     r = np.asarray(r, dtype=float)
     x = np.clip((r - b) / (1.0 - b), 0.0, 1.0)
     return np.where(r <= b, 1.0, (1.0 - x * x) ** m)
@@ -270,7 +270,7 @@ def make_case(case_id, rng, effects):
 
 
 def write_sample_log(path, seed: int = 7) -> None:
-    """The README's example log: the rig's sequence 1 *with* its pilot leak (rig.toml)
+    """The example log of docs/guide/diagnose.md: the rig's sequence 1 *with* its pilot leak (rig.toml)
     through a 2 Hz thermal meter (0.3 s lag, 1.5 NL/min noise) whose clock read 1000 s at
     the machine's start. Synthetic, not a measurement."""
     rng = np.random.default_rng(seed)
@@ -351,7 +351,7 @@ def diagnose_case(case) -> dict:
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sample-log", metavar="PATH",
-                    help="only write the README's synthetic example log to PATH")
+                    help="only write the synthetic example log of docs/guide/diagnose.md to PATH")
     ap.add_argument("--cases", type=int, default=200)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--effects", help="withhold only these (comma-separated)")

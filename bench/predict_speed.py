@@ -18,6 +18,7 @@ from pathlib import Path
 
 from plcpred import load_machine
 from plcpred.air import consumer_models, demand_profile, predict
+from plcpred.outputs.files import write_prediction
 
 ROOT = Path(__file__).resolve().parent.parent
 TARGET_S = 30.0
@@ -26,7 +27,7 @@ TARGET_S = 30.0
 def run(machine, horizon, dt, out):
     t0 = time.perf_counter()
     result = predict(machine, horizon, dt=dt)
-    result.write(out)
+    write_prediction(result, out)
     total = time.perf_counter() - t0
     return total, result
 

@@ -167,6 +167,7 @@ CHILD = r"""
 import json, resource, sys, time
 from plcpred import load_machine
 from plcpred.air import predict
+from plcpred.outputs.files import write_prediction
 from plcpred.memory import use_large_malloc_thresholds
 if sys.argv[5] == "tuned":
     use_large_malloc_thresholds()     # as the plcpred command does
@@ -174,7 +175,7 @@ machine, horizon, dt, out = sys.argv[1:5]
 t0 = time.perf_counter()
 m = load_machine(machine)
 r = predict(m, horizon, dt=None if dt == "-" else dt)
-r.write(out)
+write_prediction(r, out)
 wall = time.perf_counter() - t0
 tl, prof = r.timeline, r.profile
 strokes = {}

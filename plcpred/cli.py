@@ -2,8 +2,15 @@
 from __future__ import annotations
 
 import argparse
+import csv
+import io
+import json
+import os
 import re
+import signal
 import sys
+from functools import reduce
+from pathlib import Path
 
 from . import __version__
 from .errors import PlcpredError
@@ -43,7 +50,6 @@ def _summary(program) -> str:
 def cmd_check(args) -> int:
     from .parser import ProgramError, load_program
     from .parser.check import ExternalWarning, check_program
-
     from .parser.libraries import library_program
 
     parsed = {}
@@ -92,7 +98,6 @@ def _compile_check(programs):
     """Compile the project as ``timeline`` would, so that ``check`` reports first what
     running it would reject: the CompileError, or None (also for a library, where no
     PROGRAM runs)."""
-    from functools import reduce
 
     from .parser import ProgramError
     from .sequencer.compiler import compile_program
@@ -230,7 +235,7 @@ def _cut_stroke_warnings(machine, profile) -> list[str]:
                        "next edge (the valve reverses before the drive arrives, as a short "
                        "pulse or a chattering valve does); D1 books each in full. "
                        "partial_strokes = true (with exhaust_tau_s) counts the share the "
-                       "piston covers (docs/physics.md)")
+                       "piston covers (docs/reference/physics.md)")
     return out
 
 
@@ -238,7 +243,8 @@ def cmd_predict(args) -> int:
     from .air import predict
     from .machine import load_machine
     from .output import output_dir
-    from .report import consumer_table
+    from .outputs.files import write_prediction
+    from .outputs.report import consumer_table
 
     horizon_s, dt_s, out = _horizon_and_out(args)
     try:
@@ -256,8 +262,8 @@ def cmd_predict(args) -> int:
                        + ": not written (demand.csv and summary.json cover the whole "
                          "horizon; raise --max-rows to write it)")
     with output_dir(out, _command_line(args)) as staging:
-        written = [out / f.name for f in result.write(staging, plot=not args.no_plot,
-                                                      timeline=keep_timeline)]
+        written = [out / f.name for f in write_prediction(
+            result, staging, plot=not args.no_plot, timeline=keep_timeline)]
     for w in machine.warnings + _cut_stroke_warnings(machine, result.profile) + skipped:
         print(f"warning: {w}", file=sys.stderr)
     prof = result.profile
@@ -306,7 +312,7 @@ def cmd_size(args) -> int:
     from .air import predict
     from .air.sizing import size_prediction
     from .output import OutputError, check_out_dir, output_dir
-    from .report import write_sizing_report
+    from .outputs.report import write_sizing_report
     from .sequencer import parse_horizon
 
     try:
@@ -358,10 +364,8 @@ def cmd_size(args) -> int:
 
 
 def cmd_compare(args) -> int:
-    import json
 
     from .air.compare import compare, parse_allowance
-
     from .output import OutputError, check_out_file, write_json
     try:
         horizon_s, dt_s = _durations(args)
@@ -415,8 +419,6 @@ def _percentage(text: str, option: str) -> float:
 
 
 def cmd_sweep(args) -> int:
-    import csv
-    import io
 
     from .output import OutputError, atomic_write_text, check_out_dir, output_dir
     from .sweep import SweepError, measure_setting, parse_setting, sweep
@@ -879,7 +881,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def cmd_init(args) -> int:
-    from pathlib import Path
 
     from .init import machine_skeleton
     from .output import OutputError, atomic_write_text
@@ -913,10 +914,15 @@ def cmd_init(args) -> int:
 
 
 def cmd_identify(args) -> int:
-    from .identify import (FlowData, IdentifyError, identify_steady, identify_tank,
-                           plot_fit, read_flow_data)
-    from pathlib import Path
 
+    from .identify import (
+        FlowData,
+        IdentifyError,
+        identify_steady,
+        identify_tank,
+        plot_fit,
+        read_flow_data,
+    )
     from .machine import MachineError, load_machine, read_machine_data, save_machine
     from .output import atomic_write_text, dumps_json
 
@@ -994,6 +1000,7 @@ def cmd_emulate(args) -> int:
     from .air import predict
     from .machine import load_machine
     from .output import output_dir
+    from .outputs.files import write_emulation
     from .plant import emulate
 
     horizon_s, _, out = _horizon_and_out(args)
@@ -1007,7 +1014,7 @@ def cmd_emulate(args) -> int:
         print(e, file=sys.stderr)
         return _exit_code(e)
     with output_dir(out, _command_line(args)) as staging:
-        written = [out / f.name for f in em.write(staging, plot=not args.no_plot)]
+        written = [out / f.name for f in write_emulation(em, staging, plot=not args.no_plot)]
     for w in em.machine.warnings:
         print(f"warning: {w}", file=sys.stderr)
     print(f"{em.machine.name}: emulated {horizon_s:g} s at {em.machine.supply_bar_g:g} bar(g)"
@@ -1042,8 +1049,14 @@ def cmd_diagnose(args) -> int:
     from .diagnose import diagnose, read_io_timeline, read_measured
     from .diagnose.core import write_fixed_machine
     from .machine import load_machine
-    from .output import (OutputError, atomic_write_text, check_out_dir, check_out_file,
-                         output_dir, write_json)
+    from .output import (
+        OutputError,
+        atomic_write_text,
+        check_out_dir,
+        check_out_file,
+        output_dir,
+        write_json,
+    )
 
     try:
         out = check_out_dir(args.out) if args.out else None
@@ -1083,12 +1096,11 @@ def cmd_diagnose(args) -> int:
         write_fixed_machine(d, args.write_machine)
     summary = d.summary()
     if args.json == "-":
-        import json
         print(json.dumps(summary, indent=2, allow_nan=False))
     elif args.json:
         write_json(args.json, summary)
     if out is not None:
-        from .report import diagnosis_html, plot_diagnosis
+        from .outputs.report import diagnosis_html, plot_diagnosis
 
         with output_dir(out, _command_line(args)) as staging:
             write_json(staging / "diagnose.json", summary)
@@ -1145,8 +1157,6 @@ def main(argv=None) -> int:
     """Run one command. Exit codes: 0 ok, 1 a finding (invalid program, gate failed), 2 a
     usage or input error, 3 an internal error (a bug: one line; ``--debug`` shows the
     traceback), 130/143 interrupted by SIGINT/SIGTERM."""
-    import os
-    import signal
 
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv

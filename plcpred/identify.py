@@ -35,8 +35,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .air.flow import R_J_KG_K, RHO0_KG_M3, T0_K, phi
+from .datafile import DataLines
 from .errors import PlcpredError
+from .outputs.report import pyplot, save_fig
+from .physics.flow import R_J_KG_K, RHO0_KG_M3, T0_K, phi
 
 Z95 = 1.96
 R_FIT_MAX = 0.98       # tank curves: points nearer equilibrium than this are not fitted
@@ -125,7 +127,6 @@ def read_flow_data(path, atmosphere_kpa: float = 101.325, temperature_c: float =
     """Steady-flow or tank data from a CSV (see the module note). Errors name the file,
     line and column. The file is read a line at a time: at most MAX_POINTS rows, each
     value of a known column within COLUMN_RANGES."""
-    from .diagnose.io import _Lines
 
     path = Path(path)
     atm = atmosphere_kpa * 1e3
@@ -137,7 +138,7 @@ def read_flow_data(path, atmosphere_kpa: float = 101.325, temperature_c: float =
     col: dict[str, int] = {}
     ranges: dict[str, tuple[float, float] | None] = {}
     values: list[tuple[int, dict]] = []     # (line, column -> value)
-    with _Lines(path, extra=0, error=IdentifyError) as lines:
+    with DataLines(path, IdentifyError) as lines:
         for k, line in enumerate(lines, start=1):
             if not line.strip() or line.lstrip().startswith("#"):
                 continue
@@ -262,6 +263,7 @@ def _choked_c(k_vals, weights, r, b):
 def identify_steady(data: FlowData, method: str = "improved", fit_a: bool = False
                     ) -> FlowFit:
     """C, b, m (a) from steady-flow points (see the module note)."""
+    # scipy costs a third of a second to import: only the runs that need it pay
     from scipy.optimize import least_squares
 
     n = len(data.flow_l_min)
@@ -342,6 +344,7 @@ def tank_pressure_pa(time_s, p_start_pa, C, b, m, volume_m3, mode="discharge",
                      supply_pa=None, atmosphere_pa=101_325.0, temperature_k=T0_K, a=1.0):
     """An isothermal tank's pressure emptying through (C, b, m) to atmosphere, or filling
     from ``supply_pa``: ``dP/dt = -/+ (R T / V) rho0 C P_u sqrt(T0/T) phi(P_d/P_u)``."""
+    # scipy costs a third of a second to import: only the runs that need it pay
     from scipy.integrate import solve_ivp
 
     k = R_J_KG_K * temperature_k / volume_m3 * RHO0_KG_M3 * C * math.sqrt(T0_K / temperature_k)
@@ -376,6 +379,7 @@ def identify_tank(data: TankData, volume_l: float, mode: str = "discharge",
                   supply_pa: float | None = None, atmosphere_pa: float = 101_325.0,
                   temperature_k: float = T0_K) -> FlowFit:
     """C, b, m from a tank's pressure curve (see the module note)."""
+    # scipy costs a third of a second to import: only the runs that need it pay
     from scipy.optimize import least_squares
 
     if mode not in ("discharge", "charge"):
@@ -436,13 +440,7 @@ def plot_fit(data, fit: FlowFit, path, volume_l=None, mode="discharge", supply_p
              atmosphere_pa=101_325.0, temperature_k=T0_K) -> None:
     """The fit plot: the flow ratio against the pressure ratio (steady flow), or the
     tank's pressure against time, with the fitted curve."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from .report import _save_fig
-
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(7, 4.5), constrained_layout=True)
     if isinstance(data, FlowData):
         r = data.p_down_pa / data.p_up_pa
@@ -465,7 +463,7 @@ def plot_fit(data, fit: FlowFit, path, volume_l=None, mode="discharge", supply_p
     ax.set_title(f"{fit.method}: C {fit.C:.3e} m^3/(s Pa), b {fit.b:.3f}, m {fit.m:.3f}",
                  fontsize=10)
     ax.legend()
-    _save_fig(fig, path)
+    save_fig(fig, path)
 
 
 __all__ = ["FlowData", "FlowFit", "IdentifyError", "TankData", "identify_steady",

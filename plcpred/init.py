@@ -4,7 +4,7 @@ The program says which signals it reads and writes and how often its task runs; 
 say what drives its inputs or which air consumer each output switches. So the file it
 writes loads and runs as it is (the program alone, nothing scheduled), and lists every
 input as an ``[[input]]`` and every BOOL output as a ``[[consumer]]`` to uncomment and
-fill in, with the keys each needs (see docs/machine-file.md).
+fill in, with the keys each needs (see docs/reference/machine-file.md).
 """
 from __future__ import annotations
 
@@ -150,7 +150,7 @@ def machine_skeleton(program: ir.Program, program_path: Path, out_path: Path | N
         "# It loads and runs as it is (the program alone, nothing scheduled). Fill in what",
         "# the program cannot tell: what drives its inputs and which air consumer each",
         "# output switches (uncomment and complete the blocks below). Every key, with its",
-        "# units and an example per consumer kind: docs/machine-file.md.",
+        "# units and an example per consumer kind: docs/reference/machine-file.md.",
         "",
         "[machine]",
         f"name = {_toml_string(name)}",

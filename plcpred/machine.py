@@ -1,5 +1,5 @@
 """The machine file (TOML): ties a PLC program's inputs and outputs to physical consumers,
-switches and input schedules. Every key is documented in ``docs/machine-file.md``.
+switches and input schedules. Every key is documented in ``docs/reference/machine-file.md``.
 
 ``load_machine(path)`` reads and validates it. Problems are :class:`MachineError` naming
 the file, the table and the key (``station.toml: consumer "clamp": stroke_mm must be > 0``);
@@ -9,11 +9,21 @@ from __future__ import annotations
 
 import difflib
 import math
+import os
 import re
+import stat as stat_module
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
+
 from .errors import PlcpredError
+from .output import atomic_write_text
+from .parser import ProgramError, files, ir, load_program
+from .parser.check import Checker
+from .parser.files import confined_to, env_roots, read_bytes, resolved
+from .physics.group import PlantError
+from .physics.meter import REFERENCES
+from .physics.strokes import auto_stroke_times
 
 CYLINDER_KINDS = ("single_acting", "double_acting", "double_rod", "rodless", "semi_rotary",
                   "gripper")
@@ -89,10 +99,13 @@ class Consumer:
     def auto_stroke_times(self) -> tuple[float, float]:
         """(extend, retract) seconds from valve switch to end of stroke, by the physics
         plant at the machine's supply pressure with this drive's load and circuit
-        (:mod:`plcpred.plant.strokes`; cached per configuration)."""
-        from .plant.strokes import auto_stroke_times
-
-        return auto_stroke_times(self, *self.supply_context)
+        (:mod:`plcpred.physics.strokes`; cached per configuration)."""
+        *conditions, file = self.supply_context
+        try:
+            return auto_stroke_times(self, *conditions)
+        except PlantError as e:
+            raise MachineError(file, f'consumer "{self.name}"',
+                               f'stroke_time_s = "auto": {e}') from None
 
     @property
     def bistable(self) -> bool:
@@ -181,8 +194,6 @@ class Machine:
     def read_program(self, path=None):
         """The machine's program (or the one at ``path``, which the user names: its
         folder may be read too), with what it uses from its libraries."""
-        from .parser import load_program
-        from .parser.files import resolved
         roots = tuple(self.allowed_roots) or None
         if path is not None and roots is not None:
             own = resolved(Path(path))
@@ -220,7 +231,7 @@ _LINE_KEYS = {"name", "volume_l", "pressure_bar_g", "network_bar_g", "C", "b", "
               "droop_bar", "check_valves"}
 _METER_KEYS = {"tau_s", "rate_hz", "reference", "noise_l_min", "offset_l_min",
                "full_scale_l_min", "line", "sampling"}
-METER_REFERENCES = ("iso8778", "din1343", "iso2533")
+METER_REFERENCES = tuple(REFERENCES)
 METER_SAMPLINGS = ("mean", "instant")
 _CALENDAR_KEYS = {"shifts_per_day", "hours_per_shift", "days_per_week", "weeks_per_year",
                   "production_share", "idle_state"}
@@ -549,7 +560,6 @@ def machine_roots(path, allowed_roots=None) -> tuple[Path, ...]:
     """The folders a machine file's program and libraries may be in: the file's own
     folder, the ``allowed_roots`` given (a command line's ``--allow-root``), and those of
     the ``PLCPRED_ALLOW_ROOTS`` environment variable (os.pathsep-separated)."""
-    from .parser.files import env_roots, resolved
     roots = [resolved(Path(path).parent)]
     roots += [resolved(Path(r)) for r in allowed_roots or ()]
     roots += env_roots()
@@ -560,7 +570,6 @@ def _contained_path(r: "_Reader", key: str, value: str, path: Path, roots) -> Pa
     """The path ``value`` of ``key`` (relative to the machine file's folder) resolved,
     when it is a regular file (at most MAX_FILE_BYTES) or a folder under ``roots``; else
     a MachineError naming the key (and the path, never what the file holds)."""
-    from .parser import files
     shown = value if len(value) <= 200 else value[:200] + "..."
     what = "program file" if key == "program" else "library"
     if "\0" in value:
@@ -572,7 +581,6 @@ def _contained_path(r: "_Reader", key: str, value: str, path: Path, roots) -> Pa
         st = target.stat()
     except (OSError, ValueError):
         raise r.error(f"{what} '{shown}' not found (looked for {target})") from None
-    import stat as stat_module
     if stat_module.S_ISDIR(st.st_mode):
         return target
     if not stat_module.S_ISREG(st.st_mode):
@@ -593,8 +601,6 @@ def read_machine_data(path) -> dict:
                                      "run a machine take its TOML machine file, which names "
                                      "the program (program = \"...\"); `plcpred check` reads "
                                      "programs")
-    from .parser import ProgramError
-    from .parser.files import read_bytes
     try:
         with _anywhere():
             raw = read_bytes(path, MAX_MACHINE_BYTES)   # a regular file, bounded
@@ -614,7 +620,6 @@ def read_machine_data(path) -> dict:
 
 def _anywhere():
     """The machine file itself is named by the user: read from wherever it is."""
-    from .parser.files import confined_to
     return confined_to(None)
 
 
@@ -741,7 +746,6 @@ def program_addresses(program) -> dict[str, str]:
 def _program_io(program):
     """(all variable names, output names, names read anywhere: upper case; inputs: upper
     case -> as declared) of a program."""
-    from .parser.check import Checker
 
     names, outputs, inputs = set(), set(), {}
     blocks = [g.block for g in program.globals]
@@ -800,12 +804,10 @@ def check_against_program(machine: Machine, program) -> list[str]:
                                             f"{program_file}")
         return name.upper()
 
-    from .sequencer.compiler import names_in
-    from .parser import ir
     programs = {p.name.upper() for p in program.pous if p.kind == "PROGRAM"}
     programs |= {i.name.upper() for c in program.configurations for r in c.resources
                  for i in r.programs}
-    used_addresses = {a.upper() for a in names_in(program, ir.DirectAddress, "address")}
+    used_addresses = {a.upper() for a in ir.names_in(program, ir.DirectAddress, "address")}
     names |= used_addresses
     read = set(read) | used_addresses
     driven = set()
@@ -844,11 +846,6 @@ def save_machine(data: dict, source: Machine, path, header: str = "") -> None:
     """Write machine-file data derived from ``source`` to ``path``: the program path made
     relative to the new file when it is near (else absolute), the data checked by
     loading it first (a file that does not load is a bug), written atomically."""
-    import os
-
-    from .diagnose.io import dump_machine_toml
-    from .output import atomic_write_text
-
     path = Path(path)
 
     def near(target: Path) -> str:
@@ -862,3 +859,59 @@ def save_machine(data: dict, source: Machine, path, header: str = "") -> None:
     # written outside the source's folder then needs --allow-root to be read again)
     machine_from_data(data, path, source.allowed_roots)
     atomic_write_text(path, dump_machine_toml(data, header))
+
+
+# ---------------------------------------------------------------------- machine files
+
+def _toml_key(key: str) -> str:
+    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else _toml_value(key)
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if not math.isfinite(v):
+            raise ValueError(f"cannot write {v!r} to a machine file")
+        return repr(v)
+    if isinstance(v, str):
+        out = ['"']
+        for ch in v:
+            if ch in '"\\':
+                out.append("\\" + ch)
+            elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+                out.append(f"\\u{ord(ch):04x}")
+            else:
+                out.append(ch)
+        out.append('"')
+        return "".join(out)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}"
+                                for k, x in v.items()) + " }"
+    raise ValueError(f"cannot write a {type(v).__name__} to a machine file")
+
+
+def dump_machine_toml(data: dict, header: str = "") -> str:
+    """A machine file's TOML data as text (the tables plcpred knows, in their usual
+    order; comments of the original are not kept, ``header`` is written first)."""
+    lines = [f"# {line}" if line else "#" for line in header.splitlines()]
+    if lines:
+        lines.append("")
+    for table in ("machine", "signals", "meter"):
+        if table in data:
+            lines.append(f"[{table}]")
+            lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in data[table].items()]
+            lines.append("")
+    for array in ("input", "line", "consumer"):
+        for t in data.get(array, []):
+            lines.append(f"[[{array}]]")
+            lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in t.items()]
+            lines.append("")
+    for table, v in data.items():
+        if table not in ("machine", "signals", "meter", "input", "line", "consumer"):
+            raise ValueError(f"cannot write the table [{table}]")
+    return "\n".join(lines)

@@ -13,6 +13,8 @@ may. Elsewhere than glibc it does nothing.
 """
 from __future__ import annotations
 
+import ctypes
+
 M_TRIM_THRESHOLD = -1
 M_MMAP_THRESHOLD = -3
 MMAP_THRESHOLD_BYTES = 32 * 1024 * 1024
@@ -28,7 +30,6 @@ def use_large_malloc_thresholds() -> bool:
     if _done:
         return True
     try:
-        import ctypes
         libc = ctypes.CDLL("libc.so.6")
         ok = libc.mallopt(M_MMAP_THRESHOLD, MMAP_THRESHOLD_BYTES) == 1 and \
             libc.mallopt(M_TRIM_THRESHOLD, TRIM_THRESHOLD_BYTES) == 1

@@ -491,3 +491,9 @@ def _commit(staging: Path, out: Path) -> list[str]:
         os.replace(staging / MANIFEST, out / MANIFEST)
         return warnings
     raise OutputError(f"--out {out}: another run kept replacing it; try again")
+
+
+def csv_column_name(name: str) -> str:
+    """``name`` as a CSV column header: letters, digits and ``_-.``, anything else ``_``
+    (a consumer's name may hold commas or quotes)."""
+    return "".join(ch if ch.isalnum() or ch in "_-." else "_" for ch in name)

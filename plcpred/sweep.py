@@ -25,11 +25,17 @@ import copy
 import itertools
 import os
 import sys
-from pathlib import Path
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
+from pathlib import Path
 
+from .air import predict
+from .air.cycles import blowing_only_in_cycle
+from .air.sizing import DEFAULT_PRICE, size_prediction
 from .errors import PlcpredError
+from .machine import MachineError, machine_from_data, read_machine_data
 from .memory import use_large_malloc_thresholds
+from .parser import ProgramError, parse_st
 
 DASK_CONNECT_TIMEOUT_S = 10
 # scenarios a sweep runs at most unless asked for more: every one is validated in this
@@ -42,7 +48,7 @@ MAX_SCENARIOS = 10_000
 # cores (bench/sweep_speed.py, four interleaved rounds): local 2.57 s, Dask 2.81 s with
 # the defaults, 2.62 s with these. Set them where the workers start (``dask.config.set``
 # around a LocalCluster, or the DASK_DISTRIBUTED__... environment variables of
-# ``dask worker``, docs/cli.md); plcpred cannot change a running cluster's.
+# ``dask worker``, docs/reference/cli.md); plcpred cannot change a running cluster's.
 DASK_WORKER_CONFIG = {"distributed.worker.profile.enabled": False,
                       "distributed.worker.memory.monitor-interval": "1s",
                       "distributed.admin.system-monitor.interval": "2s"}
@@ -91,7 +97,6 @@ def apply_settings(data: dict, path, program, scenario: dict):
     Settings change the machine file's TOML data, which then goes through the same
     loader and checks as a file (physical ranges included): a swept value the loader
     would reject in a file is rejected here too, naming the setting."""
-    from .machine import MachineError, machine_from_data
 
     d = copy.deepcopy(data)
     prog = program
@@ -215,7 +220,6 @@ def _tables(data: dict, key: str) -> list:
 
 
 def _set_program_value(program, name: str, value: str, key: str):
-    from .parser import ProgramError, parse_st
 
     try:
         snippet = parse_st(f"PROGRAM _P VAR _v : INT := {value}; END_VAR END_PROGRAM",
@@ -243,9 +247,6 @@ def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
                  compressor=None) -> dict:
     """One prediction with the scenario applied: a row of totals, and the year's air,
     energy and cost (``hours`` None: the machine file's [calendar], else 4000 h)."""
-    from .air import predict
-    from .air.sizing import DEFAULT_PRICE, size_prediction
-    from .machine import machine_from_data, read_machine_data
 
     data = read_machine_data(machine_path)
     base = machine_from_data(data, machine_path)
@@ -253,7 +254,6 @@ def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
     machine, program = apply_settings(data, machine_path, program, scenario)
     result = predict(machine, horizon_s, dt=dt_s, program=program)
     if _blowoff(scenario) == "cycle":
-        from .air.cycles import blowing_only_in_cycle
         result = predict(machine, horizon_s, dt=dt_s, program=program,
                          timeline=blowing_only_in_cycle(machine, result.timeline))
     s = size_prediction(result, hours, sec_kwh_per_nm3=sec, compressor=compressor,
@@ -346,7 +346,6 @@ def sweep(machine_path, settings: list[Setting], horizon_s: float, dt_s=None,
     machine_path = str(machine_path)
     combos = scenarios(settings)
     # fail fast, in this process, on settings that cannot apply
-    from .machine import machine_from_data, read_machine_data
     data = read_machine_data(machine_path)
     base = machine_from_data(data, machine_path)
     program_path = str(program) if program is not None else None
@@ -367,7 +366,6 @@ def sweep(machine_path, settings: list[Setting], horizon_s: float, dt_s=None,
             rows.append(run_scenario(*a))
             bar.step()
         return rows
-    from concurrent.futures import ProcessPoolExecutor, as_completed
     rows = [None] * len(args)
     with ProcessPoolExecutor(max_workers=workers,
                              initializer=use_large_malloc_thresholds) as pool:
@@ -405,6 +403,7 @@ def guided_batches(n: int, threads: int, per_thread: int = 2) -> list[list[int]]
 
 def _run_dask(args, scheduler, bar, notes: list):
     try:
+        # dask is optional (the dask extra): only --engine dask needs it
         from dask.distributed import Client, as_completed
     except ImportError:
         raise SweepError("--engine dask needs dask.distributed: pip install "

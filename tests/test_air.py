@@ -1,4 +1,4 @@
-"""The air model against docs/physics.md's equations and published figures, and hand
+"""The air model against docs/reference/physics.md's equations and published figures, and hand
 calculations."""
 import csv
 import json
@@ -13,8 +13,8 @@ import pytest
 from plcpred.air import activation_matrix, consumer_models, default_dt, demand_profile
 from plcpred.air.demand import (ConsumerModel, cut_stroke_volumes_nl, residual_fill_nl,
                                  stroke_cuts, stroke_rectangles, valve_transitions)
-from plcpred.air.flow import (P0_PA, P_ATM_PA, flow_nl_min, orifice_conductance, phi)
-from plcpred.air.volumes import consumer_stroke_volumes_nl
+from plcpred.physics.flow import (P0_PA, P_ATM_PA, flow_nl_min, orifice_conductance, phi)
+from plcpred.physics.volumes import consumer_stroke_volumes_nl
 from plcpred.machine import Consumer, load_machine
 from plcpred.sequencer.timeline import Signal, Timeline
 
@@ -34,7 +34,7 @@ def passive_total(pressure_bar_abs, model):
 
 @pytest.mark.parametrize("bar_abs,published", [(2.5, 104), (3.5, 145), (5.0, 207)])
 def test_passive_linear_row_of_the_published_table(bar_abs, published):
-    # the knives' C (docs/physics.md table) plus the rig's leak, always choked
+    # the knives' C (docs/reference/physics.md table) plus the rig's leak, always choked
     assert passive_total(bar_abs, "choked") == pytest.approx(published, rel=0.01)
 
 
@@ -125,7 +125,7 @@ def rig_total_without_leak(machine_file, horizon, choked=True):
 
 
 def test_rig_sequence_1_matches_the_published_simplified_total():
-    # 13.13 L (docs/physics.md: figures). The knives' blow time is not published; the sample
+    # 13.13 L (docs/reference/physics.md: figures). The knives' blow time is not published; the sample
     # uses the 3.7 s that makes this hold, so this checks consistency of the cylinder
     # volumes and the knife flow rather than validating them independently.
     assert rig_total_without_leak("rig.toml", "20s") == pytest.approx(13.13, rel=0.02)

@@ -212,7 +212,8 @@ def test_a_run_that_does_not_repeat_is_plotted_in_whole_arrival_periods(tmp_path
                                                                         monkeypatch):
     # jittered arrivals never tile; bins of a fixed length over a 4 s cycle would draw
     # a moire, bins of the arrival period average one part each
-    from plcpred import report
+    from plcpred.outputs import report
+    from plcpred.outputs.files import write_prediction
     from plcpred.machine import machine_from_data, read_machine_data
     path = SAMPLES / "pick_place.toml"
     data = read_machine_data(path)
@@ -230,7 +231,7 @@ def test_a_run_that_does_not_repeat_is_plotted_in_whole_arrival_periods(tmp_path
     real = report._whole_periods
     monkeypatch.setattr(report, "_whole_periods",
                         lambda *a: widths.append(real(*a)) or widths[-1])
-    jittered.write(tmp_path, plot=True)
+    write_prediction(jittered, tmp_path, plot=True)
     cells = round(period / jittered.profile.dt_s)
     assert widths and widths[0] % cells == 0
     # the sizing report's demand plot (drawn last) is binned the same way

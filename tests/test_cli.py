@@ -47,11 +47,11 @@ def test_console_script_runs_as_module(samples_dir):
 
 
 def test_every_command_and_option_is_in_docs_cli():
-    """docs/cli.md (made from the --help texts) names every command and option."""
+    """docs/reference/cli.md (made from the --help texts) names every command and option."""
     from pathlib import Path
 
     from plcpred.cli import build_parser
-    doc = (Path(__file__).resolve().parent.parent / "docs" / "cli.md").read_text()
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "reference" / "cli.md").read_text()
     sub = [a for a in build_parser()._actions if a.__class__.__name__ == "_SubParsersAction"]
     for name, parser in sub[0].choices.items():
         assert f"## `plcpred {name}`" in doc, name

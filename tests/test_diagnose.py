@@ -19,7 +19,8 @@ from plcpred.diagnose import (EFFECTS, MeasuredDataError, MeasuredRun, diagnose,
 from plcpred.diagnose.core import write_fixed_machine
 from plcpred.diagnose.effects import CUT_STROKE_EFFECTS, StrokeTime
 from plcpred.diagnose.fit import DiagnosisError
-from plcpred.diagnose.meter import first_order_lag, noise_level_l_min
+from plcpred.diagnose.noise import noise_level_l_min
+from plcpred.physics.meter import first_order_lag
 from plcpred.diagnose.model import MachineModel, RunModel
 from plcpred.machine import machine_from_data, read_machine_data
 
@@ -753,7 +754,7 @@ def test_indistinguishable_effects_are_named():
 @pytest.mark.parametrize("machine_file", [RIG, PICK, ROOT / "samples" / "cleaning.toml",
                                           ROOT / "samples" / "press.toml"])
 def test_every_effect_writes_a_machine_file_that_loads_and_carries_it(tmp_path, machine_file):
-    from plcpred.diagnose.io import dump_machine_toml
+    from plcpred.machine import dump_machine_toml
     from plcpred.machine import machine_from_data, read_machine_data
 
     m = plcpred.load_machine(machine_file)
@@ -931,7 +932,7 @@ def test_golden_refinement_finds_a_minimum_between_grid_values():
 
 
 def test_interval_means_on_a_uniform_grid_match_the_searched_ones():
-    from plcpred.diagnose.meter import interval_means_l_min
+    from plcpred.physics.meter import interval_means_l_min
 
     rng = np.random.default_rng(3)
     edges = np.arange(1001) * 0.02
@@ -942,7 +943,7 @@ def test_interval_means_on_a_uniform_grid_match_the_searched_ones():
     np.testing.assert_allclose(interval_means_l_min(cum, edges, start, end, 0.02),
                                interval_means_l_min(cum, edges, start, end), rtol=1e-12)
     # a fit's sampler (cells found once) gives the same numbers for any volumes
-    from plcpred.diagnose.meter import IntervalSampler
+    from plcpred.physics.meter import IntervalSampler
 
     sampler = IntervalSampler(edges, start, end, 0.02)
     for other in (cum, 3.0 * cum + 1.0):
@@ -954,7 +955,7 @@ def test_interval_means_on_a_uniform_grid_match_the_searched_ones():
 
 def _held_by_hand_nl(tube_m, tube_id_mm, inner_cm3, supply_bar_g, ambient_c=20.0,
                      atmosphere_pa=101325.0):
-    """Air a dead volume keeps above atmosphere at supply (docs/physics.md section 7):
+    """Air a dead volume keeps above atmosphere at supply (docs/reference/physics.md section 7):
     V (P_s - P_atm) / P0 * T0 / T_s, in normal litres."""
     v_cm3 = tube_m * 1000.0 * math.pi * tube_id_mm ** 2 / 4.0 / 1000.0 + inner_cm3
     p_s = supply_bar_g * 1e5 + atmosphere_pa
@@ -962,7 +963,7 @@ def _held_by_hand_nl(tube_m, tube_id_mm, inner_cm3, supply_bar_g, ambient_c=20.0
 
 
 def test_held_air_counts_the_cylinders_own_dead_volume():
-    from plcpred.air.volumes import dead_fill_volumes_nl, inner_dead_volumes_cm3
+    from plcpred.physics.volumes import dead_fill_volumes_nl, inner_dead_volumes_cm3
 
     sorter = plcpred.load_machine(ROOT / "samples" / "sorter.toml")
     pusher = sorter.consumer("pusher")          # 32/12 mm, 1.2 m of 4 mm tube each side
@@ -1168,7 +1169,7 @@ def _drives_scaled(factor):
 
 def test_drive_factor_range_by_hand(tmp_path):
     """A settled stroke fills swept volume, tube and the cylinder's own dead volume to
-    supply from what they held (docs/physics.md, D4): D1 plus V_inner (Ps - Patm)/P0 less
+    supply from what they held (docs/reference/physics.md, D4): D1 plus V_inner (Ps - Patm)/P0 less
     V_tube Patm/P0. The band runs DRIVE_THERMAL_SHARE below that and DRIVE_ABOVE_SHARE
     above."""
     from plcpred.diagnose.band import DRIVE_ABOVE_SHARE, DRIVE_THERMAL_SHARE, drive_factor_range
@@ -1364,7 +1365,7 @@ def test_a_meter_reading_high_is_named_as_such():
 
 
 def test_a_din_meter_is_recognised_and_written_as_the_files_reference(tmp_path, rig_model):
-    """A gain of 0.920 is DIN 1343 litres read as ISO 8778 ones (docs/physics.md, D3:
+    """A gain of 0.920 is DIN 1343 litres read as ISO 8778 ones (docs/reference/physics.md, D3:
     V_din = V_iso (P0/P_din)(T_din/T0)); written as the meter's reference."""
     from plcpred.diagnose.effects import MeterGain
     din = (100_000 / 101_325) * (273.15 / 293.15)

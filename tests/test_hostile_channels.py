@@ -15,9 +15,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import plcpred.datafile as datafile
 import plcpred.diagnose.io as io
-from plcpred.air.demand import (DemandError, consumer_models, demand_profile,
-                                passive_intervals, valve_transitions)
+from plcpred.air.demand import (
+    DemandError,
+    consumer_models,
+    demand_profile,
+    passive_intervals,
+    valve_transitions,
+)
 from plcpred.cli import main
 from plcpred.diagnose import MeasuredDataError, read_io_timeline, read_measured
 from plcpred.errors import PlcpredError
@@ -100,7 +106,7 @@ def test_a_flow_log_is_streamed_and_stops_at_its_row_limit(tmp_path, monkeypatch
     file (here bytes that are no UTF-8, which a reader of the whole file fails on first)
     is never read."""
     monkeypatch.setattr(io, "MAX_ROWS", 20)
-    monkeypatch.setattr(io, "_CHUNK_BYTES", 64)       # read in blocks of 1 MB
+    monkeypatch.setattr(datafile, "CHUNK_BYTES", 64)       # read in blocks of 1 MB
     path = tmp_path / "big.csv"
     path.write_bytes(LOG.encode() + b"9.9,\xff\xfe,6\n")
     with pytest.raises(MeasuredDataError, match=r"big\.csv: .*more than 20 (rows|samples)"):
@@ -123,11 +129,11 @@ def test_flow_logs_refuse_absurd_flows_and_spans(tmp_path):
 def test_lines_split_as_before_across_read_blocks(tmp_path, monkeypatch):
     """The block reader splits lines where str.splitlines does (CR LF, CR alone, a byte
     order mark dropped), also where a block ends inside a CR LF."""
-    monkeypatch.setattr(io, "_CHUNK_BYTES", 3)
+    monkeypatch.setattr(datafile, "CHUNK_BYTES", 3)
     text = "\ufefftime_s,flow_l_min\r\n0,1\r\n1,2\r2,3\n\n3,4\r\n"
     path = tmp_path / "crlf.csv"
     path.write_bytes(text.encode())
-    with io._Lines(path) as lines:
+    with datafile.DataLines(path, io.MeasuredDataError) as lines:
         assert list(lines) == text.lstrip("\ufeff").splitlines()
     run = read_measured(path)
     assert run.time_s.tolist() == [0, 1, 2, 3] and run.flow_l_min.tolist() == [1, 2, 3, 4]
@@ -272,7 +278,7 @@ def test_a_stiff_line_stops_emulate_with_an_error_naming_it(tmp_path, capsys, mo
     """A regulator of C = 1e-3 (allowed by validation) refills a 1 l line in 0.4 us: the
     solver crawled without end. A budget of evaluations per piece stops it, naming the
     line and the key to change."""
-    import plcpred.plant.group as group
+    import plcpred.physics.group as group
 
     monkeypatch.setattr(group, "MAX_PIECE_EVALUATIONS", 3000)
     truth = _write(tmp_path / "T.toml", '[[line]]\nname = "main"\nC = 1e-3\n\n'

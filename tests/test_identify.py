@@ -13,14 +13,14 @@ from plcpred.cli import main
 from plcpred.identify import (FlowData, IdentifyError, TankData, identify_steady,
                               identify_tank, read_flow_data)
 from plcpred.machine import Consumer, load_machine
-from plcpred.plant import physics
-from plcpred.plant.drive import drive_params
-from plcpred.plant.group import Group, Supply
+from plcpred.physics import chamber as physics
+from plcpred.physics.drive import drive_params
+from plcpred.physics.group import Group, Supply
 
 ROOT = Path(__file__).resolve().parent.parent
 RIG = ROOT / "samples" / "prototype_rig" / "rig.toml"
 ATM = 101_325.0
-KNIVES = (6.56e-9, 0.22, 0.55)      # docs/physics.md: figures, two air knives on one valve
+KNIVES = (6.56e-9, 0.22, 0.55)      # docs/reference/physics.md: figures, two air knives on one valve
 
 
 def hand_flow_l_min(C, b, m, p_up, p_down):

@@ -191,7 +191,7 @@ stroke_time_s = 0.2
 '''
     c = load_machine(write(tmp_path, text, ONE_OUTPUT)).consumer("c")
     assert c.rod_mm == 0.0
-    from plcpred.air.volumes import consumer_stroke_volumes_nl
+    from plcpred.physics.volumes import consumer_stroke_volumes_nl
     no_rod = consumer_stroke_volumes_nl(c, 7.01325e5)
     with_rod = consumer_stroke_volumes_nl(
         load_machine(write(tmp_path, text + "rod_mm = 12\n", ONE_OUTPUT)).consumer("c"),
@@ -200,11 +200,11 @@ stroke_time_s = 0.2
 
 
 def test_every_machine_file_key_is_documented():
-    """docs/machine-file.md names every key the loader accepts."""
+    """docs/reference/machine-file.md names every key the loader accepts."""
     from pathlib import Path
 
     from plcpred import machine as mf
-    doc = (Path(__file__).resolve().parent.parent / "docs" / "machine-file.md").read_text()
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "reference" / "machine-file.md").read_text()
     keys = (mf._MACHINE_KEYS | mf._INPUT_KEYS | mf._CONSUMER_KEYS | mf._LINE_KEYS
             | mf._METER_KEYS | mf._CALENDAR_KEYS)
     missing = sorted(k for k in keys if f"`{k}`" not in doc)

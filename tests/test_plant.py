@@ -1,4 +1,4 @@
-"""The physics plant (plcpred.plant) against the thesis' figures (docs/physics.md sections 5
+"""The physics plant (plcpred.plant) against the thesis' figures (docs/reference/physics.md sections 5
 and 7), hand calculations, mass balance, closed-loop runs and the emulate command.
 
 Reference numbers here are written from the physics (D1, D2 by hand, the ideal-gas fill
@@ -14,13 +14,18 @@ import pytest
 from plcpred.air.predict import predict
 from plcpred.cli import main
 from plcpred.machine import MachineError, load_machine
+from plcpred.outputs.files import write_measured
+from plcpred.physics import chamber as physics
+from plcpred.physics.drive import drive_params
+from plcpred.physics.group import Group, Supply
 from plcpred.plant import emulate, merge_truth
-from plcpred.plant import physics
-from plcpred.plant.drive import drive_params
-from plcpred.plant.group import Group, Supply
 from plcpred.plant.model import PlantModel
-from plcpred.plant.replay import (closed_loop_total_cells_nl, replay,
-                                  replay_total_cells_nl, shared_run_cells_nl)
+from plcpred.plant.replay import (
+    closed_loop_total_cells_nl,
+    replay,
+    replay_total_cells_nl,
+    shared_run_cells_nl,
+)
 from plcpred.sequencer import unfold
 from plcpred.sequencer.timeline import Timeline
 
@@ -72,7 +77,7 @@ def test_eckersten_series_of_two_equal_restrictions():
 
 
 def _rig_drive(name):
-    """The rig's drives with their measured circuits (docs/physics.md: figures, table 5.5)."""
+    """The rig's drives with their measured circuits (docs/reference/physics.md: figures, table 5.5)."""
     m = load_machine(DATA / "rig_a.toml")
     a = m.consumer("A")
     if name == "A":
@@ -193,7 +198,7 @@ exhaust_C = 3.75e-9
 
 
 def test_passive_table_by_full_d2():
-    """Knives plus the pilot leak at 2.5, 3.5 and 5 bar absolute (docs/physics.md: figures):
+    """Knives plus the pilot leak at 2.5, 3.5 and 5 bar absolute (docs/reference/physics.md: figures):
     the plant's flow is D2 with phi; at 2.5 bar it is nearer the measured 91 NL/min than
     the linear model's 104."""
     m = load_machine(RIG)
@@ -480,7 +485,7 @@ def test_diagnose_names_a_leak_hidden_in_the_plant(tmp_path, capsys):
     for seed in (1, 2):
         em = emulate(RIG, "20s", truth=truth, seed=seed)
         logs += ["--measured", str(tmp_path / f"run{seed}.csv")]
-        em.write_measured(tmp_path / f"run{seed}.csv")
+        write_measured(em, tmp_path / f"run{seed}.csv")
     assert main(["diagnose", str(RIG), *logs, "--json", str(tmp_path / "d.json")]) == 0
     d = json.loads((tmp_path / "d.json").read_text())
     assert d["verdict"] == "leak"
@@ -591,7 +596,7 @@ def test_a_leak_on_a_fast_machine_is_named_beyond_the_plant(tmp_path):
 
 
 def test_friction_differs_by_direction():
-    from plcpred.plant.strokes import stroke_times_s
+    from plcpred.physics.strokes import stroke_times_s
     c, m = _rig_drive("A")
     supply = m.supply_bar_g * 1e5 + P_ATM
     even = stroke_times_s(drive_params(c), supply, P_ATM, T_AMB)
@@ -663,7 +668,7 @@ def test_every_cylinder_kind_and_a_bistable_valve_emulate():
 
 
 def test_too_long_an_emulation_stops_with_a_clear_error(tmp_path, capsys, monkeypatch):
-    import plcpred.plant.group as group
+    import plcpred.physics.group as group
     monkeypatch.setattr(group, "MAX_PIECES", 50)
     out = tmp_path / "o"
     assert main(["emulate", str(PICK), "--horizon", "60s", "--out", str(out)]) == 1
@@ -807,7 +812,7 @@ def test_a_leak_far_better_than_any_drive_effect_runs_no_variant(tmp_path):
     plant form moves its painted form's error by less than PLANT_FORM_REACH, so none is
     run through the plant (each value a plant run): the leak is named, and no variant
     was made."""
-    from plcpred.diagnose import diagnose, core
+    from plcpred.diagnose import core, diagnose
 
     runs = _clamp_logs(tmp_path, '[[consumer]]\nname = "hidden leak"\nkind = "leak"\n'
                                  'C = 1e-9\nb = 0.15\nm = 0.7\n'

@@ -607,13 +607,13 @@ def test_st_bodies_on_one_long_line_parse_in_linear_time_at_their_columns():
 def test_a_file_of_millions_of_elements_stops_at_the_element_limit(monkeypatch):
     """12 MB of empty elements took 1 GB; now at most MAX_XML_ELEMENTS are read (set
     small here), and elements without children, text or attributes share empty ones."""
-    import plcpred.parser.plcopen as plcopen
+    import plcpred.parser.xmltree as xmltree
     from plcpred.parser import ProgramError
-    monkeypatch.setattr(plcopen, "MAX_XML_ELEMENTS", 1000)
+    monkeypatch.setattr(xmltree, "MAX_XML_ELEMENTS", 1000)
     text = ('<?xml version="1.0"?><project xmlns="http://www.plcopen.org/xml/tc6_0201">'
             + "<a/>" * 1200 + "</project>")
     with pytest.raises(ProgramError, match="more than 1,000 XML elements") as e:
         parse_plcopen(text, "many.xml")
     assert e.value.line == 1 and e.value.col > 1000 * 4
-    tree = plcopen._parse_xml(text.replace("<a/>" * 1200, "<a/>" * 900), "x.xml")
+    tree = xmltree.parse_xml(text.replace("<a/>" * 1200, "<a/>" * 900), "x.xml")
     assert len(tree.children) == 900 and tree.children[0].children is tree.children[1].children

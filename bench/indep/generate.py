@@ -174,7 +174,7 @@ def consumer_edges(c, sig):
     """(initial state, [(t_command, state)]) of a consumer's valve from a timeline: monostable
     (state = output) or bistable (rising edge of the first solenoid sets, of the second
     resets; both in the same scan: no move; a pulse that does not change the state is no
-    edge), docs/physics.md, cylinders (D1) edge rules."""
+    edge), docs/reference/physics.md, cylinders (D1) edge rules."""
     vs = valve_signals(c)
     init = 1 if c.get("initial", "retracted") == "extended" else 0
     if not vs:

@@ -1,19 +1,19 @@
 """Independent dynamic model of an electro-pneumatic machine (bench/indep).
 
-Written from the physics notes (docs/physics.md and the thesis figures it cites) (equations cited as D1, D2, D3, section 4 for the
+Written from the physics notes (docs/reference/physics.md and the thesis figures it cites) (equations cited as D1, D2, D3, section 4 for the
 chamber model, section 7 for what the dynamics add to D1), sharing no code with plcpred.
 numpy only. It simulates, in one vectorised batch, any number of drives of any number of
 runs (of any number of cases), so a 1 ms fixed step stays cheap:
 
 * per drive two chambers (cap, rod), each lumped with its tube's dead volume and the
-  cylinder's own internal dead volume; mass and internal energy as states (docs/physics.md
+  cylinder's own internal dead volume; mass and internal energy as states (docs/reference/physics.md
   section 4: dP/dt = -gamma P/V dV/dt + gamma R T/V (qm_in - qm_out) + (gamma-1)/V Q),
   heat exchange with the walls of the cylinder and of the tube through separate heat
   transfer coefficients (the polytropic index is a result: between isothermal for a slow
   stroke in a thin tube and nearly adiabatic for a fast one in a large bore);
 * four flow paths per drive by the extended ISO 6358 equation (D2), each the valve, the
   tube and (on the exhaust, for meter-out flow controls) a throttle in series by
-  Eckersten's rule (docs/physics.md, restrictions (D2)); a near-equilibrium linear patch (the last
+  Eckersten's rule (docs/reference/physics.md, restrictions (D2)); a near-equilibrium linear patch (the last
   0.2 % of pressure ratio) keeps D2's infinite slope at r = 1 integrable;
 * 5/2 (monostable or bistable) and 3/2 (single-acting) valves with a switching delay, a
   spool that travels over a ramp time with positive overlap (all ports shut for part of
@@ -46,7 +46,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-# ---- constants (docs/physics.md, reference conditions (D3)) -------------------------------------------------
+# ---- constants (docs/reference/physics.md, reference conditions (D3)) -------------------------------------------------
 P0 = 100_000.0          # Pa, ISO 8778 reference pressure
 T0 = 293.15             # K, ISO 8778 reference temperature
 R_AIR = 287.05          # J/(kg K)
@@ -65,7 +65,7 @@ LIN_EPS = 0.002          # D2 linear patch: last 0.2 % of pressure ratio before 
 
 
 def c_orifice(d_mm: float, cd: float) -> float:
-    """Sonic conductance of an orifice (docs/physics.md, restrictions (D2), orifice form), m^3/(s Pa)."""
+    """Sonic conductance of an orifice (docs/reference/physics.md, restrictions (D2), orifice form), m^3/(s Pa)."""
     area = math.pi * (d_mm * 1e-3) ** 2 / 4.0
     return cd * area * K_ORIFICE / (RHO_N * math.sqrt(T0))
 
@@ -81,7 +81,7 @@ def c_tube(d_mm: float, length_m: float, lam: float = 0.025, cd_inlet: float = 0
 
 
 def series(cs, bs):
-    """Restrictions in series, Eckersten (docs/physics.md, restrictions (D2)): 1/C^3 = sum 1/C_i^3,
+    """Restrictions in series, Eckersten (docs/reference/physics.md, restrictions (D2)): 1/C^3 = sum 1/C_i^3,
     1 - b = C^2 sum (1 - b_i)/C_i^2."""
     cs = [float(c) for c in cs]
     inv = sum(1.0 / c ** 3 for c in cs)
@@ -445,7 +445,7 @@ def simulate(runs: list[RunSpec], dt: float = 1e-3, record_edges: bool = True, p
         y[i] = S[i] * init_state[i]
         ed = sorted(d.edges)
         # valve edges: effective at command + switching delay; each chamber's port also
-        # waits for the pressure wave down its tube (docs/physics.md, the dynamic model (D4))
+        # waits for the pressure wave down its tube (docs/reference/physics.md, the dynamic model (D4))
         de = [(t + d.delay_s, u) for t, u in ed]
         drive_lists.append(de)
         cap_lists.append([(t + lt1 / d.wave_c, u) for t, u in de])

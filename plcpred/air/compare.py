@@ -5,6 +5,10 @@ import functools
 import re
 from dataclasses import dataclass
 
+from ..sequencer import valves_moved
+from .cycles import cycles_of
+from .predict import predict
+
 
 def parse_allowance(text: str) -> tuple[str, float]:
     """``"2%"`` -> ``("pct", 2.0)``; ``"0.5NL"`` (or ``"0.5L"``) -> ``("nl", 0.5)``."""
@@ -34,7 +38,6 @@ class Comparison:
     @functools.cached_property
     def cycles(self) -> tuple:
         """(base, new) :class:`~plcpred.air.cycles.Cycles` (or None)."""
-        from .cycles import cycles_of
 
         return tuple(cycles_of(p.machine, p.timeline, p.profile)
                      for p in (self.base, self.new))
@@ -92,7 +95,6 @@ class Comparison:
     def new_moves(self) -> bool:
         """False when no valve of NEW ever leaves its rest over the horizon: a machine
         that never runs uses less air, and that must not pass the gate."""
-        from ..sequencer import valves_moved
 
         return valves_moved(self.new.machine, self.new.timeline) is not False
 
@@ -190,7 +192,6 @@ def compare(base, new=None, horizon="1h", max_increase: str = "0%", dt=None,
             max_throughput_drop_pct: float = DEFAULT_MAX_THROUGHPUT_DROP_PCT) -> Comparison:
     """Predict ``base`` and ``new`` (machine files or loaded machines; ``new`` defaults to
     ``base``, for comparing two programs) over the same horizon."""
-    from .predict import predict
 
     kind, limit = parse_allowance(max_increase)
     if limit < 0:

@@ -1,4 +1,4 @@
-"""From a timeline to an air-demand profile: the activation/transition model (docs/physics.md
+"""From a timeline to an air-demand profile: the activation/transition model (docs/reference/physics.md
 section 2), kept as one rectangle of air per stroke or on-period and read onto a regular
 time grid where asked (a repeating machine: one period's rectangles, repeated).
 
@@ -10,7 +10,7 @@ time grid where asked (a repeating machine: one period's rectangles, repeated).
 * **Passive consumers** (nozzles, air knives) flow at their D2 rate while their output is
   on; **leaks** always.
 
-Shape of a stroke: nothing flows during the valve's switching delay (docs/physics.md: dynamic model:
+Shape of a stroke: nothing flows during the valve's switching delay (docs/reference/physics.md: dynamic model:
 flow starts t_sw after the command); then the volume is spread evenly (a rectangle) over
 the stroke time in that direction, while the piston moves. Without a stroke time it is
 spread over the switching delay from the edge, and without either it lands at the edge
@@ -36,10 +36,10 @@ import numpy as np
 
 from ..errors import PlcpredError
 from ..machine import CYLINDER_KINDS
-from ..output import SHOWN_CONSUMERS, atomic_writer, write_json
+from ..output import SHOWN_CONSUMERS, atomic_writer, csv_column_name, write_json
+from ..physics.flow import bar_g_to_pa, celsius_to_k, flow_nl_min, orifice_conductance
+from ..physics.volumes import consumer_stroke_volumes_nl, dead_fill_volumes_nl, swept_volumes_nl
 from ..sequencer.timeline import NS, seconds_texts
-from .flow import bar_g_to_pa, celsius_to_k, flow_nl_min, orifice_conductance
-from .volumes import consumer_stroke_volumes_nl, dead_fill_volumes_nl, swept_volumes_nl
 
 
 @dataclass
@@ -233,7 +233,7 @@ def _periodic_cumulative(points_s, template, period_s: float) -> np.ndarray:
 def residual_fill_nl(t_s, extend, delay_s: float, stroke_time_s, exhaust_tau_s: float,
                      dead_fill_nl) -> np.ndarray:
     """Air a fill does not take because its chamber has not finished exhausting
-    (docs/physics.md: what D4 adds, "incomplete exhaust"): a chamber starts exhausting when the
+    (docs/reference/physics.md: what D4 adds, "incomplete exhaust"): a chamber starts exhausting when the
     opposite stroke has ended (its edge + delay + stroke time) and the air its dead volume
     holds above atmosphere decays as ``exp(-t / exhaust_tau_s)``; a fill at ``t`` after
     that start needs ``dead_fill_nl * exp(-t / tau)`` less (the whole of it if the opposite
@@ -284,7 +284,7 @@ def cut_stroke_volumes_nl(t_s, extend, extend_nl: float, retract_nl: float, dela
                           stroke_time_s, exhaust_tau_s: float, dead_fill_nl, swept_nl,
                           swept_held_nl):
     """(NL, duration s) of each transition when strokes may be cut short (the
-    ``partial_strokes`` option, docs/physics.md: "strokes cut short"): the piston moves at
+    ``partial_strokes`` option, docs/reference/physics.md: "strokes cut short"): the piston moves at
     its stroke's mean speed from a switching delay after the edge until its end stop or
     the next transition. A fill takes D1's dead-volume air plus the swept air of the share
     of the chamber the piston opened, less what the chamber still held: its dead volume's
@@ -349,7 +349,7 @@ def stroke_rectangles(t_s, extend, extend_nl: float, retract_nl: float,
                                              exhaust_tau_s, dead_fill_nl), 0.0, None)
     if stroke_time_s is not None:
         # the valve opens a switching delay after the edge; the chamber fills while the
-        # piston moves (docs/physics.md: dynamic model: flow starts t_sw after the command)
+        # piston moves (docs/reference/physics.md: dynamic model: flow starts t_sw after the command)
         start = t_s + delay_s
         dur = np.where(extend, stroke_time_s[0], stroke_time_s[1])
     else:
@@ -874,7 +874,7 @@ class DemandProfile:
         groups = self.groups(shown)
         cells_of = [self._cells_of(idx) for _, idx in groups]   # every consumer is in one
         header = "time_s,total_l_min," + ",".join(
-            ("other" if len(idx) > 1 else _csv_name(label)) + "_l_min" for label, idx in groups)
+            ("other" if len(idx) > 1 else csv_column_name(label)) + "_l_min" for label, idx in groups)
         rows = max(1000, values_per_write // (len(groups) + 2))
         per_min = 60.0 / self.dt_s
         dt_ns = round(self.dt_s * NS)
@@ -939,10 +939,6 @@ def _csv_rows(first_cell: int, dt_ns: int, flows: np.ndarray) -> str:
         (first_cell + np.arange(len(micro), dtype=np.int64)) * dt_ns)
     return "".join([f"{w}{frac_texts[f]},{texts[k]}\n" for w, f, k in zip(
         whole, frac_k, which.ravel().tolist())])
-
-
-def _csv_name(name: str) -> str:
-    return "".join(ch if ch.isalnum() or ch in "_-." else "_" for ch in name)
 
 
 def demand_profile(timeline, models: list[ConsumerModel], dt_s: float = 0.01,

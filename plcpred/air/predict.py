@@ -8,9 +8,17 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import PlcpredError
+from ..machine import Machine, load_machine
+from ..sequencer import parse_horizon, unfold
 from ..sequencer.timeline import NS, Timeline
-from .demand import (SHOWN_CONSUMERS, ConsumerModel, DemandProfile, consumer_models,
-                     demand_profile, shows_every_consumer)
+from .demand import (
+    SHOWN_CONSUMERS,
+    ConsumerModel,
+    DemandProfile,
+    consumer_models,
+    demand_profile,
+    shows_every_consumer,
+)
 
 DEFAULT_DT_S = 0.01
 MAX_CELLS = 400_000          # rows of demand.csv
@@ -60,43 +68,6 @@ class Prediction:
         data["supply_bar_g"] = self.machine.supply_bar_g
         return data
 
-    def write(self, out_dir, plot: bool = True, timeline: bool = True) -> list[Path]:
-        """``timeline.csv`` (unless ``timeline`` is false), ``demand.csv``,
-        ``summary.json`` and ``demand.png`` in ``out_dir`` (each through a temporary
-        file)."""
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        t0 = time.perf_counter()
-        files = []
-        if timeline:
-            self.timeline.to_csv(out / "timeline.csv")
-            files.append(out / "timeline.csv")
-        self.profile.to_csv(out / "demand.csv", shown=self.shown)
-        self.profile.write_summary(out / "summary.json", {
-            "machine": self.machine.name, "supply_bar_g": self.machine.supply_bar_g})
-        self.stage_s["write_csv"] = time.perf_counter() - t0
-        files += [out / "demand.csv", out / "summary.json"]
-        if plot:
-            from ..report import plot_demand
-            from .cycles import arrival_period_s
-            t0 = time.perf_counter()
-            plot_demand(self.profile, out / "demand.png",
-                        title=f"{self.machine.name}: air demand over "
-                              f"{_span(self.profile.horizon_s)}", shown=self.shown,
-                        cycle_s=arrival_period_s(self.machine, self.timeline))
-            self.stage_s["plot"] = time.perf_counter() - t0
-            files.append(out / "demand.png")
-        self.write_files = files
-        return files
-
-
-def _span(seconds: float) -> str:
-    if seconds >= 7200:
-        return f"{seconds / 3600:g} h"
-    if seconds >= 120:
-        return f"{seconds / 60:g} min"
-    return f"{seconds:g} s"
-
 
 # grid cells held at once (the total, its cumulative sum, a few copies): 160 MB each
 MAX_GRID_CELLS = 20_000_000
@@ -114,8 +85,6 @@ def predict(machine, horizon="60s", dt=None, program=None, timeline=None,
     default :func:`default_dt` for the columns ``demand.csv`` will have). ``max_events``
     caps the signal changes held in memory (default: the sequencer's); ``shown`` is how
     many consumers the files show one by one before "other" (None: all)."""
-    from ..machine import Machine, load_machine
-    from ..sequencer import parse_horizon, unfold
 
     stages = {}
     t0 = time.perf_counter()

@@ -1,4 +1,4 @@
-"""Compressor and receiver sizing from a demand profile (docs/physics.md: energy).
+"""Compressor and receiver sizing from a demand profile (docs/reference/physics.md: energy).
 
 * **Design flow** of the compressor: the mean demand plus an allowance (default 10 %).
   Compressors are sized for the average, receivers and lines for the peaks.
@@ -34,7 +34,8 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ..machine import HOURS_PER_YEAR
-from .flow import P0_PA
+from ..physics.flow import P0_PA
+from .cycles import cycles_of, last_switch_s, rest_mask
 
 DEFAULT_ALLOWANCE = 0.10
 DEFAULT_BAND_BAR = 1.0
@@ -100,7 +101,7 @@ def specific_energy_kwh_per_nm3(supply_bar_g: float, atmosphere_kpa: float = 101
     """(E1) Specific energy of compressed air, kWh per normal m^3 (ISO 8778): the
     isothermal work of compressing it from the atmosphere to the supply pressure,
     ``P0 ln(p_supply / p_atm)`` per normal m^3 (intake at the reference temperature),
-    over the compressor's isothermal efficiency (docs/physics.md: energy)."""
+    over the compressor's isothermal efficiency (docs/reference/physics.md: energy)."""
     if isothermal_efficiency <= 0:
         raise ValueError("the isothermal efficiency must be positive")
     p_atm_pa = atmosphere_kpa * 1000.0
@@ -289,7 +290,6 @@ def size_prediction(result, hours: float | None = None, **options) -> Sizing:
     calendar, the supply, the waiting state (idle air), the steady cycle and when the
     valves last switch. ``options`` go to :func:`size` (allowance, band, price, ...).
     ``plcpred size`` and every ``sweep`` scenario count a year through this one call."""
-    from .cycles import cycles_of, last_switch_s, rest_mask
 
     m, tl, profile = result.machine, result.timeline, result.profile
     return size(profile, hours_per_year=production_hours(m, hours), calendar=m.calendar,

@@ -11,7 +11,7 @@ on samples the fit never saw.
 """
 from .core import Diagnosis, diagnose
 from .effects import EFFECTS, VOCABULARY
-from .fit import DiagnosisError
+from .errors import DiagnosisError
 from .io import MeasuredDataError, MeasuredRun, read_io_timeline, read_measured
 
 __all__ = ["Diagnosis", "DiagnosisError", "EFFECTS", "MeasuredDataError", "MeasuredRun",

@@ -3,7 +3,7 @@
 The activation model is exact for nothing real. A settled stroke takes D1 less the air
 its dead volume already held at atmospheric pressure; a fill is not isothermal and
 short dwells leave chambers hot and exhausts incomplete, so real strokes take a few per
-cent less again; a nozzle's conductance is known to about ten per cent (docs/physics.md,
+cent less again; a nozzle's conductance is known to about ten per cent (docs/reference/physics.md,
 "The dynamic model of a drive": a settled stroke takes a few per cent below D1, short dwells
 less). A diagnosis that reads that error as a fault blames healthy machines, since any
 free parameter absorbs a few per cent.

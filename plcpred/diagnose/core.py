@@ -32,24 +32,36 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass, field
+from datetime import datetime, timedelta
+from pathlib import Path
 
 import numpy as np
 
 from ..air.demand import stroke_cuts
 from ..errors import PlcpredError
+from ..machine import Machine, load_machine, read_machine_data, save_machine
+from ..plant.replay import closed_loop_total_cells_nl, replay_total_cells_nl
+from ..sequencer import compile_program, observed_names, unfold
 from .band import ModelForm, band_pct, drive_factor_range
-from .effects import (CLOSED_LOOP_EFFECTS, CUT_STROKE_EFFECTS, EFFECTS, Effect,
-                      NUISANCE_METER_TAU_S, IncompleteExhaust, LeakFrom, StrokeTime)
-from .fit import (DiagnosisError, FitResult, RunData, Score, align, fit_effects, folds,
-                  heldout, score)
+from .effects import (
+    CLOSED_LOOP_EFFECTS,
+    CUT_STROKE_EFFECTS,
+    EFFECTS,
+    NUISANCE_METER_TAU_S,
+    Effect,
+    IncompleteExhaust,
+    LeakFrom,
+    StrokeTime,
+)
+from .errors import DiagnosisError
+from .fit import FitResult, RunData, Score, align, fit_effects, folds, heldout, score
 from .io import TIME_OF_DAY_FORMATS, MeasuredRun
 from .locate import attribution, contexts, sample_contexts, step_contexts, windows
-from .meter import flat_noise_l_min, noise_level_l_min
 from .model import MachineModel, RunModel
+from .noise import flat_noise_l_min, noise_level_l_min
 from .onset import step_onset
+from .through_plant import MAX_VARIANT_PIECES, PLANT_FORMS, PlantVariants, variant_pieces
 from .timing import Resequencer
-from .through_plant import (MAX_VARIANT_PIECES, PLANT_FORMS, PlantVariants,
-                            variant_pieces)
 
 MAX_COMBINATION = 3
 # how much more error than the best painted effect an effect's painted forms may leave
@@ -399,8 +411,6 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     the nominal machine through the physics plant (:func:`_dynamic_reference`); where it
     explains part of the gap, each effect is also fitted beyond it, and the gap is
     ``none`` where it explains it as well as the best effects."""
-    from ..machine import Machine, load_machine
-    from ..sequencer import compile_program, observed_names, unfold
 
     if not isinstance(machine, Machine):
         machine = load_machine(machine)
@@ -942,7 +952,7 @@ def _dynamic_reference(machine, mm, rds, bases, ctx, fold_masks, warnings: list[
                        ) -> EffectResult | None:
     """The nominal machine file through the physics plant, its clock and meter lag
     fitted as the baseline's are, scored on the same held-out samples: what the machine
-    draws with nothing wrong once what D1 leaves out by design is in (docs/physics.md:
+    draws with nothing wrong once what D1 leaves out by design is in (docs/reference/physics.md:
     the air a tube still holds at atmosphere, heat, exhausts and strokes cut short at
     speed). With the sequencer's runs (``program`` given) the program runs against the
     plant, whose end switches move the edges it waits on, as on the machine
@@ -951,7 +961,6 @@ def _dynamic_reference(machine, mm, rds, bases, ctx, fold_masks, warnings: list[
     :attr:`RunModel.dynamic_cells` is set to the plant's cells less the nominal D1
     cells. None (with a warning) where the plant cannot run the machine. ``stats`` (a
     dict) counts what its plant runs cost (integration pieces, machine seconds)."""
-    from ..plant.replay import closed_loop_total_cells_nl, replay_total_cells_nl
 
     made: dict[tuple, np.ndarray] = {}      # runs with the same edges: one plant run
     for rd, base in zip(rds, bases):
@@ -1004,7 +1013,7 @@ def _with_exhaust(exhaust: EffectResult, results: list[EffectResult], mm, rds, b
 
     An exhaust cut short (and a stroke cut short, which the effect's other form adds) is
     no fault: it is D1's own limit, there on any machine that cycles fast or reverses a
-    valve before its drive arrives (docs/physics.md).
+    valve before its drive arrives (docs/reference/physics.md).
     A fault on such a machine (a slow meter, another supply) shows as a smaller gap on
     top of it, which the single effects cannot rank: the exhaust takes the larger share
     whatever else is wrong, or another effect that mimics both takes the first place.
@@ -1243,9 +1252,7 @@ def write_fixed_machine(d: Diagnosis, path) -> list[str]:
     in the machine file's own keys, so that ``plcpred predict`` on it carries them.
     Returns what was changed. The file is checked by loading it before it is renamed
     into place."""
-    from pathlib import Path
 
-    from ..machine import read_machine_data, save_machine
 
     path = Path(path)
     machine = d.machine
@@ -1278,7 +1285,6 @@ def _clock_reading(run, offset_s: float) -> str:
     fmt = run.source.get("time_format", "seconds")
     if fmt == "seconds" or not math.isfinite(offset_s):
         return ""
-    from datetime import datetime, timedelta
     try:
         at = datetime(1970, 1, 1) + timedelta(seconds=offset_s)
     except OverflowError:

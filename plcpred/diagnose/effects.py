@@ -18,8 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..air.demand import sonic_conductance
-from ..air.volumes import held_air_nl, inner_dead_volumes_cm3
-from ..air.flow import P0_PA, T0_K, bar_g_to_pa, celsius_to_k, flow_nl_min
+from ..physics.flow import P0_PA, T0_K, bar_g_to_pa, celsius_to_k, flow_nl_min
+from ..physics.meter import REFERENCES, reference_factor
+from ..physics.volumes import held_air_nl, inner_dead_volumes_cm3
 from .model import MachineModel, ModelParams
 
 # a diagnosed leak is written as an orifice-like restriction: ISO 6358 with b and m of a
@@ -40,7 +41,7 @@ MAX_TUBE_OVERSTATEMENT = 0.5
 # a supply the log records may be fitted this far from the log's mean (a gauge's
 # accuracy and a regulator's swing with the flow)
 LOGGED_SUPPLY_REACH_BAR = 0.15
-NUISANCE_METER_TAU_S = 0.6   # thermal-mass meters respond in 0.1-0.6 s (docs/physics.md: figures)
+NUISANCE_METER_TAU_S = 0.6   # thermal-mass meters respond in 0.1-0.6 s (docs/reference/physics.md: figures)
 
 
 @dataclass
@@ -297,7 +298,7 @@ def _tube_area_mm2(consumer) -> float:
     return math.pi * d * d / 4.0
 
 
-def _tube_volumes_cm3(consumer) -> list[float]:
+def tube_volumes_cm3(consumer) -> list[float]:
     """(cap, rod) cm^3 of the tubes the machine file states (none without a bore)."""
     if not consumer.tube_id_mm:
         return [0.0 for _ in consumer.tube_length_m]
@@ -306,7 +307,7 @@ def _tube_volumes_cm3(consumer) -> list[float]:
 
 class DeadVolume(Effect):
     """More (or less) volume between valve and piston than the file says (a longer tube,
-    a fitting, a manifold; D1 also counts a dead volume's air from zero, docs/physics.md
+    a fitting, a manifold; D1 also counts a dead volume's air from zero, docs/reference/physics.md
     section 7): ``extra_cm3`` per drive, filled to supply on every stroke."""
     name, title = "dead_volume", "a different dead volume (tube length)"
 
@@ -317,7 +318,7 @@ class DeadVolume(Effect):
         out = []
         for row in mm.drives:
             c = mm.machine.consumers[row]
-            tube_cm3 = min(_tube_volumes_cm3(c))
+            tube_cm3 = min(tube_volumes_cm3(c))
             swept_cm3 = math.pi * c.bore_mm ** 2 / 4.0 * (c.stroke_mm or 0.0) / 1000.0
             out.append(Param(f"{c.name}.extra_cm3", "cm^3", -tube_cm3,
                              max(20.0, 2.0 * swept_cm3), 0.0))
@@ -329,7 +330,7 @@ class DeadVolume(Effect):
         # cut short, a lower supply), which reduce a fill just the same
         for row, v in zip(mm.drives, theta):
             c = mm.machine.consumers[row]
-            tube_cm3 = min(_tube_volumes_cm3(c))
+            tube_cm3 = min(tube_volumes_cm3(c))
             if tube_cm3 > 0 and v < -MAX_TUBE_OVERSTATEMENT * tube_cm3:
                 return (f'{c.name}: {-v:.3g} cm^3 less than its {tube_cm3:.3g} cm^3 of '
                         "tube")
@@ -432,7 +433,7 @@ class IncompleteExhaust(Effect):
             inner, tau = theta[2 * k], theta[2 * k + 1]
             q.exhaust_tau_s[k] = float(tau)
             q.held_nl[k] = [held_air_nl(t + float(inner), *state)     # the air it keeps
-                            for t in _tube_volumes_cm3(m.consumers[row])]
+                            for t in tube_volumes_cm3(m.consumers[row])]
         if self.partial:
             q.partial_strokes[self._timed(mm)] = True
         return q
@@ -470,7 +471,7 @@ class SharedSupply(Effect):
     expressible = False     # the air model has no shared-line option yet
 
     """Drives on one supply line without check valves: holding neighbours give air back
-    to the line while a drive fills and take it again afterwards (docs/physics.md: what D4 adds),
+    to the line while a drive fills and take it again afterwards (docs/reference/physics.md: what D4 adds),
     so a share of each stroke's air arrives later, as a refill with a time constant."""
     name, title = "shared_supply", "drives refilling each other on a shared line"
 
@@ -547,7 +548,7 @@ class ValveDelay(_Timing):
 
 class StrokeTime(_Timing):
     """Strokes faster or slower than the file says (a flow control turned, a payload):
-    a factor on each drive's stroke times. Air per stroke stays (docs/physics.md: what D4 adds); its
+    a factor on each drive's stroke times. Air per stroke stays (docs/reference/physics.md: what D4 adds); its
     shape in time changes."""
     name, title = "stroke_time", "different stroke times"
 
@@ -665,7 +666,7 @@ class SensorLag(Effect):
 class MeterGain(Effect):
     """The meter reads a fixed share more or less than the air through it: a meter out
     of calibration, or one that reports normal litres at another reference (a DIN 1343
-    meter reads ISO 8778 air 8 % low; docs/physics.md). Every reading scales alike,
+    meter reads ISO 8778 air 8 % low; docs/reference/physics.md). Every reading scales alike,
     whatever consumer draws it, which no consumer's effect does."""
     name, title = "meter_gain", "a flow meter reading high or low"
 
@@ -702,7 +703,6 @@ REFERENCE_MATCH = 0.015
 def _reference_of(gain: float) -> str | None:
     """The normal-litre reference a meter reading ``gain`` x ISO 8778 litres reports
     in, if one is that close (DIN 1343, ISO 2533)."""
-    from .io import REFERENCES, reference_factor
     for name in REFERENCES:
         if name != "iso8778" and abs(gain * reference_factor(name) - 1.0) < REFERENCE_MATCH:
             return name

@@ -22,18 +22,14 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..errors import PlcpredError
+from ..physics.meter import IntervalSampler, cumulative_nl, first_order_lag
 from .effects import NUISANCE_METER_TAU_S, Effect, Param
+from .errors import DiagnosisError
 from .io import MeasuredRun, reading_starts
-from .meter import IntervalSampler, cumulative_nl, first_order_lag
 from .model import MachineModel, ModelParams, RunModel
-
 
 # samplers kept per run (a grid sweep's clocks, a fit's current and perturbed clock)
 MAX_SAMPLERS = 64
-
-
-class DiagnosisError(PlcpredError):
-    """Measured data that cannot be compared with the machine's prediction."""
 
 
 @dataclass
@@ -136,6 +132,7 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
     ``max_tau_s`` bounds the lags tried (a resequenced variant, aligned many times over,
     near what the nominal alignment found); ``near_s`` searches the offset only within a
     sampling interval or so of that one (another lag for an aligned run)."""
+    # scipy costs a third of a second to import: only the runs that need it pay
     from scipy.optimize import minimize, minimize_scalar
 
     taus = [meter_tau_s] if meter_tau_s is not None else [
@@ -309,6 +306,7 @@ def _coarse_offsets(run: MeasuredRun, rm: RunModel, cells: np.ndarray,
     log's sampling interval, correlate best (Pearson over the overlap, at least half of
     the log). The best peaks, the smallest shift among near-equal ones first (a cycling
     machine correlates equally well a whole cycle later)."""
+    # scipy costs a third of a second to import: only the runs that need it pay
     from scipy.signal import correlate
 
     g = max(run.interval_s, rm.dt_s)
@@ -429,6 +427,7 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
     replaces the initial values and the sweep; its discrete values are refined near
     where they are. ``hold_nuisances`` keeps the start's clock and meter lag (the
     alternate blocks of one run)."""
+    # scipy costs a third of a second to import: only the runs that need it pay
     from scipy.optimize import least_squares
 
     specs = [e.params(mm, ctx) for e in effects]
@@ -824,6 +823,7 @@ def _own_clock(rd: RunData, params: ModelParams) -> ModelParams:
     OWN_CLOCK_REACH_S of the fitted one), the model itself unchanged: a run left out of a
     fit still has its own logger clock, which the alignment found with the nominal model
     (the same for every effect and the baseline)."""
+    # scipy costs a third of a second to import: only the runs that need it pay
     from scipy.optimize import minimize_scalar
 
     def sq(adj):

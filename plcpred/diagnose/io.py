@@ -13,7 +13,7 @@ seconds (milliseconds or minutes where the column's name says so: ``t_ms``, ``Ze
 that samples faster are spread evenly over their second. Flows are in ``l/min``,
 ``m3/h``, ``l/s`` or ``scfm`` at the meter's reference condition
 (ISO 8778, DIN 1343 or ISO 2533), converted here to normal litres per minute at the
-ISO 8778 reference every other part of plcpred uses (docs/physics.md: reference
+ISO 8778 reference every other part of plcpred uses (docs/reference/physics.md: reference
 conditions: ``V_2 = V_1 * (P_1/P_2) * (T_2/T_1)``). Fields separated by ``,``, ``;`` or
 tabs; with ``;`` a decimal comma is read too (European loggers).
 
@@ -37,21 +37,27 @@ from typing import Iterator
 
 import numpy as np
 
-from ..air.flow import P0_PA, T0_K
+from ..datafile import MAX_LINE_BYTES, DataLines
 from ..errors import PlcpredError
+from ..physics import meter
+from ..sequencer.timeline import (
+    MAX_HORIZON_NS,
+    MAX_HORIZON_TEXT,
+    NS,
+    Signal,
+    Timeline,
+    parse_horizon,
+)
 
 # volume units per minute -> litres per minute
 FLOW_UNITS = {"l/min": 1.0, "m3/h": 1000.0 / 60.0, "l/s": 60.0, "m3/min": 1000.0,
               "scfm": 28.316846592}
 # reference conditions: (pressure Pa, temperature K)
-REFERENCES = {"iso8778": (P0_PA, T0_K), "din1343": (101_325.0, 273.15),
-              "iso2533": (101_325.0, 288.15)}
 # Limits of what a flow log or an I/O trace may hold. Both are read a line at a time and
 # keep only their numbers (8 bytes a value: a flow log of MAX_ROWS rows holds at most about
 # 500 MB, an I/O trace about 400 MB as the timeline it becomes), so memory stays bounded
 # whatever the file's size; beyond a limit reading stops with an error naming the line.
 MAX_ROWS = 20_000_000          # samples, and lines after the header's (blank too)
-MAX_LINE_BYTES = 100_000       # one line (a logger writes well under 1,000)
 MAX_IO_SIGNALS = 100_000       # distinct signals of an I/O trace
 MAX_FLOW = 1e9                 # a flow reading (in the log's unit): more is no meter's
 MAX_SUPPLY_BAR = 1e3           # a supply reading beyond this is taken as not read
@@ -126,15 +132,11 @@ class MeasuredRun:
 
 
 def reference_factor(reference: str) -> float:
-    """Multiplier from normal litres at ``reference`` to ISO 8778 normal litres
-    (docs/physics.md: reference conditions): ``(P_ref / P0) * (T0 / T_ref)``; DIN 1343 litres are 8.7 %
-    more ISO 8778 litres."""
+    """:func:`plcpred.physics.meter.reference_factor`, an unknown name a MeasuredDataError."""
     try:
-        p_pa, t_k = REFERENCES[reference]
-    except KeyError:
-        raise MeasuredDataError(f"unknown reference {reference!r} (known: "
-                                f"{', '.join(REFERENCES)})") from None
-    return (p_pa / P0_PA) * (T0_K / t_k)
+        return meter.reference_factor(reference)
+    except ValueError as e:
+        raise MeasuredDataError(str(e)) from None
 
 
 def canonical_flow_unit(unit: str) -> str:
@@ -349,87 +351,6 @@ def _timestamp(cell: str, fmt: str | None = None) -> tuple[float, str]:
     raise ValueError(cell)
 
 
-_CHUNK_BYTES = 1 << 20
-
-
-class _Lines:
-    """A text file's lines without their line ends (split where ``str.splitlines``
-    splits), read and decoded a block at a time: none longer than MAX_LINE_BYTES, at
-    most MAX_ROWS + ``extra`` of them. Iterate it once (in a ``with`` block)."""
-
-    def __init__(self, path: Path, extra: int = 0, error=None):
-        self.file = str(path)
-        self.limit = MAX_ROWS + extra
-        self._exc = error or MeasuredDataError     # the class of the errors it raises
-        try:
-            self._f = open(path, "rb")
-        except OSError as e:
-            raise self._exc(f"{path}: cannot read file: {e.strerror}") from None
-        self._it = self._read()
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self._it.close()
-        self._f.close()
-
-    def __iter__(self):
-        return self._it
-
-    def _error(self, line: int, what: str) -> PlcpredError:
-        return self._exc(f"{self.file}: line {line}: {what}")
-
-    def _too_long(self, line: int) -> PlcpredError:
-        return self._error(line, f"longer than {MAX_LINE_BYTES:,} bytes (a data file's "
-                                 "lines are short: is this the right file?)")
-
-    def _read(self) -> Iterator[str]:
-        number = 0              # lines read before the block
-        encoding = "utf-8-sig"  # a byte order mark at the start is no text
-        tail = b""
-        while True:
-            try:
-                block = self._f.read(_CHUNK_BYTES)
-            except OSError as e:
-                raise self._exc(f"{self.file}: cannot read file: {e.strerror}") from None
-            data = tail + block
-            if not data:
-                return
-            problem = None      # (line, what): raised after the lines before it
-            if block:
-                # whole lines only: up to the last line end (a CR at the very end may be
-                # the first half of a CR LF)
-                cut = max(data.rfind(b"\n"), data.rfind(b"\r", 0, len(data) - 1)) + 1
-                data, tail = data[:cut], data[cut:]
-                long_tail = len(tail) > MAX_LINE_BYTES
-            else:
-                tail, long_tail = b"", False
-            try:
-                lines = data.decode(encoding).splitlines()
-            except UnicodeDecodeError as e:
-                # the lines before the one that holds the byte (its start is their last)
-                lines = (data[:e.start].decode(encoding) + "x").splitlines()[:-1]
-                problem = (number + len(lines) + 1, "not UTF-8 text")
-            else:
-                if long_tail:
-                    problem = (number + len(lines) + 1, None)
-            if data:
-                encoding = "utf-8"
-            if max(map(len, lines), default=0) > MAX_LINE_BYTES:
-                k = next(k for k, line in enumerate(lines) if len(line) > MAX_LINE_BYTES)
-                lines, problem = lines[:k], (number + k + 1, None)
-            if number + len(lines) > self.limit:
-                yield from lines[:self.limit - number]
-                raise self._error(self.limit + 1, f"more than {MAX_ROWS:,} rows, the most "
-                                  "plcpred reads from one file (split the log into runs)")
-            number += len(lines)
-            yield from lines
-            if problem is not None:
-                line, what = problem
-                raise self._error(line, what) if what else self._too_long(line)
-
-
 def _csv_rows(reader, file: str, offset: int) -> Iterator[tuple[int, list[str]]]:
     """(line number, row) of a csv reader over lines from ``offset + 1`` on; a row the
     csv module cannot read (a quoted field that never ends) is a MeasuredDataError."""
@@ -464,12 +385,12 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str | None = No
     path = Path(path)
     unit_k = flow_unit_factor(flow_unit or "l/min")
     ref_k = reference_factor(reference)
-    with _Lines(path, extra=MAX_PREAMBLE_LINES + 1) as lines:
+    with DataLines(path, MeasuredDataError, MAX_ROWS, extra=MAX_PREAMBLE_LINES + 1) as lines:
         return _read_measured(path, lines, time_col, flow_col, flow_unit, reference,
                               supply_col, unit_k, ref_k)
 
 
-def _read_measured(path: Path, lines: _Lines, time_col, flow_col, flow_unit, reference,
+def _read_measured(path: Path, lines: DataLines, time_col, flow_col, flow_unit, reference,
                    supply_col, unit_k: float, ref_k: float) -> MeasuredRun:
     file = str(path)
     # the header is among the first MAX_PREAMBLE_LINES lines (or, after blank ones only,
@@ -526,7 +447,6 @@ def _read_measured(path: Path, lines: _Lines, time_col, flow_col, flow_unit, ref
             f"file has {', '.join(h.strip() for h in header) or 'no columns'}); name "
             "the columns with --time-col and --flow-col")
     s_idx = _column(file, header, supply_col, "supply_bar_g", "supply", "--supply-col")
-    from ..sequencer.timeline import MAX_HORIZON_NS, MAX_HORIZON_TEXT, NS
     max_span_s = MAX_HORIZON_NS / NS
     time_unit_s = _time_unit_s(header[t_idx])     # numeric times only: t_ms, Zeit [ms]
     # the numbers only, 8 bytes each (a list of floats takes four times that)
@@ -659,8 +579,6 @@ def read_io_timeline(path, horizon_s: float | None = None, machine=None):
     is an error (the wrong file, or other names). Times beyond ten years (the longest
     horizon plcpred runs), more than MAX_ROWS rows or MAX_IO_SIGNALS signals, and lines
     longer than MAX_LINE_BYTES are errors naming the line."""
-    from ..sequencer.timeline import MAX_HORIZON_NS, MAX_HORIZON_TEXT, NS, Signal, \
-        Timeline, parse_horizon
 
     path = Path(path)
     file = str(path)
@@ -669,7 +587,7 @@ def read_io_timeline(path, horizon_s: float | None = None, machine=None):
     names: list[str] = []
     # the numbers only (8 + 4 + 8 bytes a row: lists of Python numbers take four times it)
     t_ns, sig, val = array("q"), array("i"), array("d")
-    with _Lines(path, extra=1) as lines:
+    with DataLines(path, MeasuredDataError, MAX_ROWS, extra=1) as lines:
         rows = _csv_rows(csv.reader(lines), file, 0)
         header = [h.strip().lower() for h in next(rows, (0, []))[1]]
         if header[:3] != ["time_s", "signal", "value"]:
@@ -763,59 +681,3 @@ def _hold_missing_valves(file: str, machine, index: dict, names: list, t_ns, sig
                "them for a diagnosis of those consumers")
     machine.warnings.append(warning)
     return [warning]
-
-
-# ---------------------------------------------------------------------- machine files
-
-def _toml_key(key: str) -> str:
-    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else _toml_value(key)
-
-
-def _toml_value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if not math.isfinite(v):
-            raise ValueError(f"cannot write {v!r} to a machine file")
-        return repr(v)
-    if isinstance(v, str):
-        out = ['"']
-        for ch in v:
-            if ch in '"\\':
-                out.append("\\" + ch)
-            elif ord(ch) < 0x20 or ord(ch) == 0x7F:
-                out.append(f"\\u{ord(ch):04x}")
-            else:
-                out.append(ch)
-        out.append('"')
-        return "".join(out)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}"
-                                for k, x in v.items()) + " }"
-    raise ValueError(f"cannot write a {type(v).__name__} to a machine file")
-
-
-def dump_machine_toml(data: dict, header: str = "") -> str:
-    """A machine file's TOML data as text (the tables plcpred knows, in their usual
-    order; comments of the original are not kept, ``header`` is written first)."""
-    lines = [f"# {line}" if line else "#" for line in header.splitlines()]
-    if lines:
-        lines.append("")
-    for table in ("machine", "signals", "meter"):
-        if table in data:
-            lines.append(f"[{table}]")
-            lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in data[table].items()]
-            lines.append("")
-    for array in ("input", "line", "consumer"):
-        for t in data.get(array, []):
-            lines.append(f"[[{array}]]")
-            lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in t.items()]
-            lines.append("")
-    for table, v in data.items():
-        if table not in ("machine", "signals", "meter", "input", "line", "consumer"):
-            raise ValueError(f"cannot write the table [{table}]")
-    return "\n".join(lines)

@@ -15,8 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..physics.meter import cumulative_nl
 from ..sequencer.timeline import NS
-from .meter import cumulative_nl
 
 IDLE = "idle"
 STANDS_OUT_SIGMA = 3.0

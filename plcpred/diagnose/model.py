@@ -14,10 +14,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..air.demand import (ConsumerModel, consumer_models, grid_edges_s, interval_cells,
-                          passive_intervals, stroke_cells, valve_transitions)
+from ..air.demand import (
+    ConsumerModel,
+    consumer_models,
+    grid_edges_s,
+    interval_cells,
+    passive_intervals,
+    stroke_cells,
+    valve_transitions,
+)
+from ..physics.meter import cumulative_nl, first_order_lag, interval_means_l_min
 from ..sequencer.timeline import NS
-from .meter import cumulative_nl, first_order_lag, interval_means_l_min
+from .errors import DiagnosisError
 
 
 @dataclass
@@ -92,7 +100,6 @@ class MachineModel:
             # the meter sits on one line: it sees only the consumers on that line
             models = [m for m, c in zip(models, machine.consumers) if c.line == meter.line]
             if not models:
-                from .fit import DiagnosisError
                 raise DiagnosisError(f"{machine.path}: [meter] line '{meter.line}' feeds no "
                                      "consumer: nothing the meter sees can be predicted")
         return cls(machine, models, [i for i, m in enumerate(models) if m.role == "active"],

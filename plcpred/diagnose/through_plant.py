@@ -26,8 +26,20 @@ from collections import OrderedDict
 import numpy as np
 
 from ..errors import PlcpredError
-from .effects import (CLOSED_DELAY_GRID_S, CLOSED_FACTOR_GRID, DeadVolume, Effect, Param,
-                      StrokeTime, SupplyPressure, ValveDelay, _tube_volumes_cm3)
+from ..machine import machine_from_data, read_machine_data
+from ..physics.volumes import inner_dead_volumes_cm3
+from ..plant.replay import shared_run_cells_nl
+from .effects import (
+    CLOSED_DELAY_GRID_S,
+    CLOSED_FACTOR_GRID,
+    DeadVolume,
+    Effect,
+    Param,
+    StrokeTime,
+    SupplyPressure,
+    ValveDelay,
+    tube_volumes_cm3,
+)
 from .timing import KEPT_CELLS, quantise_delay, quantise_factor
 
 SUPPLY_QUANTUM_BAR = 0.01
@@ -75,7 +87,6 @@ class PlantVariants:
     nominal D1 cells, as the reference's are) for it."""
 
     def __init__(self, machine, mm, rds, bases, program=None, compiled=None):
-        from ..machine import machine_from_data, read_machine_data
 
         self.machine = machine
         self.mm = mm
@@ -96,7 +107,6 @@ class PlantVariants:
                     for rd, b in zip(rds, bases)]
 
     def machine_of(self, variant):
-        from ..machine import machine_from_data
 
         data = copy.deepcopy(self.data)
         for name, values in variant:
@@ -111,7 +121,6 @@ class PlantVariants:
         if variant in self._kept:
             self._kept.move_to_end(variant)
             return
-        from ..plant.replay import shared_run_cells_nl
 
         effect = variant[-1][0]
         spent = self.pieces.get(effect, 0)
@@ -204,10 +213,9 @@ class _SupplyThroughPlant(ThroughPlant):
 
 
 def _known_dead_cm3(mm, k: int) -> float:
-    from ..air.volumes import inner_dead_volumes_cm3
 
     c = mm.machine.consumers[mm.drives[k]]
-    known = min(_tube_volumes_cm3(c)) + float(np.mean(inner_dead_volumes_cm3(c)))
+    known = min(tube_volumes_cm3(c)) + float(np.mean(inner_dead_volumes_cm3(c)))
     return max(MIN_DEAD_VOLUME_CM3, known)
 
 

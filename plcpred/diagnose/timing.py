@@ -20,6 +20,12 @@ from collections import OrderedDict
 
 import numpy as np
 
+from ..sequencer import compile_program, observed_names, unfold
+from .effects import NUISANCE_METER_TAU_S
+from .fit import DiagnosisError, align
+from .io import MeasuredRun
+from .model import MachineModel, RunModel
+
 FACTOR_QUANTUM = 0.01          # in ln(factor): 1 % steps of a stroke time
 DELAY_QUANTUM_S = 0.001
 KEPT_CELLS = 8_000_000         # grid cells of all runs' variants held at once
@@ -89,10 +95,6 @@ class Resequencer:
         if key in self._kept:
             self._kept.move_to_end(key)
             return
-        from ..sequencer import compile_program, observed_names, unfold
-        from .effects import NUISANCE_METER_TAU_S
-        from .fit import DiagnosisError, align
-        from .model import MachineModel, RunModel
 
         self.made += 1
         if self.compiled is None:       # once: every variant runs the same program
@@ -162,7 +164,6 @@ def _times_moved_s(t0, t1, until_s: float) -> float:
 
 def _head(run, span_s: float):
     """The first ``span_s`` (at least ALIGN_SPAN_MIN_S) of a measured run."""
-    from .io import MeasuredRun
 
     end = run.time_s[0] + max(span_s, ALIGN_SPAN_MIN_S)
     n = int(np.searchsorted(run.time_s, end, side="right"))

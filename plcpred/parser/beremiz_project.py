@@ -17,11 +17,11 @@ import os
 import re
 from pathlib import Path
 
-from . import ir
+from . import files, ir
 from .errors import ProgramError
-from . import files
 from .files import read_source
-from .plcopen import _El, _Importer, _parse_xml
+from .plcopen import PlcopenImporter
+from .xmltree import XmlElement, parse_xml
 
 _VARIABLE_FILES = {"py_ext": ("pyfile.xml", "PyFile"), "c_ext": ("cfile.xml", "CFile")}
 
@@ -72,9 +72,9 @@ def _extensions(folder: Path) -> list[Path]:
     return sorted(out)
 
 
-def _read(path: Path, root: str) -> tuple[_El, _Importer]:
+def _read(path: Path, root: str) -> tuple[XmlElement, PlcopenImporter]:
     text = read_source(path)    # a regular file, bounded, under the load's folders
-    return _parse_xml(text, str(path), root, f"a Beremiz {root} file"), _Importer(str(path))
+    return parse_xml(text, str(path), root, f"a Beremiz {root} file"), PlcopenImporter(str(path))
 
 
 def _variables(path: Path, root: str) -> list[ir.VarDecl]:

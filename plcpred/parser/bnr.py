@@ -21,6 +21,7 @@ from pathlib import Path
 from . import ir
 from .errors import at
 from .names import validate_names
+from .st import parse_st
 
 BNR_SUFFIXES = (".var", ".typ", ".fun")
 _PHASES = ("_INIT", "_CYCLIC", "_EXIT")
@@ -45,7 +46,6 @@ def is_bnr_folder(files: list[Path], read) -> bool:
 
 
 def _parse(path: Path, text: str) -> ir.Program:
-    from .st import parse_st
     if path.suffix.lower() == ".st" and only_actions(text):
         # an action in a file of its own: read it as if written after a POU, on line 1
         return parse_st(f"PROGRAM {_HOLDER} END_PROGRAM " + text, str(path), dialect="bnr")

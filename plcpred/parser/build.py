@@ -3,17 +3,20 @@ ever materialised), and the glue that runs a grammar over a :class:`Tokenizer`."
 from __future__ import annotations
 
 import contextvars
+import hashlib
 import itertools
+import os
+import tempfile
 import threading
 
+import lark
 from lark import Lark
 from lark.lexer import Lexer
 
 from . import ir
 from .errors import ProgramError
 from .lexer import Token
-from .literals import (parse_int, parse_real, parse_time_literal, parse_typed_literal,
-                       unquote_string)
+from .literals import parse_int, parse_real, parse_time_literal, parse_typed_literal, unquote_string
 
 # IEC 61131-3 precedence, larger binds tighter (see grammar.py).
 PRECEDENCE = {
@@ -895,14 +898,9 @@ def describe_expected(expected: set[str]) -> str:
 def _cache_path(grammar: str):
     """Where lark may keep the analysed grammar between runs (building the LALR tables
     takes about half a second); False when there is no writable cache directory."""
-    import hashlib
-    import os
-    import tempfile
-
-    import lark as _lark
 
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    digest = hashlib.sha256((grammar + _lark.__version__).encode()).hexdigest()[:16]
+    digest = hashlib.sha256((grammar + lark.__version__).encode()).hexdigest()[:16]
     for root in (os.path.join(base, "plcpred"), os.path.join(tempfile.gettempdir(),
                                                               "plcpred-cache")):
         try:

@@ -14,10 +14,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from . import ir
-from .errors import ProgramError, ProgramWarning, at
 from .build import anonymous_at_name
+from .errors import ProgramError, ProgramWarning, at
 from .generics import readable, specialize
+from .libraries import referenced_names
 from .literals import INT_TYPES
+from .notes import missing_project_files, referenced_libraries, unread_library_files
+from .shipped import BUILTIN_NAMESPACES, shipped_namespaces
+from .st import unclosed_pous
 from .stdlib import ELEMENTARY_TYPES, STANDARD_FBS, is_standard_function, std_fb_pins
 from .typegraph import MAX_INHERITANCE_DEPTH, check_type_graph
 
@@ -177,7 +181,6 @@ class Checker:
             message += (f" (the project uses libraries plcpred does not have: "
                         f"{', '.join(missing)}; give their declarations with --lib, or check "
                         "with --allow-external)")
-        from .libraries import missing_project_files, unread_library_files
         absent = [f"{p.file}:{p.line}:{p.col}: {include}"
                   for include, p in missing_project_files(self.g.programs)]
         for found, why in ((absent, "the .plcproj lists a file that is not there, which "
@@ -193,8 +196,6 @@ class Checker:
         """Libraries the project's .plcproj references that are neither shipped as stubs
         nor given (their namespaces)."""
         if self._missing_libs is None:
-            from .libraries import (BUILTIN_NAMESPACES, referenced_libraries,
-                                    shipped_namespaces)
             known = BUILTIN_NAMESPACES | {ns.upper() for ns in shipped_namespaces()}
             self._missing_libs = sorted({r for r in referenced_libraries(self.g.programs)
                                          if r.upper() not in known})
@@ -202,11 +203,9 @@ class Checker:
 
     # ------------------------------------------------------------------ entry
     def run(self):
-        from .libraries import missing_project_files
         for include, pos in missing_project_files([self.program]):
             self.warn(pos, f"the .plcproj lists {include}, which is not there: the project "
                            "is read without it")
-        from .st import unclosed_pous
         for kind, pos in unclosed_pous(self.program):
             self.warn(pos, f"the {kind} has no END_{kind}: read to the end of the file "
                            "(as CODESYS's editor shows a POU)")
@@ -330,7 +329,6 @@ class Checker:
         own = {d.name.upper(): (d, b.kind) for b in pou.var_blocks for d in b.decls}
         # a constant read in a declaration (an array bound, a string length, an
         # initial value) is used
-        from .libraries import referenced_names
         usage.read |= {n for kind, n in referenced_names(
             [(d.type, d.init) for d, _ in own.values()]) if kind == "V"}
         # a function block or function with no code at all is a declaration (a B&R .fun,

@@ -616,3 +616,24 @@ class Program:
                        self.configurations + other.configurations,
                        self.globals + other.globals, self.pragmas + other.pragmas,
                        self.source)
+
+
+def nodes(root):
+    """Every IR node under ``root`` with its parent, the node whose field holds it (lists
+    are passed through; a project: its POUs and configurations). Iterative: statement
+    nesting in a program file is unbounded."""
+    stack = [([root.pous, root.configurations], None)] if isinstance(root, Program) \
+        else [(root, None)]
+    while stack:
+        x, parent = stack.pop()
+        if isinstance(x, (list, tuple)):
+            stack.extend((y, parent) for y in x)
+        elif hasattr(x, "__dataclass_fields__"):
+            yield x, parent
+            stack.extend((getattr(x, f), x) for f in x.__dataclass_fields__ if f != "pos")
+
+
+def names_in(program, cls=Member, attr="member") -> set:
+    """Every ``x.member`` name used in a project or IR subtree, upper case (with ``cls``
+    and ``attr``: every ``Name.name``, every ``DirectAddress.address``, ...)."""
+    return {getattr(x, attr).upper() for x, _ in nodes(program) if isinstance(x, cls)}

@@ -19,13 +19,17 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
+import sys
 from pathlib import Path
 
 from . import ir
-
-SHIPPED_DIR = Path(__file__).resolve().parent.parent / "libraries"
-# namespaces whose blocks plcpred knows without a file: the IEC standard library
-BUILTIN_NAMESPACES = {"TC2_STANDARD", "STANDARD", "IEC_61131", "TC2_SYSTEM"}
+from .errors import ProgramError
+from .files import confined_to, env_roots, listing, resolved
+from .notes import unread_pragma
+from .read import read_file, read_program
+from .shipped import BUILTIN_NAMESPACES, INDEX_FILE, SHIPPED_DIR, shipped_index, shipped_namespaces
+from .twincat import project_files
 
 
 @dataclasses.dataclass
@@ -56,9 +60,8 @@ def _shipped_files() -> list[Path]:
 @functools.lru_cache(maxsize=None)
 def _shipped_file(name: str) -> tuple[Library, ...]:
     """The libraries one stub file declares (one per namespace its pragma gives)."""
-    from . import load_program
     f = SHIPPED_DIR / name
-    prog = load_program(f, libraries=False)
+    prog = read_program(f)
     namespaces = [p[0] for p in prog.pragmas if p[0].lower().startswith("{library ")]
     return tuple(_library(prog, ns) for pragma in namespaces or ["{library " + f.stem + "}"]
                  for ns in pragma[len("{library "):-1].replace(",", " ").split())
@@ -70,9 +73,6 @@ def shipped() -> tuple[Library, ...]:
     libraries are read through :func:`shipped_declaring`, which parses only the files
     that declare a name it uses)."""
     return tuple(lib for f in _shipped_files() for lib in _shipped_file(f.name))
-
-
-INDEX_FILE = SHIPPED_DIR / "index.json"
 
 
 def build_index() -> dict:
@@ -90,23 +90,11 @@ def build_index() -> dict:
                 if g.name:
                     names.add(g.name.upper())
             names |= set(_enum_values(lib))
-        out[f.name] = {"namespaces": [lib.namespace for lib in libs], "names": sorted(names)}
+        strings = {name: "W" if t.type.wide else "S" for lib in libs
+                   for name, t in lib.types.items() if isinstance(t.type, ir.StringType)}
+        out[f.name] = {"namespaces": [lib.namespace for lib in libs], "names": sorted(names),
+                       "strings": dict(sorted(strings.items()))}
     return out
-
-
-@functools.lru_cache(maxsize=None)
-def shipped_index() -> tuple[tuple[str, tuple[str, ...], frozenset], ...]:
-    """(stub file, its namespaces, the names it declares) as :data:`INDEX_FILE` has them
-    (the test suite checks the file against :func:`build_index`)."""
-    import json
-    index = json.loads(INDEX_FILE.read_text(encoding="utf-8"))
-    return tuple((name, tuple(e["namespaces"]), frozenset(e["names"]))
-                 for name, e in index.items())
-
-
-def shipped_namespaces() -> set[str]:
-    """The namespaces of the stubs plcpred ships (no stub is parsed)."""
-    return {ns for _, namespaces, _ in shipped_index() for ns in namespaces}
 
 
 def shipped_declaring(name: str):
@@ -125,7 +113,6 @@ def user_libraries(paths, allowed_roots=None) -> list[Library]:
     Its files are read only from under ``allowed_roots`` (a machine file's folders), or
     with None (a library named on the command line), from under its own folder and those
     ``PLCPRED_ALLOW_ROOTS`` allows."""
-    from .files import env_roots, resolved
     out = []
     for p in paths:
         path = resolved(Path(p))
@@ -140,7 +127,6 @@ def user_libraries(paths, allowed_roots=None) -> list[Library]:
 def _stamp(path: Path, roots) -> tuple:
     """What changes when a library's files change: their names, sizes and times (a
     folder walked as :func:`.files.listing` bounds it)."""
-    from .files import confined_to, listing
     folder = path.parent if path.suffix.lower() == ".plcproj" else path
     with confined_to(roots):
         files = [path] if folder.is_file() else listing(folder)
@@ -156,13 +142,9 @@ def _user_library(path: Path, _stamp: tuple, roots: tuple = ()) -> Library:
     file by file when one of its files cannot be read: the rest still declares what it
     declares, and the files left out are named where a name is missing
     (:func:`unread_library_files`)."""
-    from . import _load, load_program
-    from .errors import ProgramError
-    from .files import confined_to
-    from .twincat import project_files
     namespace = path.stem or path.name
     try:
-        return _library(load_program(path, libraries=False, allowed_roots=roots), namespace)
+        return _library(read_program(path, allowed_roots=roots), namespace)
     except ProgramError:
         if not (path.is_dir() or path.suffix.lower() == ".plcproj"):
             raise
@@ -170,7 +152,7 @@ def _user_library(path: Path, _stamp: tuple, roots: tuple = ()) -> Library:
     with confined_to(roots):
         for f in project_files(path):
             try:
-                read.append(_load(f))
+                read.append(read_file(f))
             except ProgramError as e:
                 unread.append(str(e))
     program = functools.reduce(ir.Program.merge, read) if read else ir.Program()
@@ -182,8 +164,6 @@ def _user_library(path: Path, _stamp: tuple, roots: tuple = ()) -> Library:
 def main(argv=None) -> int:
     """``python -m plcpred.parser.libraries --index``: write :data:`INDEX_FILE` again
     after a stub changed."""
-    import json
-    import sys
     args = sys.argv[1:] if argv is None else argv
     if args != ["--index"]:
         print("usage: python -m plcpred.parser.libraries --index", file=sys.stderr)
@@ -192,53 +172,6 @@ def main(argv=None) -> int:
                           encoding="utf-8")
     print(f"wrote {INDEX_FILE}")
     return 0
-
-
-# ------------------------------------------------------------------------- references
-
-# What a project or a library leaves for the check to name, kept in Program.pragmas as
-# ``{TAG text}`` with the position it concerns.
-_REFERENCE = "library-reference"   # a library the project references
-_UNREAD = "library-unread"         # a library file that could not be read, and why
-_MISSING = "project-missing"       # a file the .plcproj lists that is not there
-
-
-def _note(tag: str, text: str) -> str:
-    return f"{{{tag} {text}}}"
-
-
-def _noted(tag: str, programs) -> list[tuple[str, ir.Pos]]:
-    """(text, position) of every note ``tag`` among ``programs``' pragmas."""
-    head = "{" + tag + " "
-    return [(p[len(head):-1], pos) for prog in programs for p, pos in prog.pragmas
-            if p.startswith(head)]
-
-
-def reference_pragma(namespace: str) -> str:
-    """How a project records a library it references."""
-    return _note(_REFERENCE, namespace)
-
-
-def referenced_libraries(programs) -> list[str]:
-    """The libraries the projects among ``programs`` reference."""
-    return [text for text, _ in _noted(_REFERENCE, programs)]
-
-
-def missing_pragma(include: str) -> str:
-    """How a project records a file its .plcproj lists that is not there (the pragma's
-    position is the .plcproj's Compile item)."""
-    return _note(_MISSING, include)
-
-
-def missing_project_files(programs) -> list[tuple[str, ir.Pos]]:
-    """(file, where the .plcproj lists it) of what the projects among ``programs`` list
-    but do not have."""
-    return _noted(_MISSING, programs)
-
-
-def unread_library_files(programs) -> list[str]:
-    """Why files of the user's libraries were left out (see :func:`_user_library`)."""
-    return [text for text, _ in _noted(_UNREAD, programs)]
 
 
 # ------------------------------------------------------------------------- namespaces
@@ -359,7 +292,7 @@ def library_program(programs: list[ir.Program], paths=(), allowed_roots=None
     for p in programs:
         strip_namespaces(p, namespaces)
     out = ir.Program(source="<libraries>")
-    out.pragmas += [(_note(_UNREAD, why), ir.Pos("<libraries>", 0, 0))
+    out.pragmas += [(unread_pragma(why), ir.Pos("<libraries>", 0, 0))
                     for lib in users for why in lib.unread]
 
     def libraries_for(name: str):

@@ -7,6 +7,7 @@ exact.
 from __future__ import annotations
 
 import calendar
+import datetime
 import re
 from fractions import Fraction
 
@@ -115,7 +116,6 @@ def parse_tod_ns(text: str) -> int:
 
 def parse_date_ns(text: str) -> int:
     """``2024-01-02`` -> nanoseconds since 1970-01-01 (a date that exists)."""
-    import datetime
 
     m = _DATE.fullmatch(text)
     if m is None:
@@ -241,7 +241,6 @@ def _format_tod(ns: int) -> str:
 
 
 def _civil_from_days(days: int) -> tuple[int, int, int]:
-    import datetime
     d = datetime.date(1970, 1, 1) + datetime.timedelta(days=days)
     return d.year, d.month, d.day
 

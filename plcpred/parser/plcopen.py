@@ -13,14 +13,14 @@ from __future__ import annotations
 import dataclasses
 import re
 
-from xml.parsers import expat
-
 from . import ir
 from .build import make_action_assoc
 from .errors import ProgramError, at
 from .graphical import GraphError, Network
 from .names import validate_names
+from .shipped import shipped_string_kind
 from .st import parse_st
+from .xmltree import XmlElement, parse_xml
 
 ELEMENTARY = {"BOOL", "BYTE", "WORD", "DWORD", "LWORD", "SINT", "INT", "DINT", "LINT",
               "USINT", "UINT", "UDINT", "ULINT", "REAL", "LREAL", "TIME", "LTIME", "DATE",
@@ -35,129 +35,6 @@ _XSD_DURATION = re.compile(r"P(?:(?P<d>\d+(?:\.\d+)?)D)?T?(?:(?P<h>\d+(?:\.\d+)?
                            r"(?:(?P<m>\d+(?:\.\d+)?)M)?(?:(?P<s>\d+(?:\.\d+)?)S)?")
 _CLOCK = re.compile(r"(?P<d>)(?P<h>\d{1,2}):(?P<m>\d{1,2}):(?P<s>\d{1,2}(?:\.\d+)?)")
 _WHOLE = re.compile(r"[+-]?[0-9]{1,12}")   # ASCII digits: int() refuses '²', isdigit() not
-MAX_XML_DEPTH = 500  # a PLCopen file nests about 12 deep; FBD/LD layouts a few more
-# elements read at most: a large CODESYS export with LD/FBD layouts holds a few hundred
-# thousand; 12 MB of empty elements (3 million) took 1 GB before this bound
-MAX_XML_ELEMENTS = 1_500_000
-_NONE = ()      # the children and text of an element that has none (shared, never changed)
-_NO_ATTRS: dict = {}   # likewise its attributes (read, never written)
-
-
-class _El:
-    __slots__ = ("tag", "attrib", "children", "text_parts", "line", "col", "text_line",
-                 "text_col")
-
-    def __init__(self, tag, attrib, line, col):
-        self.tag = tag
-        self.attrib = attrib
-        # made on first use: most elements of a layout have neither
-        self.children: list[_El] | tuple = _NONE
-        self.text_parts: list[str] | tuple = _NONE
-        self.line, self.col = line, col
-        self.text_line = self.text_col = None
-
-    def find(self, tag):
-        return next((c for c in self.children if c.tag == tag), None)
-
-    def findall(self, tag):
-        return [c for c in self.children if c.tag == tag]
-
-    def iter(self, tag=None):
-        """This element and its descendants in document order (iteratively: nesting in
-        a file is unbounded)."""
-        stack = [self]
-        while stack:
-            el = stack.pop()
-            if tag is None or el.tag == tag:
-                yield el
-            stack.extend(reversed(el.children))
-
-    def all_text(self) -> tuple[str, int, int]:
-        """Text of this element and its descendants, with where it starts."""
-        parts, start = [], None
-        for el in self.iter():
-            if el.text_parts:
-                parts.append("".join(el.text_parts))
-                if start is None:
-                    start = (el.text_line, el.text_col)
-        line, col = start or (self.line, self.col)
-        return "".join(parts), line, col
-
-
-def _parse_xml(text: str, filename: str, root: str = "project",
-               what: str = "a PLCopen XML file") -> _El:
-    """The element tree of ``text``: a str is already decoded (its XML declaration's
-    encoding is not applied again), bytes are decoded as a file is (:func:`.files.decode`:
-    byte order mark, declaration)."""
-    if isinstance(text, (bytes, bytearray)):
-        from .files import decode
-        text = decode(bytes(text), filename)
-    # the encoding given here overrides the document's: the declaration (ISO-8859-1,
-    # UTF-16) says what the file's bytes were, not what the str's UTF-8 encoding is
-    parser = expat.ParserCreate("UTF-8")
-    root_holder: list[_El] = []
-    stack: list[_El] = []
-
-    def local(name):
-        return name.rsplit(":", 1)[-1]
-
-    count = [0]
-
-    def start(name, attrs):
-        count[0] += 1
-        if count[0] > MAX_XML_ELEMENTS:
-            raise ProgramError(f"more than {MAX_XML_ELEMENTS:,} XML elements, more than "
-                               "plcpred reads in one file", filename,
-                               parser.CurrentLineNumber, parser.CurrentColumnNumber + 1)
-        if len(stack) >= MAX_XML_DEPTH:
-            raise ProgramError(f"XML elements nested more than {MAX_XML_DEPTH} deep",
-                               filename, parser.CurrentLineNumber,
-                               parser.CurrentColumnNumber + 1)
-        el = _El(local(name), {local(k): v for k, v in attrs.items()} if attrs else _NO_ATTRS,
-                 parser.CurrentLineNumber, parser.CurrentColumnNumber + 1)
-        if stack:
-            parent = stack[-1]
-            if parent.children is _NONE:
-                parent.children = []
-            parent.children.append(el)
-        else:
-            root_holder.append(el)
-        stack.append(el)
-
-    def end(name):
-        stack.pop()
-
-    def chars(data):
-        el = stack[-1]
-        if el.text_line is None and data.strip():
-            # expat reports the position where this run of characters begins
-            lead = len(data) - len(data.lstrip())
-            head = data[:lead]
-            line = parser.CurrentLineNumber + head.count("\n")
-            col = (lead - head.rfind("\n")) if "\n" in head else parser.CurrentColumnNumber + 1 + lead
-            el.text_line, el.text_col = line, col
-            el.text_parts = [data[lead:]]
-            return
-        if el.text_line is not None or data.strip():
-            if el.text_parts is _NONE:
-                el.text_parts = []
-            el.text_parts.append(data)
-
-    parser.StartElementHandler = start
-    parser.EndElementHandler = end
-    parser.CharacterDataHandler = chars
-    parser.buffer_text = False  # with buffering, positions are those of the run's end
-    try:
-        parser.Parse(text.encode("utf-8", "surrogatepass"), True)
-    except expat.ExpatError as e:
-        raise ProgramError(f"not well-formed XML: {expat.ErrorString(e.code)}", filename,
-                           e.lineno, e.offset + 1) from None
-    if not root_holder or root_holder[0].tag != root:
-        raise ProgramError(f"not {what} (the root element must be <{root}>)",
-                           filename, 1, 1)
-    return root_holder[0]
-
-
 def _place(node, pos: ir.Pos) -> None:
     """Give every node of a parsed attribute value the position of its element."""
     stack = [node]
@@ -174,7 +51,7 @@ def _place(node, pos: ir.Pos) -> None:
                     stack.append(v)
 
 
-class _Importer:
+class PlcopenImporter:
     def __init__(self, filename: str):
         self.file = filename
         self._hidden: list[ir.VarDecl] = []   # edge instances the POU's networks need
@@ -188,22 +65,22 @@ class _Importer:
         # TwinCAT quote it, so a bare name there is a constant's
         self._bare_strings = True
 
-    def error(self, el: _El, message: str) -> ProgramError:
+    def error(self, el: XmlElement, message: str) -> ProgramError:
         return ProgramError(message, self.file, el.line, el.col)
 
-    def req(self, el: _El, name: str) -> str:
+    def req(self, el: XmlElement, name: str) -> str:
         """A required attribute, or an error at the element that lacks it."""
         try:
             return el.attrib[name]
         except KeyError:
             raise self.error(el, f"<{el.tag}> needs a '{name}' attribute") from None
 
-    def type_name(self, pi: _El) -> str:
+    def type_name(self, pi: XmlElement) -> str:
         """A pouInstance's typeName; CODESYS leaves it empty when the instance is named
         after its PROGRAM."""
         return pi.attrib.get("typeName") or self.req(pi, "name")
 
-    def int_attr(self, el: _El, name: str, default: int, low: int = 0,
+    def int_attr(self, el: XmlElement, name: str, default: int, low: int = 0,
                  high: int = 1 << 31) -> int:
         """An optional whole-number attribute in [low, high], or an error naming it."""
         text = (el.attrib.get(name) or "").strip()
@@ -224,12 +101,12 @@ class _Importer:
             return parse_st(f"{header} {text}{footer}", self.file)
         return parse_st(f"{header}\n{text}{footer}", self.file, origin=(2, line, col))
 
-    def st_body(self, el: _El) -> list:
+    def st_body(self, el: XmlElement) -> list:
         text, line, col = el.all_text()
         return self._fragment("PROGRAM __plcopen_body", text, line, col,
                               "\nEND_PROGRAM").pous[0].body
 
-    def st_expr(self, el: _El):
+    def st_expr(self, el: XmlElement):
         text, line, col = el.all_text()
         return self.expr_text(text, line, col)
 
@@ -237,7 +114,7 @@ class _Importer:
         return self._fragment("PROGRAM __plcopen_expr __x :=", text, line, col,
                               "\n;END_PROGRAM").pous[0].body[0].value
 
-    def interval(self, el: _El, value: str):
+    def interval(self, el: XmlElement, value: str):
         """A task interval: an ST TIME literal (``T#50ms``) or, as the PLCopen schema types
         it, an xsd:duration (``PT0.05S``) or a clock time (``00:00:00.1``)."""
         text = value.strip()
@@ -251,7 +128,7 @@ class _Importer:
                                  "below 11 days")
         return ir.Literal(ns, "TIME", pos=ir.Pos(self.file, el.line, el.col))
 
-    def value_text(self, el: _El, value: str):
+    def value_text(self, el: XmlElement, value: str):
         """An attribute's ST value; its nodes point at the element that holds it."""
         try:
             expr = self.expr_text(value, 0)
@@ -261,7 +138,7 @@ class _Importer:
         return expr
 
     # ------------------------------------------------------------------ types
-    def type_of(self, el: _El | None, where: _El) -> ir.TypeRef:
+    def type_of(self, el: XmlElement | None, where: XmlElement) -> ir.TypeRef:
         if el is None or not el.children:
             raise self.error(where, "missing <type>")
         t = el.children[0]
@@ -312,15 +189,10 @@ class _Importer:
         up = t.name.upper()
         if up in self._string_types or up in self._declared or up in ELEMENTARY:
             return self._string_types.get(up)
-        # a stub's string alias (Beremiz SVGHMI's HMI_STRING): only the stubs that
-        # declare the name are parsed
-        from .libraries import shipped_declaring
-        stub = next((lib.types[up] for lib in shipped_declaring(up) if up in lib.types),
-                    None)
-        return self.string_kind(stub.type) if stub is not None and isinstance(
-            stub.type, ir.StringType) else None
+        # a stub's string alias (Beremiz SVGHMI's HMI_STRING), from the stubs' index
+        return shipped_string_kind(up)
 
-    def simple_value(self, el: _El, text: str, t: ir.TypeRef | None):
+    def simple_value(self, el: XmlElement, text: str, t: ir.TypeRef | None):
         """An initial value written as text, for a variable of type ``t``."""
         quote = {"S": "'", "W": '"'}.get(self.string_kind(t)) \
             if self._bare_strings and t is not None else None
@@ -330,7 +202,7 @@ class _Importer:
             text = quote + text.replace("$", "$$").replace(quote, "$" + quote) + quote
         return self.value_text(el, text)
 
-    def init_of(self, el: _El | None, t: ir.TypeRef | None = None):
+    def init_of(self, el: XmlElement | None, t: ir.TypeRef | None = None):
         if el is None or not el.children:
             return None
         v = el.children[0]
@@ -347,7 +219,7 @@ class _Importer:
                                   for item in v.findall("value")])
         raise self.error(v, f"cannot convert initial value <{v.tag}>")
 
-    def variables(self, el: _El, kind: str | None) -> list[ir.VarDecl]:
+    def variables(self, el: XmlElement, kind: str | None) -> list[ir.VarDecl]:
         out = []
         for v in el.findall("variable"):
             t = self.type_of(v.find("type"), v)
@@ -357,7 +229,7 @@ class _Importer:
                                   pos=ir.Pos(self.file, v.line, v.col)))
         return out
 
-    def var_blocks(self, iface: _El | None) -> list[ir.VarBlock]:
+    def var_blocks(self, iface: XmlElement | None) -> list[ir.VarBlock]:
         blocks = []
         if iface is None:
             return blocks
@@ -374,7 +246,7 @@ class _Importer:
         return blocks
 
     # ------------------------------------------------------------------ POUs
-    def body_of(self, pou_el: _El, body: _El | None, pou_name: str):
+    def body_of(self, pou_el: XmlElement, body: XmlElement | None, pou_name: str):
         if body is None:
             return []
         for lang in body.children:
@@ -404,7 +276,7 @@ class _Importer:
         return Network(elements, expr, lambda el: ir.Pos(self.file, el.line, el.col),
                        self._hidden_instance)
 
-    def chart_network(self, sfc_el: _El) -> Network:
+    def chart_network(self, sfc_el: XmlElement) -> Network:
         """The graphical elements drawn in an SFC (one network for all its conditions,
         so that a block two conditions read runs once)."""
         net = self._chart_networks.get(id(sfc_el))
@@ -427,7 +299,7 @@ class _Importer:
         self._hidden.append(ir.VarDecl(name, ir.NamedType(type_name)))
         return name
 
-    def pou(self, el: _El) -> ir.Pou:
+    def pou(self, el: XmlElement) -> ir.Pou:
         name = self.req(el, "name")
         kind = _POU_KINDS.get(el.attrib.get("pouType", ""))
         if kind is None:
@@ -469,8 +341,8 @@ class _Importer:
         return pou
 
     # ------------------------------------------------------------------ SFC
-    def sfc(self, sfc_el: _El, pou_el: _El) -> ir.Sfc:
-        nodes: dict[str, _El] = {}
+    def sfc(self, sfc_el: XmlElement, pou_el: XmlElement) -> ir.Sfc:
+        nodes: dict[str, XmlElement] = {}
         for child in sfc_el.children:
             if "localId" in child.attrib:
                 nodes[self.req(child, "localId")] = child
@@ -565,7 +437,7 @@ class _Importer:
         return ir.Sfc(steps, transitions, extra_actions,
                       pos=ir.Pos(self.file, sfc_el.line, sfc_el.col))
 
-    def condition(self, el: _El, named: dict, sfc_el: _El):
+    def condition(self, el: XmlElement, named: dict, sfc_el: XmlElement):
         cond = el.find("condition")
         if cond is None:
             raise self.error(el, "transition without a condition")
@@ -604,7 +476,7 @@ class _Importer:
         raise self.error(cond, "transition condition in a form plcpred does not read "
                                "(expected inline, referenced or connected)")
 
-    def graph_condition(self, holder: _El, name: str):
+    def graph_condition(self, holder: XmlElement, name: str):
         """The condition an FBD or LD transition body computes: the value it assigns to
         the transition's name (or its only assignment)."""
         lang = next((c for c in holder.children if c.tag in ("FBD", "LD")), None)
@@ -623,7 +495,7 @@ class _Importer:
                                    "computes the condition (one output)")
         return mine[0].value
 
-    def action_assoc(self, a: _El, step: ir.Step, n: int, extra: list) -> ir.ActionAssoc:
+    def action_assoc(self, a: XmlElement, step: ir.Step, n: int, extra: list) -> ir.ActionAssoc:
         qualifier = a.attrib.get("qualifier", "N")
         rest = []
         if a.attrib.get("duration"):
@@ -645,7 +517,7 @@ class _Importer:
                                  lambda message, pos: at(pos, message))
 
     # ------------------------------------------------------------------ project
-    def project(self, root: _El) -> ir.Program:
+    def project(self, root: XmlElement) -> ir.Program:
         prog = ir.Program()
         header = root.find("fileHeader")
         product = (header.attrib.get("productName", "") if header is not None else "").lower()
@@ -687,7 +559,7 @@ class _Importer:
         prog.source = self.file
         return prog
 
-    def configuration(self, c: _El) -> ir.Configuration:
+    def configuration(self, c: XmlElement) -> ir.Configuration:
         cfg = ir.Configuration(self.req(c, "name"), pos=ir.Pos(self.file, c.line, c.col))
         for g in c.findall("globalVars"):
             cfg.var_blocks.append(ir.VarBlock("VAR_GLOBAL", self.variables(g, "VAR_GLOBAL"),
@@ -721,4 +593,4 @@ class _Importer:
 
 def parse_plcopen(text: str, filename: str = "<input>") -> ir.Program:
     """Import a PLCopen TC6 XML project into the IR."""
-    return validate_names(_Importer(filename).project(_parse_xml(text, filename)))
+    return validate_names(PlcopenImporter(filename).project(parse_xml(text, filename)))

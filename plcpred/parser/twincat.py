@@ -24,10 +24,13 @@ import re
 from pathlib import Path
 
 from . import ir
+from .bnr import BNR_SUFFIXES
 from .errors import ProgramError
+from .files import current_roots, is_under, listing, outside_message, resolved
+from .files import read_source as read_confined_source
 from .names import is_identifier, validate_names
-from .plcopen import _El, _parse_xml
 from .st import parse_st
+from .xmltree import XmlElement, parse_xml
 
 OBJECT_SUFFIXES = (".tcpou", ".tcgvl", ".tcdut", ".tcio", ".tctto", ".tctleo")
 # files a project folder is read from, besides TwinCAT objects
@@ -75,7 +78,7 @@ class _Stitch:
         return "".join(self.parts)
 
 
-class _Importer:
+class PlcopenImporter:
     def __init__(self, filename: str, text: str = ""):
         self.file = filename
         self.gvl_names: list[str] = []
@@ -85,10 +88,10 @@ class _Importer:
         data = text if isinstance(text, bytes) else text.encode("utf-8", "surrogatepass")
         self.nonce = hashlib.sha256(data).hexdigest()[:24]
 
-    def error(self, el: _El, message: str) -> ProgramError:
+    def error(self, el: XmlElement, message: str) -> ProgramError:
         return ProgramError(message, self.file, el.line, el.col)
 
-    def name_of(self, el: _El) -> str:
+    def name_of(self, el: XmlElement) -> str:
         """The element's Name attribute, which becomes ST text: an identifier or nothing."""
         name = el.attrib.get("Name", "")
         if not is_identifier(name):
@@ -96,7 +99,7 @@ class _Importer:
         return name
 
     # ------------------------------------------------------------------ sections
-    def section(self, out: _Stitch, el: _El | None) -> str:
+    def section(self, out: _Stitch, el: XmlElement | None) -> str:
         """Place the ST text under ``el`` (a Declaration or an ST element); returns it."""
         if el is None:
             return ""
@@ -105,7 +108,7 @@ class _Importer:
             out.place(text, line, col)
         return text
 
-    def implementation(self, out: _Stitch, owner: _El, what: str) -> None:
+    def implementation(self, out: _Stitch, owner: XmlElement, what: str) -> None:
         impl = owner.find("Implementation")
         if impl is None:
             return
@@ -124,7 +127,7 @@ class _Importer:
             return
 
     # ------------------------------------------------------------------ objects
-    def pou(self, out: _Stitch, el: _El) -> None:
+    def pou(self, out: _Stitch, el: XmlElement) -> None:
         name = self.name_of(el)
         decl = self.section(out, el.find("Declaration"))
         kind = _POU_KIND.search(_COMMENTS.sub(" ", decl))
@@ -149,7 +152,7 @@ class _Importer:
                 out.keyword("END_ACTION")
         out.keyword(f"END_{kind}")
 
-    def property(self, out: _Stitch, el: _El, what: str, bodies: bool = True) -> None:
+    def property(self, out: _Stitch, el: XmlElement, what: str, bodies: bool = True) -> None:
         self.section(out, el.find("Declaration"))
         for acc in el.children:
             if acc.tag in ("Get", "Set"):
@@ -160,7 +163,7 @@ class _Importer:
                 out.keyword(f"END_{acc.tag.upper()}")
         out.keyword("END_PROPERTY")
 
-    def interface(self, out: _Stitch, el: _El, name: str) -> None:
+    def interface(self, out: _Stitch, el: XmlElement, name: str) -> None:
         for child in el.children:
             if child.tag == "Method":
                 self.section(out, child.find("Declaration"))
@@ -169,7 +172,7 @@ class _Importer:
                 self.property(out, child, f"{name}.{self.name_of(child)}", bodies=False)
         out.keyword("END_INTERFACE")
 
-    def task(self, el: _El) -> ir.Configuration:
+    def task(self, el: XmlElement) -> ir.Configuration:
         """A .TcTTO task: CycleTime (microseconds) and the POUs it calls, in order."""
         name = self.name_of(el)
         pos = ir.Pos(self.file, el.line, el.col)
@@ -193,7 +196,7 @@ class _Importer:
                 self.file, target.line, target.col)))
         return ir.Configuration(f"{name}_config", resources=[resource], pos=pos)
 
-    def object_file(self, root: _El) -> ir.Program:
+    def object_file(self, root: XmlElement) -> ir.Program:
         out = _Stitch()
         configurations = []
         for el in root.children:
@@ -250,8 +253,8 @@ def _replace_markers(prog: ir.Program, opaque: dict[str, ir.Opaque]) -> None:
 def parse_twincat(text: str, filename: str = "<input>") -> ir.Program:
     """Import one TwinCAT 3 object file (``.TcPOU``, ``.TcGVL``, ``.TcDUT``, ``.TcIO``,
     ``.TcTTO``) into the IR."""
-    root = _parse_xml(text, filename, "TcPlcObject", "a TwinCAT 3 object file")
-    return validate_names(_Importer(filename, text).object_file(root))
+    root = parse_xml(text, filename, "TcPlcObject", "a TwinCAT 3 object file")
+    return validate_names(PlcopenImporter(filename, text).object_file(root))
 
 
 # --------------------------------------------------------------------------- projects
@@ -267,7 +270,6 @@ def project_files(path: Path, missing: list | None = None) -> list[Path]:
     A folder is walked as :func:`.files.listing` bounds it. A listed file must be under
     the folders the load may read (:func:`.files.confined_to`; when none are set, the
     .plcproj's own folder), reached without leaving them through ``..`` or a link."""
-    from .files import current_roots, is_under, listing, outside_message, resolved
     if path.is_dir():
         found = listing(path)
         projects = [p for p in found if p.suffix.lower() == ".plcproj"]
@@ -278,14 +280,13 @@ def project_files(path: Path, missing: list | None = None) -> list[Path]:
                                "or its folder", str(path), 0, 0)
         if projects:
             return project_files(projects[0], missing)
-        from .bnr import BNR_SUFFIXES
         files = [p for p in found
                  if p.suffix.lower() in OBJECT_SUFFIXES + _ST_SUFFIXES + BNR_SUFFIXES]
         if not files:
             raise ProgramError("the folder holds no program files (.TcPOU, .TcGVL, .TcDUT, "
                                ".TcIO, .TcTTO, .st; B&R .var, .typ, .fun)", str(path), 0, 0)
         return files
-    root = _parse_xml(read_source(path), str(path), "Project", "a TwinCAT .plcproj file")
+    root = parse_xml(read_source(path), str(path), "Project", "a TwinCAT .plcproj file")
     roots = current_roots() or (resolved(path).parent,)
     files = []
     for group in root.findall("ItemGroup"):
@@ -315,7 +316,6 @@ def project_files(path: Path, missing: list | None = None) -> list[Path]:
 def project_references(path: Path) -> list[str]:
     """The namespaces of the libraries a project references (its .plcproj's
     PlaceholderReference and LibraryReference items), for naming the ones not at hand."""
-    from .files import listing
     if path.is_dir():
         projects = [p for p in listing(path) if p.suffix.lower() == ".plcproj"]
         if len(projects) != 1:
@@ -323,7 +323,7 @@ def project_references(path: Path) -> list[str]:
         path = projects[0]
     if path.suffix.lower() != ".plcproj":
         return []
-    root = _parse_xml(read_source(path), str(path), "Project", "a TwinCAT .plcproj file")
+    root = parse_xml(read_source(path), str(path), "Project", "a TwinCAT .plcproj file")
     out = []
     for group in root.findall("ItemGroup"):
         for item in group.children:
@@ -341,5 +341,4 @@ def read_source(path: Path) -> str:
     declaration's encoding, else UTF-8, and Latin-1 where that fails, as older tools
     write. Only a regular file of at most :data:`.files.MAX_FILE_BYTES` is read, and
     while a load is confined (:func:`.files.confined_to`), only one under its folders."""
-    from .files import read_source as read
-    return read(path)
+    return read_confined_source(path)

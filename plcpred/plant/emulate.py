@@ -9,9 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
-from ..diagnose.meter import interval_means_l_min
+from ..machine import Machine, check_against_program
+from ..physics.meter import interval_means_l_min
+from ..sequencer import Sequencer, parse_horizon
+from ..sequencer.timeline import HorizonError
 from .meter import MeterSettings, meter_readings
 from .model import PlantModel
+from .truth import load_real_machine
 
 MAX_GRID_CELLS = 400_000
 # the plant integrates every stroke of the horizon (about 20 s of work per emulated hour
@@ -55,16 +59,6 @@ class Emulation:
         """The meter's readings integrated (at the meter's reference)."""
         return float(np.sum(self.measured_flow_l_min) / self.meter.rate_hz / 60.0)
 
-    # ------------------------------------------------------------------ files
-    def write_measured(self, path) -> None:
-        from ..output import atomic_writer
-
-        with atomic_writer(path) as f:
-            f.write("time_s,flow_l_min,supply_bar_g\n")
-            np.savetxt(f, np.column_stack([self.measured_time_s, self.measured_flow_l_min,
-                                           self.measured_supply_bar_g]),
-                       fmt=["%.4f", "%.4f", "%.4f"], delimiter=",")
-
     def plant_table(self):
         """(header, rows) of plant.csv: true flows (NL/min, ISO 8778) per consumer and in
         total, each drive's position and chamber pressures, on a grid of at most
@@ -93,36 +87,11 @@ class Emulation:
                     header.append(f"{c.name}_{key}")
         return header, np.column_stack(cols)
 
-    def write_plant(self, path, table=None) -> None:
-        """plant.csv; ``table`` is a :meth:`plant_table` already made."""
-        from ..output import atomic_writer
-        from ..air.demand import _csv_name
-
-        header, rows = table or self.plant_table()
-        with atomic_writer(path) as f:
-            f.write(",".join(_csv_name(h) for h in header) + "\n")
-            np.savetxt(f, rows, fmt="%.6g", delimiter=",")
-
-    def write(self, directory, plot: bool = True) -> list[Path]:
-        directory = Path(directory)
-        files = [directory / "measured.csv", directory / "timeline.csv",
-                 directory / "plant.csv"]
-        self.write_measured(files[0])
-        self.timeline.to_csv(files[1])
-        table = self.plant_table()      # sampling the plant: once for the file and the plot
-        self.write_plant(files[2], table)
-        if plot:
-            from ..report import plot_emulation
-            files.append(directory / "emulate.png")
-            plot_emulation(self, files[-1], table)
-        return files
-
 
 def run_closed_loop(machine, program, horizon_s: float, compiled=None):
     """(plant, timeline): ``machine``'s program (parsed; ``compiled``: its compiled form)
     run against the physics plant over ``horizon_s``, untiled (the plant's end switches
     drive it), and the plant integrated to the horizon."""
-    from ..sequencer import Sequencer
 
     plant = PlantModel(machine)
     timeline = Sequencer(program, machine, compiled=compiled, plant=plant).run(
@@ -135,10 +104,6 @@ def emulate(machine, horizon="60s", truth=None, seed: int | None = None,
             program=None) -> Emulation:
     """Run ``machine`` (a path or a loaded Machine; with ``truth``, a truth file applied
     to it) in closed loop with the physics plant over ``horizon``."""
-    from ..machine import Machine, check_against_program
-    from ..sequencer import parse_horizon
-    from ..sequencer.timeline import HorizonError
-    from .truth import load_real_machine
 
     wall0 = _time.perf_counter()
     if not isinstance(machine, Machine) or truth is not None:

@@ -1,4 +1,4 @@
-"""What a real flow meter reports of a true flow (docs/physics.md: figures, what D4 adds): its
+"""What a real flow meter reports of a true flow (docs/reference/physics.md: figures, what D4 adds): its
 reference condition, first-order response, logging intervals (each reading the mean over
 its interval, or with ``sampling = "instant"`` the response at the reading's time), noise,
 zero offset and full-scale clipping."""
@@ -8,8 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..diagnose.io import reference_factor
-from ..diagnose.meter import cumulative_nl, first_order_lag, interval_means_l_min
+from ..physics.meter import cumulative_nl, first_order_lag, interval_means_l_min, reference_factor
 
 DEFAULT_TAU_S = 0.2      # a thermal-mass meter's response (0.1-0.6 s)
 DEFAULT_RATE_HZ = 10.0
@@ -48,7 +47,7 @@ def meter_readings(edges_s: np.ndarray, cum_nl: np.ndarray, settings: MeterSetti
     logging interval ending at its time stamp (``instant``: the response in the fine cell
     that holds the time stamp, as a logger polling the meter's analogue output reads it),
     then converted to the meter's reference (V_ref2 = V_ref1 (P1/P2)(T2/T1),
-    docs/physics.md: reference conditions), offset, noise and clipping."""
+    docs/reference/physics.md: reference conditions), offset, noise and clipping."""
     dt = np.diff(edges_s)
     cell_flow = np.diff(cum_nl) / dt * 60.0
     lagged = first_order_lag(cell_flow, float(np.median(dt)), settings.tau_s)

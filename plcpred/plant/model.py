@@ -7,11 +7,11 @@ import math
 import numpy as np
 
 from ..air.demand import sonic_conductance
-from ..air.flow import bar_g_to_pa, celsius_to_k
-from .drive import drive_params
-from .group import Group, Passive, Supply
-from .physics import mass_flow_kg_s, mass_to_nl
-from .strokes import throttle_to
+from ..physics.chamber import mass_flow_kg_s, mass_to_nl
+from ..physics.drive import drive_params
+from ..physics.flow import bar_g_to_pa, celsius_to_k
+from ..physics.group import Group, Passive, Supply
+from ..physics.strokes import throttle_to
 
 NS = 1_000_000_000
 

@@ -3,7 +3,7 @@
 ``emulate`` runs the program against the plant, so the plant's end switches move the
 program's edges. :func:`replay` takes the edges as given (a prediction's, or a recorded
 trace's) and only asks what air the machine draws when its valves switch then: the
-dynamic model (D4, docs/physics.md) on the air model's own valve edges. The diagnosis
+dynamic model (D4, docs/reference/physics.md) on the air model's own valve edges. The diagnosis
 uses it, or the program run against the plant without a meter
 (:func:`closed_loop_total_cells_nl`), as the nominal machine's dynamic reference (what
 D1 leaves out by design: the air a tube still holds at atmospheric pressure, heat,
@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..air.demand import consumer_models, passive_intervals, valve_transitions
+from .emulate import run_closed_loop
 from .model import PlantModel
 
 
@@ -23,7 +24,7 @@ def replay(machine, timeline, horizon_s: float | None = None) -> PlantModel:
     consumer's initial position), integrated to ``horizon_s`` (default the timeline's).
     Read it with :meth:`PlantModel.cumulative_nl` and :meth:`PlantModel.metered_names`.
 
-    Raises :class:`~plcpred.plant.group.PlantError` where the plant cannot integrate."""
+    Raises :class:`~plcpred.physics.group.PlantError` where the plant cannot integrate."""
     horizon_s = timeline.horizon_ns / 1e9 if horizon_s is None else float(horizon_s)
     plant = PlantModel(machine)
     signal_map = timeline.info.get("machine_signals", {})
@@ -114,7 +115,6 @@ def closed_loop_total_cells_nl(machine, timeline, edges_s: np.ndarray, program,
     program waits on them. ``timeline`` is the sequencer's own prediction, for its
     period (None: the whole horizon is run, for a machine whose cycle is not the
     prediction's); ``program`` the parsed program (``compiled``: its compiled form)."""
-    from .emulate import run_closed_loop
 
     edges_s = np.asarray(edges_s, dtype=float)
     stop, period_cells = _stop_cell(timeline, edges_s)
@@ -131,7 +131,6 @@ def shared_run_cells_nl(machine, edges_s: list[np.ndarray], timeline=None, progr
     against the plant from its start (a run's first seconds do not depend on how long it
     goes on). Nothing is tiled: the machine's cycle need not be any prediction's.
     ``stats`` counts the run's cost (:func:`_count`)."""
-    from .emulate import run_closed_loop
 
     edges_s = [np.asarray(e, dtype=float) for e in edges_s]
     horizon_s = max(float(e[-1]) for e in edges_s)

@@ -8,6 +8,9 @@ semantics and a plant I/O model.
 * :mod:`~plcpred.sequencer.stdfb` - the IEC 61131-3 standard function blocks
 * :mod:`~plcpred.sequencer.plant` - cylinder end switches following their valves
 """
+import numpy as np
+
+from ..machine import Machine, check_against_program, load_machine
 from .compiler import CompileError, compile_program
 from .executor import Sequencer, SequencerError, observed_names
 from .runtime import ExecutionError, Watchdog
@@ -31,7 +34,6 @@ def unfold(machine, horizon="60s", scan_stepping: bool = False, tiling: bool = T
     Raises :class:`~plcpred.parser.ProgramError` (program text), :class:`CompileError`
     (constructs the executor cannot run), :class:`ExecutionError` (run-time faults such as
     a watchdog) or :class:`~plcpred.machine.MachineError` (machine file)."""
-    from ..machine import Machine, check_against_program, load_machine
 
     if not isinstance(machine, Machine):
         machine = load_machine(machine)
@@ -65,8 +67,6 @@ def lint_timeline(machine, timeline) -> list[str]:
 
 
 def _valve_lint(machine, timeline) -> tuple[bool | None, list[str]]:
-    import numpy as np
-
     file = str(machine.path)
     names = timeline.info.get("machine_signals", {})
     known = {sig.name for sig in timeline.signals}

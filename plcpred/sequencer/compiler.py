@@ -36,8 +36,7 @@ from ..parser import ir
 from ..parser.errors import ProgramError, at
 from ..parser.generics import GENERIC_PRAGMA, readable, specialize
 from ..parser.names import ident, validate_names
-from ..parser.stdlib import (STANDARD_FBS, WIDE_STRING_FUNCTIONS, is_standard_function,
-                              std_fb_pin)
+from ..parser.stdlib import STANDARD_FBS, WIDE_STRING_FUNCTIONS, is_standard_function, std_fb_pin
 from . import types as ty
 from .types import BOOL, STRING, TIME, ArrayT, Elem, EnumT, FbT, ItfT, PtrT, StdFbT, StructT
 
@@ -56,7 +55,7 @@ _STDFB_MEMBERS = {"IN": ty.BOOL, "PT": ty.TIME, "Q": ty.BOOL, "ET": ty.TIME, "CL
                   "QU": ty.BOOL, "QD": ty.BOOL, "RESET": ty.BOOL}
 
 
-def _stdfb_member(t: StdFbT, key: str):
+def stdfb_member(t: StdFbT, key: str):
     """(IEC pin name, type) of member ``key`` of a standard FB (vendor pin names map to
     the IEC ones), or (None, None)."""
     pin = std_fb_pin(t.name, key)
@@ -177,7 +176,7 @@ class Compiler:
         self.intervals: dict[str, int] = {}
         self.et_thresholds: set = set()  # constants timers' ET is compared with (ns)
         self._et_const = False
-        self._member_names = names_in(program)
+        self._member_names = ir.names_in(program)
         # FBs another extends (the base's name without a library prefix)
         self._extended = {p.extends.rsplit(".", 1)[-1].upper() for p in program.pous
                           if p.extends}
@@ -239,7 +238,7 @@ class Compiler:
         # CODESYS/TwinCAT: a PROGRAM is one instance, which other POUs may call by its
         # name (MAIN calls its sub-programs) or read (Sub.nCount): a global of its own
         taken = {ident(d.name) for d in gdecls}
-        called = names_in(self.program, ir.Name, "name")
+        called = ir.names_in(self.program, ir.Name, "name")
         singletons = [ir.VarDecl(p.name, ir.NamedType(p.name, pos=p.pos), pos=p.pos)
                       for p in self.program.pous if p.kind == "PROGRAM"
                       and p.name.upper() in called and ident(p.name) not in taken]
@@ -355,8 +354,8 @@ class Compiler:
                 if d.address and "*" not in d.address:
                     declared.setdefault(d.address.upper(), d.name)
         self.addr_names = declared
-        used = sorted(names_in(self.program, ir.DirectAddress, "address") - set(declared))
-        taken = names_in([self.program.pous, self.program.configurations,
+        used = sorted(ir.names_in(self.program, ir.DirectAddress, "address") - set(declared))
+        taken = ir.names_in([self.program.pous, self.program.configurations,
                           self.program.globals], ir.VarDecl, "name")
         decls = []
         for addr in used:
@@ -602,7 +601,7 @@ class Compiler:
             return set()
         flow = _Flow({k for k, f in self.functions.items()
                       if any(b.kind == "VAR_EXTERNAL" for b in f.var_blocks)
-                      or names_in(f.body, ir.Name, "name") & set(self.globals)}, std,
+                      or ir.names_in(f.body, ir.Name, "name") & set(self.globals)}, std,
                      self._et_compare)
         bodies = []
         if pou.is_sfc:
@@ -938,7 +937,7 @@ class Compiler:
             for fname, finit in init.fields:
                 key = ident(fname)
                 if isinstance(t, StdFbT):
-                    key = _stdfb_member(t, key)[0] or key
+                    key = stdfb_member(t, key)[0] or key
                 mt = members.get(key) if members is not None else self._fb_member_type(
                     t, key, init)
                 if mt is None:
@@ -967,7 +966,7 @@ class Compiler:
 
     def _fb_member_type(self, t, key, node):
         if isinstance(t, StdFbT):
-            return _stdfb_member(t, key)[1]
+            return stdfb_member(t, key)[1]
         d = t.var(key)
         return None if d is None else self.types.resolve(d.type, d.pos)
 
@@ -1265,7 +1264,7 @@ class Compiler:
                 if p is not None:
                     return "prop", bcode, key, self.types.resolve(p[0].type, p[0].pos)
             elif isinstance(bt, StdFbT):
-                pin, pt = _stdfb_member(bt, key)
+                pin, pt = stdfb_member(bt, key)
                 if pin:
                     return "attr", bcode, pin, pt
             elif isinstance(bt, StructT):
@@ -1559,7 +1558,7 @@ class Compiler:
         bcode, bt = self._expr(base, scope)
         bt = _deref_t(bt)
         if isinstance(bt, StdFbT):
-            key, pt = _stdfb_member(bt, key)
+            key, pt = stdfb_member(bt, key)
             if key is None:
                 raise _err(x, f"{bt.name} has no member '{x.member}'")
             if key == "ET" and not self._et_const:
@@ -2050,31 +2049,10 @@ class Compiler:
 
 # ---------------------------------------------------------------------- helpers
 
-def _nodes(root):
-    """Every IR node under ``root`` with its parent, the node whose field holds it (lists
-    are passed through; a project: its POUs and configurations). Iterative: statement
-    nesting in a program file is unbounded."""
-    stack = [([root.pous, root.configurations], None)] if isinstance(root, ir.Program) \
-        else [(root, None)]
-    while stack:
-        x, parent = stack.pop()
-        if isinstance(x, (list, tuple)):
-            stack.extend((y, parent) for y in x)
-        elif hasattr(x, "__dataclass_fields__"):
-            yield x, parent
-            stack.extend((getattr(x, f), x) for f in x.__dataclass_fields__ if f != "pos")
-
-
-def names_in(program, cls=ir.Member, attr="member") -> set:
-    """Every ``x.member`` name used in a project or IR subtree, upper case (with ``cls``
-    and ``attr``: every ``Name.name``, every ``DirectAddress.address``, ...)."""
-    return {getattr(x, attr).upper() for x, _ in _nodes(program) if isinstance(x, cls)}
-
-
 def _name_uses(root, names: set) -> list:
     """(upper-case name, node, parent) of every ``ir.Name`` in ``root`` whose name is in
     ``names``."""
-    return [(x.name.upper(), x, parent) for x, parent in _nodes(root)
+    return [(x.name.upper(), x, parent) for x, parent in ir.nodes(root)
             if isinstance(x, ir.Name) and x.name.upper() in names]
 
 
@@ -2242,7 +2220,7 @@ class _Flow:
             step = _added_step(s) if s.op == ":=" else None
             if step is not None:
                 n, names = self.steps.get(target, (0, set()))
-                self.steps[target] = (n + 1, names | names_in(step, ir.Name, "name"))
+                self.steps[target] = (n + 1, names | ir.names_in(step, ir.Name, "name"))
         elif isinstance(s, ir.CallStmt):
             callee = _root(s.call.func)
             if callee in self.std_fbs and isinstance(s.call.func, (ir.Name, ir.Index)):

@@ -20,6 +20,7 @@ that never repeat simply keep the executor running scan by scan to the horizon.
 from __future__ import annotations
 
 import builtins
+import copy
 import hashlib
 import pickle
 import re
@@ -30,15 +31,22 @@ from heapq import heappop, heappush
 import numpy as np
 
 from ..errors import PlcpredError
+from ..machine import MachineError, program_addresses
 from ..parser import ir
 from ..parser.names import ident
 from . import runtime as rtm
 from . import types
-from .compiler import (BIT_READ, WATCHDOG_ITERATIONS, CompileError, Compiled,
-                       compile_program)
+from .compiler import (
+    BIT_READ,
+    WATCHDOG_ITERATIONS,
+    Compiled,
+    CompileError,
+    compile_program,
+    stdfb_member,
+)
 from .plant import CylinderPlant, valve_command
 from .sfc import ActionSpec, SfcRuntime, SfcSpec
-from .stdfb import TON, TOF, TP, TONR, make_standard_fb
+from .stdfb import TOF, TON, TONR, TP, make_standard_fb
 from .timeline import DEFAULT_MAX_CHANGES, NS, Signal, Timeline, wrap_array
 
 _TIMERS = (TON, TOF, TP, TONR)
@@ -229,7 +237,6 @@ def _copy(v):
         if not v or isinstance(v[0], _SCALARS):
             return v[:]
         return [_copy(x) for x in v]
-    import copy
     return copy.deepcopy(v)
 
 
@@ -826,7 +833,6 @@ class Sequencer:
         except SequencerError as e:
             if self.machine is None:
                 raise
-            from ..machine import MachineError
             # a name in the machine file the program does not have: the file's mistake
             # (exit 2, as every machine-file error), named by the table that gives it
             raise MachineError(str(self.machine.path), _naming_table(self.machine, signal),
@@ -883,8 +889,7 @@ class Sequencer:
             if key in t.members:
                 return key, t.members[key]
         elif isinstance(t, types.StdFbT):
-            from .compiler import _stdfb_member
-            pin, pt = _stdfb_member(t, key)
+            pin, pt = stdfb_member(t, key)
             if pin:
                 return pin, pt
         raise SequencerError(f"{what}: no member '{key}' in {getattr(t, 'name', t.cat)}")
@@ -1316,7 +1321,6 @@ def resolve_signal(machine, program, signal: str, addresses: dict | None = None)
                 return name
     if signal.startswith("%") and program is not None and hasattr(program, "pous"):
         if addresses is None:
-            from ..machine import program_addresses
             addresses = program_addresses(program)
         return addresses.get(signal.upper(), signal)
     return signal
@@ -1340,7 +1344,6 @@ def observed_names(machine, program=None) -> frozenset:
     addresses = None
     if program is not None and hasattr(program, "pous") and any(
             s.startswith("%") for s in signals):
-        from ..machine import program_addresses
         addresses = program_addresses(program)       # once, not once per signal
     names = set()
     for s in signals:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 
 from ..errors import PlcpredError
+from ..parser.literals import format_duration
 
 
 class ExecutionError(PlcpredError):
@@ -324,7 +325,6 @@ def to_string(value, source: str, char: bool = False) -> str:
     if source == "bool":
         return "TRUE" if value else "FALSE"
     if source == "time":
-        from ..parser.literals import format_duration
         return "T#" + format_duration(value)
     if source == "real":
         return repr(float(value))

@@ -24,7 +24,7 @@ value after it is left; ``step.X`` is the activity flag.
 """
 from __future__ import annotations
 
-from .stdfb import RS, TON, R_TRIG
+from .stdfb import R_TRIG, RS, TON
 
 PULSES = {"P", "P1", "P0"}
 TIMED = {"L", "D", "SD", "DS", "SL"}

@@ -1,8 +1,9 @@
 """The sequencer's result: the edges of every input, output and SFC step flag over a
-horizon, with helpers to ask for a signal's intervals. ``timeline.csv`` (README,
-``plcpred timeline``): ``time_s,signal,value``, one row per change, every signal's
-initial value at time 0, sorted by time and stable within a scan (inputs as the scan read
-them, then step flags, then outputs). BOOL values are written 1/0.
+horizon, with helpers to ask for a signal's intervals. ``timeline.csv``
+(docs/guide/predict.md, ``plcpred timeline``): ``time_s,signal,value``, one row per
+change, every signal's initial value at time 0, sorted by time and stable within a scan
+(inputs as the scan read them, then step flags, then outputs). BOOL values are written
+1/0.
 """
 from __future__ import annotations
 
@@ -174,7 +175,8 @@ class Timeline:
     @property
     def df(self) -> "pd.DataFrame":
         """``time_s, signal, value`` as a DataFrame (one row per change)."""
-        import pandas as pd  # only here: importing pandas costs half a second
+        # pandas costs half a second to import: only its users pay it
+        import pandas as pd
 
         names = np.array(self.names, dtype=object)
         return pd.DataFrame({"time_s": self.time_ns / NS,
@@ -184,6 +186,7 @@ class Timeline:
     def edges(self, name: str) -> "pd.DataFrame":
         """The changes of one signal: ``time_s, value`` (the first row is its initial
         value at 0)."""
+        # pandas costs half a second to import: only its users pay it
         import pandas as pd
 
         t, v = self.edge_times_ns(name)
@@ -227,6 +230,7 @@ class Timeline:
     def intervals(self, name: str) -> "pd.DataFrame":
         """Periods in which the signal is non-zero (TRUE): ``start_s, end_s, duration_s``;
         a period still open at the horizon ends there."""
+        # pandas costs half a second to import: only its users pay it
         import pandas as pd
 
         t, v = self.edge_times_ns(name)

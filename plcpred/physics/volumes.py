@@ -1,4 +1,4 @@
-"""Free-air volume per stroke of an active consumer (docs/physics.md D1a, D1b), stated at the
+"""Free-air volume per stroke of an active consumer (docs/reference/physics.md D1a, D1b), stated at the
 reference condition (section 1).
 
 D1 gives the free air at atmospheric pressure: the swept volume plus the tube dead volume
@@ -93,7 +93,7 @@ def inner_dead_volumes_cm3(consumer) -> tuple[float, float]:
 def held_air_nl(volume_cm3: float, supply_pa: float, atmosphere_pa: float,
                 supply_temp_k: float = T0_K) -> float:
     """Normal litres a dead volume of ``volume_cm3`` at supply pressure holds above
-    atmospheric pressure (docs/physics.md: what D4 adds):
+    atmospheric pressure (docs/reference/physics.md: what D4 adds):
     ``V_dead * (P_s - P_atm) / P0 * T0 / T_s``."""
     return volume_cm3 * 1e-3 * (supply_pa - atmosphere_pa) / P0_PA * (T0_K / supply_temp_k)
 

@@ -1,8 +1,8 @@
-"""Flow through restrictions: the extended ISO 6358 equation (docs/physics.md D2), the
+"""Flow through restrictions: the extended ISO 6358 equation (docs/reference/physics.md D2), the
 volumetric flow at the reference condition (D3) and the orifice form for nozzles whose
 sonic conductance is not known.
 
-Reference condition (docs/physics.md: reference conditions, ISO 8778 "ANR"): T0 = 293.15 K, P0 = 100 kPa,
+Reference condition (docs/reference/physics.md: reference conditions, ISO 8778 "ANR"): T0 = 293.15 K, P0 = 100 kPa,
 rho0 = 1.185 kg/m^3. Pressures here are absolute, in pascal, unless a name says otherwise.
 """
 from __future__ import annotations
@@ -51,7 +51,7 @@ def flow_nl_min(C_m3_s_pa: float, b: float, m: float, a: float, p_up_pa, p_down_
 
 def orifice_conductance(orifice_mm: float, Cd: float) -> float:
     """The sonic conductance (m^3/(s Pa)) equivalent to a sharp orifice of diameter
-    ``orifice_mm`` and discharge coefficient ``Cd`` (docs/physics.md: restrictions, orifice form:
+    ``orifice_mm`` and discharge coefficient ``Cd`` (docs/reference/physics.md: restrictions, orifice form:
     ``qm = Cd * A * P_u / sqrt(T_u) * K``; matching D2 when choked gives
     ``C = Cd * A * K / (rho0 * sqrt(T0))``)."""
     area_m2 = math.pi * (orifice_mm / 1000.0) ** 2 / 4.0

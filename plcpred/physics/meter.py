@@ -3,7 +3,7 @@
 Comparing a prediction with a log means comparing like with like: the prediction's flow
 on a fine grid goes through the meter's first-order response and is averaged over each
 logged sample's interval, as a thermal-mass meter with a 1-2 Hz logger reports it
-(docs/physics.md: figures: "the flow sensor acts as a low-pass filter"; section 7: meters lag
+(docs/reference/physics.md: figures: "the flow sensor acts as a low-pass filter"; section 7: meters lag
 0.1-0.6 s).
 """
 from __future__ import annotations
@@ -11,6 +11,24 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from .flow import P0_PA, T0_K
+
+# the reference conditions a meter's normal litres may be given at: (pressure Pa, K)
+REFERENCES = {"iso8778": (P0_PA, T0_K), "din1343": (101_325.0, 273.15),
+              "iso2533": (101_325.0, 288.15)}
+
+
+def reference_factor(reference: str) -> float:
+    """Multiplier from normal litres at ``reference`` to ISO 8778 normal litres
+    (D3): ``(P_ref / P0) * (T0 / T_ref)``; DIN 1343 litres are 8.7 % more ISO 8778
+    litres. Raises ValueError naming the known references."""
+    try:
+        p_pa, t_k = REFERENCES[reference]
+    except KeyError:
+        raise ValueError(f"unknown reference {reference!r} (known: "
+                         f"{', '.join(REFERENCES)})") from None
+    return (p_pa / P0_PA) * (T0_K / t_k)
 
 
 def first_order_lag(flow_l_min: np.ndarray, dt_s: float, tau_s: float,
@@ -21,6 +39,7 @@ def first_order_lag(flow_l_min: np.ndarray, dt_s: float, tau_s: float,
     (or at 0 with ``from_rest``)."""
     if not tau_s or tau_s <= 0 or len(flow_l_min) == 0:
         return flow_l_min
+    # scipy costs a third of a second to import: only the runs that need it pay
     from scipy.signal import lfilter
 
     a = math.exp(-dt_s / tau_s)
@@ -74,41 +93,3 @@ class IntervalSampler:
 def _at(y: np.ndarray, i: np.ndarray, f: np.ndarray) -> np.ndarray:
     y0 = y[i]
     return y0 + f * (y[i + 1] - y0)
-
-
-def noise_level_l_min(residual_l_min: np.ndarray) -> float:
-    """The measurement noise of a residual series, robustly: the median absolute
-    deviation of its first differences (white noise of sigma gives differences of
-    sigma*sqrt(2); steps at the few edges do not move a median), scaled to a standard
-    deviation."""
-    d = np.diff(np.asarray(residual_l_min, dtype=float))
-    if len(d) < 2:
-        return 0.0
-    mad = np.median(np.abs(d - np.median(d)))
-    return float(1.4826 * mad / math.sqrt(2.0))
-
-
-# readings whose predicted neighbours agree to this share of the mean flow are "flat"
-FLAT_SHARE = 0.02
-MIN_FLAT_PAIRS = 12
-
-
-def flat_noise_l_min(measured_l_min: np.ndarray, predicted_l_min: np.ndarray
-                     ) -> tuple[float | None, int]:
-    """(the meter's noise, readings it rests on) from what cannot be model error: the
-    scatter between neighbouring readings where the prediction is flat (nothing
-    switches, or only a constant flow runs), as :func:`noise_level_l_min` takes it (the
-    median absolute difference, scaled to a standard deviation). A misfit of the model
-    cannot raise it, where the differences of the residual carry every stroke the model
-    places a little off. None where fewer than MIN_FLAT_PAIRS neighbours are flat."""
-    m = np.asarray(measured_l_min, dtype=float)
-    p = np.asarray(predicted_l_min, dtype=float)
-    if len(m) < 3:
-        return None, 0
-    tol = FLAT_SHARE * max(float(np.mean(np.abs(p))), 1e-9)
-    flat = np.abs(np.diff(p)) <= tol
-    d = np.diff(m)[flat]
-    if len(d) < MIN_FLAT_PAIRS:
-        return None, int(len(d))
-    mad = np.median(np.abs(d - np.median(d)))
-    return float(1.4826 * mad / math.sqrt(2.0)), int(len(d))

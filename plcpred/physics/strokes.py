@@ -13,7 +13,8 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from .group import Group, Supply
+from .drive import drive_params
+from .group import Group, PlantError, Supply
 
 _CACHE: dict = {}
 SEARCH_STEPS = 12
@@ -125,25 +126,14 @@ def _search_log_c(drive, chamber, extend, wanted_s, c0, t0, supply_pa, atmospher
     return best
 
 
-def auto_stroke_times(consumer, supply_pa: float, atmosphere_pa: float, ambient_k: float,
-                      file: str = "") -> tuple[float, float]:
+def auto_stroke_times(consumer, supply_pa: float, atmosphere_pa: float, ambient_k: float
+                      ) -> tuple[float, float]:
     """A machine file consumer's ``stroke_time_s = "auto"``: (extend, retract) seconds.
-    Raises MachineError when the drive does not reach an end (load too high for the
+    Raises PlantError when the drive does not reach an end (load too high for the
     supply, a spring stronger than the pressure)."""
-    from ..machine import MachineError
-    from .drive import drive_params
-
-    from .group import PlantError
-
-    try:
-        times = stroke_times_s(drive_params(consumer), supply_pa, atmosphere_pa, ambient_k)
-    except PlantError as e:
-        raise MachineError(file, f'consumer "{consumer.name}"',
-                           f'stroke_time_s = "auto": {e}') from None
+    times = stroke_times_s(drive_params(consumer), supply_pa, atmosphere_pa, ambient_k)
     for t, what in zip(times, ("extend", "retract")):
         if t is None:
-            raise MachineError(file, f'consumer "{consumer.name}"',
-                               f'stroke_time_s = "auto": the plant model says it does not '
-                               f"{what} fully within a minute at "
-                               f"{(supply_pa - atmosphere_pa) / 1e5:g} bar(g) with its load")
+            raise PlantError(f"the plant model says it does not {what} fully within a minute "
+                             f"at {(supply_pa - atmosphere_pa) / 1e5:g} bar(g) with its load")
     return times

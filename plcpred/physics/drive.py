@@ -1,5 +1,5 @@
 """A drive's physical parameters: what the machine file gives, and documented defaults for
-what catalogues do not (docs/physics.md: dynamic model).
+what catalogues do not (docs/reference/physics.md: dynamic model).
 
 Defaults (each overridable by the key named):
 
@@ -8,7 +8,7 @@ Defaults (each overridable by the key named):
   overall discharge coefficient of 0.6 (D2's orifice form), b = 0.3, m = 0.5. Without a
   tube the valve's orifice is taken as 0.2 x bore (2-12 mm), the usual valve size for a
   bore. A 4 mm tube gives C = 1.5e-8 m^3/(s Pa); the thesis measured 0.9-1.8e-8 for its
-  4 mm circuits (docs/physics.md: figures).
+  4 mm circuits (docs/reference/physics.md: figures).
 - **Dead volume**: the tube (valve to port) plus ``dead_volume_cm3`` inside the cylinder
   (default: 1 mm of stroke over the piston area, the ports and cushions).
 - **Moving mass** (``moving_mass_kg``): an aluminium piston 0.4 x bore thick and a steel
@@ -22,7 +22,7 @@ Defaults (each overridable by the key named):
 - **Spring** of a single-acting cylinder (``spring_n`` = [retracted, extended]): the force
   of 0.5 and 1.0 bar on the piston, so the cylinder needs about 1.2 bar gauge to extend.
 - **Heat transfer** (``heat_transfer_w_m2k``): 30 W/(m^2 K) between the air and walls at
-  ambient temperature, which gives the 0.3-3 s thermal time constants of docs/physics.md
+  ambient temperature, which gives the 0.3-3 s thermal time constants of docs/reference/physics.md
   section 7 for bores of 16-63 mm.
 - **Valve**: switching delay ``switch_delay_s`` (machine file), an optional linear ramp of
   the flow areas over ``switch_ramp_s``, and the pressure wave's transit time L/c down each
@@ -33,9 +33,9 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from ..air.flow import orifice_conductance
-from ..air.volumes import inner_dead_volumes_cm3, swept_areas_mm2
-from .physics import G_M_S2, tube_transit_s
+from .chamber import G_M_S2, tube_transit_s
+from .flow import orifice_conductance
+from .volumes import inner_dead_volumes_cm3, swept_areas_mm2
 
 SLOT_PRESSURE_PA = 6e5          # the "6 bar" friction is stated at
 ALUMINIUM_KG_M3, STEEL_KG_M3 = 2700.0, 7850.0

@@ -2,13 +2,21 @@
 per-consumer table."""
 from __future__ import annotations
 
+import base64
+import datetime
+import html
 import os
+import re
 import tempfile
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
 
-from .output import SHOWN_CONSUMERS
+from .. import __version__
+from ..air.cycles import arrival_period_s
+from ..air.sizing import receiver_deficit
+from ..output import SHOWN_CONSUMERS, atomic_write_text, write_json
 
 # a plotted point per pixel column of the 11-inch, 110 dpi figures (more are not seen,
 # and drawing a stacked layer costs per point)
@@ -69,15 +77,22 @@ def _cell(text: str) -> str:
     return str(text).replace("|", r"\|").replace("\n", " ")
 
 
+def pyplot():
+    """matplotlib's pyplot on the file-only Agg backend."""
+    # matplotlib costs half a second to import: only a run that plots pays it
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
 def plot_demand(profile, path, title="Air demand", shown: int | None = SHOWN_CONSUMERS,
                 cycle_s: float | None = None) -> None:
     """Stacked flow per consumer (the ``shown`` largest and "other" on a wide machine,
     see :meth:`DemandProfile.groups`) against time with the cumulative normal litres on
     a second axis; written through a temporary file. Over many cycles the bins are
     whole cycles: the run's period, or ``cycle_s`` for a run that does not repeat."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     k = _whole_periods(_bin_width(profile.n_cells),
                        getattr(profile, "period_s", None) or cycle_s,
@@ -121,7 +136,7 @@ def plot_demand(profile, path, title="Air demand", shown: int | None = SHOWN_CON
     h2, l2 = ax2.get_legend_handles_labels()
     ax.legend(h1[::-1] + h2, l1[::-1] + l2, loc="upper left", fontsize=8, framealpha=0.9)
     fig.tight_layout()
-    _save_fig(fig, path)
+    save_fig(fig, path)
 
 
 def _layers(profile, shown: int | None, edges_s):
@@ -171,8 +186,8 @@ def consumer_table(profile, shown: int | None = SHOWN_CONSUMERS) -> str:
 
 # ---------------------------------------------------------------------- sizing report
 
-def _save_fig(fig, path) -> None:
-    import matplotlib.pyplot as plt
+def save_fig(fig, path) -> None:
+    plt = pyplot()
 
     path = Path(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".png")
@@ -207,11 +222,8 @@ def plot_sizing(profile, sizing, path, title="Sizing") -> None:
     load-duration curve (the flow exceeded for a share of the time); the trend over the
     horizon as min, mean and max per bin (a long horizon is not drawn cell by cell); the
     receiver's deficit over the design flow."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
-    from .air.sizing import receiver_deficit
 
     total = profile.total_flow_l_min
     _, _, deficit = receiver_deficit(total, profile.dt_s, sizing.design_flow_l_min)
@@ -285,17 +297,14 @@ def plot_sizing(profile, sizing, path, title="Sizing") -> None:
     ax_def.set_title(f"largest {sizing.deficit_nl:.2f} NL -> receiver "
                      f"{sizing.receiver_l:.1f} L for {sizing.band_bar:g} bar", fontsize=10)
     fig.tight_layout()
-    _save_fig(fig, path)
+    save_fig(fig, path)
 
 
 def sizing_assumptions(machine, s, today=None) -> list[tuple[str, str]]:
     """What a sizing rests on, for the report's assumptions table: the files, pressures,
     reference condition, consumers, horizon, allowances, hours, energy and price, the
     tool's version and the date."""
-    import datetime
-    from collections import Counter
 
-    from . import __version__
     kinds = Counter(c.kind for c in machine.consumers)
     sec_how = s.sec_basis
     money = f" {s.currency}" if s.currency else ""
@@ -407,9 +416,6 @@ def sizing_markdown(machine_name: str, s, profile, plots=("sizing.png", "demand.
 def sizing_html(markdown_text: str, images: dict) -> str:
     """A self-contained HTML page from the report's Markdown (tables, headings, bold,
     images embedded as data URIs)."""
-    import base64
-    import html
-    import re
 
     def inline(text):
         text = html.escape(text)
@@ -458,7 +464,6 @@ def write_sizing_report(result, sizing, out_dir) -> list[Path]:
     """``sizing.json``, ``sizing.md``, ``sizing.html`` (plots embedded) and the two plots
     they show, for a :class:`~plcpred.air.Prediction` and its
     :class:`~plcpred.air.sizing.Sizing`."""
-    from .output import atomic_write_text, write_json
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -468,7 +473,6 @@ def write_sizing_report(result, sizing, out_dir) -> list[Path]:
     write_json(out / "sizing.json", data)
     plot_sizing(result.profile, sizing, out / "sizing.png",
                 title=f"{name}: demand and compressor design flow")
-    from .air.cycles import arrival_period_s
     plot_demand(result.profile, out / "demand.png", title=f"{name}: air demand",
                 shown=result.shown, cycle_s=arrival_period_s(result.machine, result.timeline))
     md = sizing_markdown(name, sizing, result.profile,
@@ -486,10 +490,7 @@ def plot_diagnosis(d, path) -> None:
     """``diagnose.png``: per run, the measured, predicted and corrected meter readings
     against the logger's clock with the located windows shaded; the cumulative NL of
     all three; the residual per context."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     runs = d.runs
     fig, axes = plt.subplots(len(runs) + 2, 1, figsize=(11, 3.0 * (len(runs) + 2)),
@@ -534,13 +535,11 @@ def plot_diagnosis(d, path) -> None:
     ax.axvline(0, color="black", lw=0.8)
     ax.set_xlabel("residual NL (measured - predicted); bars +/- 3 sigma of noise")
     ax.set_title(_plain(f"where the gap lies; verdict: {d.verdict}"), fontsize=10)
-    _save_fig(fig, path)
+    save_fig(fig, path)
 
 
 def diagnosis_html(d, png: bytes | None) -> str:
     """``diagnose.html``: the printed report and the plot in one self-contained page."""
-    import base64
-    import html
 
     parts = ["<!DOCTYPE html><html><head><meta charset='utf-8'><title>Diagnosis</title>",
              "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;"
@@ -560,10 +559,7 @@ def diagnosis_html(d, png: bytes | None) -> str:
 def plot_emulation(em, path, table=None) -> None:
     """``emulate.png``: the meter's log against the plant's true total flow; each drive's
     position; each drive's chamber pressures. ``table``: ``em.plant_table()`` if made."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    plt = pyplot()
 
     header, rows = table or em.plant_table()
     k = _bin_width(len(rows))
@@ -597,4 +593,4 @@ def plot_emulation(em, path, table=None) -> None:
         axes[2].set_ylabel("chamber, bar(g)")
         axes[2].legend(loc="upper right", fontsize=7, ncol=min(6, 2 * len(drives)))
     axes[-1].set_xlabel("time, s")
-    _save_fig(fig, path)
+    save_fig(fig, path)

@@ -1,4 +1,4 @@
-"""The physics of the virtual plant as plain functions (docs/physics.md: restrictions,
+"""The physics of the virtual plant as plain functions (docs/reference/physics.md: restrictions,
 dynamic model).
 
 Pressures are absolute, in pascal; temperatures in kelvin; mass flows in kg/s; lengths in
@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-from ..air.flow import GAMMA, P0_PA, R_J_KG_K, RHO0_KG_M3, T0_K
+from .flow import GAMMA, P0_PA, R_J_KG_K, RHO0_KG_M3, T0_K
 
 CP_J_KG_K = GAMMA * R_J_KG_K / (GAMMA - 1.0)
 G_M_S2 = 9.80665
@@ -64,7 +64,7 @@ def chamber_rates(p_pa, t_k, v_m3, dv_m3_s, q_net_kg_s, h_in_w, q_heat_w):
 
 def friction_n(v_m_s: float, direction: float, F_coulomb_n: float, F_static_n: float,
                v_stribeck_m_s: float, beta_ns_m: float, delta: float = 2.0) -> float:
-    """(docs/physics.md: dynamic model, Stribeck) friction of a sliding piston against its motion:
+    """(docs/reference/physics.md: dynamic model, Stribeck) friction of a sliding piston against its motion:
     ``sgn(v) (F_c + (F_s - F_c) exp(-(|v|/v_s)^delta)) + beta v``; ``direction`` gives the
     sign while v passes through 0 at a breakaway."""
     return direction * (F_coulomb_n + (F_static_n - F_coulomb_n)
@@ -72,7 +72,7 @@ def friction_n(v_m_s: float, direction: float, F_coulomb_n: float, F_static_n: f
 
 
 def mass_to_nl(mass_kg):
-    """Normal litres (ISO 8778 reference, docs/physics.md: reference conditions) of a
+    """Normal litres (ISO 8778 reference, docs/reference/physics.md: reference conditions) of a
     mass of air."""
     return mass_kg / RHO0_KG_M3 * 1000.0
 
@@ -86,12 +86,12 @@ def air_mass_kg(p_pa, v_m3, t_k):
 
 
 def tube_transit_s(length_m: float) -> float:
-    """The time a pressure wave needs to cross a tube (docs/physics.md: dynamic model: L_t / c)."""
+    """The time a pressure wave needs to cross a tube (docs/reference/physics.md: dynamic model: L_t / c)."""
     return length_m / SOUND_M_S
 
 
 def series_conductance(C1, b1, C2, b2):
-    """(docs/physics.md: restrictions, Eckersten) two restrictions in series:
+    """(docs/reference/physics.md: restrictions, Eckersten) two restrictions in series:
     ``1/C^3 = 1/C1^3 + 1/C2^3``, ``1 - b = C^2 ((1 - b1)/C1^2 + (1 - b2)/C2^2)``."""
     C = (C1 ** -3 + C2 ** -3) ** (-1.0 / 3.0)
     b = 1.0 - C * C * ((1.0 - b1) / C1 ** 2 + (1.0 - b2) / C2 ** 2)

@@ -2,7 +2,7 @@
 
 A group is either one drive on the ideal supply (the machine's regulated pressure, no
 dynamics), or every drive and passive consumer on one ``[[line]]``: a volume fed by a
-regulator, through which the drives exchange air (docs/physics.md: what D4 adds, shared supply).
+regulator, through which the drives exchange air (docs/reference/physics.md: what D4 adds, shared supply).
 
 The state is integrated with scipy's LSODA (stiff when chambers are nearly full, not
 stiff while pistons move) in *pieces*: a piece ends at the next discrete event (a valve
@@ -29,11 +29,9 @@ from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
 from ..errors import PlcpredError
-from .physics import (CP_J_KG_K, R_J_KG_K, air_mass_kg, chamber_rates, friction_n,
-                      mass_flow_kg_s)
+from .chamber import CP_J_KG_K, R_J_KG_K, air_mass_kg, chamber_rates, friction_n, mass_flow_kg_s
 
 MAX_PIECE_S = 30.0
 SETTLE_P_REL = 5e-4
@@ -270,7 +268,7 @@ class Group:
 
     # ------------------------------------------------------------------ physics
     def _force(self, i: int, p1: float, p2: float, y: float) -> float:
-        """(docs/physics.md: dynamic model, motion) the pressure, atmosphere, load and spring forces
+        """(docs/reference/physics.md: dynamic model, motion) the pressure, atmosphere, load and spring forces
         on drive i's piston, + extending."""
         P = self._par[i]
         return (p1 * P.area1 - p2 * P.area2 - self.p_atm * P.rod_area - P.load
@@ -441,6 +439,7 @@ class Group:
         """The line pressure at which the regulator feeds exactly the passive flows."""
         if not self.has_line:
             return self.supply.pressure_pa
+        # scipy costs a third of a second to import: only the runs that need it pay
         from scipy.optimize import brentq
 
         def gap(p):
@@ -697,6 +696,8 @@ class Group:
                                np.concatenate([[1.0], np.full(1 + self.k, 1e-11)])
                                if self.has_line else []])
         span = tb - t0
+        # scipy costs a third of a second to import: only a run that integrates pays it
+        from scipy.integrate import solve_ivp
         try:
             sol = solve_ivp(f, (0.0, span), x0, method="LSODA", dense_output=True,
                             events=events or None, rtol=1e-6, atol=atol,
