@@ -38,7 +38,8 @@ import numpy as np
 from .datafile import DataLines
 from .errors import PlcpredError
 from .outputs.report import pyplot, save_fig
-from .physics.flow import R_J_KG_K, RHO0_KG_M3, T0_K, phi
+from .physics.flow import phi
+from .physics.units import P_ATM_KPA, P_ATM_PA, PA_PER_BAR, R_J_KG_K, RHO0_KG_M3, T0_K, ZERO_C_K
 
 Z95 = 1.96
 R_FIT_MAX = 0.98       # tank curves: points nearer equilibrium than this are not fitted
@@ -97,7 +98,7 @@ class TankData:
 
 
 def _pressure(row_get, stem, atm_pa, default=None):
-    for suffix, to_pa in (("_bar_g", lambda v: v * 1e5 + atm_pa), ("_bar", lambda v: v * 1e5),
+    for suffix, to_pa in (("_bar_g", lambda v: v * PA_PER_BAR + atm_pa), ("_bar", lambda v: v * PA_PER_BAR),
                           ("_kpa", lambda v: v * 1e3)):
         v = row_get(stem + suffix)
         if v is not None:
@@ -123,7 +124,7 @@ def _column_range(name: str) -> tuple[float, float] | None:
     return None
 
 
-def read_flow_data(path, atmosphere_kpa: float = 101.325, temperature_c: float = 20.0):
+def read_flow_data(path, atmosphere_kpa: float = P_ATM_KPA, temperature_c: float = 20.0):
     """Steady-flow or tank data from a CSV (see the module note). Errors name the file,
     line and column. The file is read a line at a time: at most MAX_POINTS rows, each
     value of a known column within COLUMN_RANGES."""
@@ -186,7 +187,7 @@ def read_flow_data(path, atmosphere_kpa: float = 101.325, temperature_c: float =
             pu.append(p_up)
             pd.append(p_down)
             q.append(v["flow_l_min"])
-            tk.append(v.get("t_up_c", temperature_c) + 273.15)
+            tk.append(v.get("t_up_c", temperature_c) + ZERO_C_K)
         return FlowData(*(np.array(x) for x in (pu, pd, q, tk)), path=str(path))
     if "time_s" in col:
         t, p = [], []
@@ -341,7 +342,7 @@ def identify_steady(data: FlowData, method: str = "improved", fit_a: bool = Fals
 # ---------------------------------------------------------------------- tank
 
 def tank_pressure_pa(time_s, p_start_pa, C, b, m, volume_m3, mode="discharge",
-                     supply_pa=None, atmosphere_pa=101_325.0, temperature_k=T0_K, a=1.0):
+                     supply_pa=None, atmosphere_pa=P_ATM_PA, temperature_k=T0_K, a=1.0):
     """An isothermal tank's pressure emptying through (C, b, m) to atmosphere, or filling
     from ``supply_pa``: ``dP/dt = -/+ (R T / V) rho0 C P_u sqrt(T0/T) phi(P_d/P_u)``."""
     # scipy costs a third of a second to import: only the runs that need it pay
@@ -376,7 +377,7 @@ def tank_pressure_pa(time_s, p_start_pa, C, b, m, volume_m3, mode="discharge",
 
 
 def identify_tank(data: TankData, volume_l: float, mode: str = "discharge",
-                  supply_pa: float | None = None, atmosphere_pa: float = 101_325.0,
+                  supply_pa: float | None = None, atmosphere_pa: float = P_ATM_PA,
                   temperature_k: float = T0_K) -> FlowFit:
     """C, b, m from a tank's pressure curve (see the module note)."""
     # scipy costs a third of a second to import: only the runs that need it pay
@@ -393,11 +394,11 @@ def identify_tank(data: TankData, volume_l: float, mode: str = "discharge",
                             f"to {VOLUME_L[1]:g} l")
     if supply_pa is not None and not (math.isfinite(supply_pa)
                                       and atmosphere_pa < supply_pa <= MAX_PRESSURE_PA):
-        raise IdentifyError(f"the supply of {(supply_pa - atmosphere_pa) / 1e5:g} bar(g) "
+        raise IdentifyError(f"the supply of {(supply_pa - atmosphere_pa) / PA_PER_BAR:g} bar(g) "
                             "must lie above atmospheric and at most "
-                            f"{(MAX_PRESSURE_PA - atmosphere_pa) / 1e5:g} bar(g)")
+                            f"{(MAX_PRESSURE_PA - atmosphere_pa) / PA_PER_BAR:g} bar(g)")
     if not (math.isfinite(temperature_k) and 173.15 <= temperature_k <= 773.15):
-        raise IdentifyError(f"the temperature {temperature_k - 273.15:g} C is outside "
+        raise IdentifyError(f"the temperature {temperature_k - ZERO_C_K:g} C is outside "
                             "-100 to 500 C")
     v = volume_l / 1000.0
     p = data.p_pa
@@ -407,7 +408,7 @@ def identify_tank(data: TankData, volume_l: float, mode: str = "discharge",
     c0 = dp0 * v / (R_J_KG_K * temperature_k * RHO0_KG_M3 * p_up0)
     if not (math.isfinite(c0) and C_RANGE[0] <= c0 <= C_RANGE[1]):
         raise IdentifyError(
-            f"the curve's first step ({(p[1] - p[0]) / 1e5:.3g} bar in "
+            f"the curve's first step ({(p[1] - p[0]) / PA_PER_BAR:.3g} bar in "
             f"{data.time_s[1] - data.time_s[0]:.3g} s from a {volume_l:g} l tank) needs a C "
             f"of {c0:.3g} m^3/(s Pa), outside {C_RANGE[0]:g} to {C_RANGE[1]:g}: check "
             "time_s (seconds), the pressures' unit and --volume-l")
@@ -429,7 +430,7 @@ def identify_tank(data: TankData, volume_l: float, mode: str = "discharge",
     fit = least_squares(resid, [1.0, 0.3, 0.5], bounds=([0.1, -0.5, 0.1], [10.0, 0.95, 3.0]),
                         diff_step=1e-4)
     ci = _ci(fit.jac, fit.fun, 3)
-    rms = float(np.sqrt(np.mean(fit.fun ** 2))) * span / 1e5
+    rms = float(np.sqrt(np.mean(fit.fun ** 2))) * span / PA_PER_BAR
     return _checked(FlowFit(float(fit.x[0] * c0), float(fit.x[1]), float(fit.x[2]), 1.0,
                             {"C": ci[0] * c0, "b": ci[1], "m": ci[2]}, f"tank {mode}",
                             len(p), rms, "bar"), _source(data, f"tank {mode}"),
@@ -437,7 +438,7 @@ def identify_tank(data: TankData, volume_l: float, mode: str = "discharge",
 
 
 def plot_fit(data, fit: FlowFit, path, volume_l=None, mode="discharge", supply_pa=None,
-             atmosphere_pa=101_325.0, temperature_k=T0_K) -> None:
+             atmosphere_pa=P_ATM_PA, temperature_k=T0_K) -> None:
     """The fit plot: the flow ratio against the pressure ratio (steady flow), or the
     tank's pressure against time, with the fitted curve."""
     plt = pyplot()
@@ -456,8 +457,8 @@ def plot_fit(data, fit: FlowFit, path, volume_l=None, mode="discharge", supply_p
         model = tank_pressure_pa(data.time_s, data.p_pa[0], fit.C, fit.b, fit.m,
                                  volume_l / 1000.0, mode, supply_pa, atmosphere_pa,
                                  temperature_k)
-        ax.plot(data.time_s, data.p_pa / 1e5, "o", ms=3, color="black", label="data")
-        ax.plot(data.time_s, model / 1e5, color="tab:red", label="fit")
+        ax.plot(data.time_s, data.p_pa / PA_PER_BAR, "o", ms=3, color="black", label="data")
+        ax.plot(data.time_s, model / PA_PER_BAR, color="tab:red", label="fit")
         ax.set_xlabel("time, s")
         ax.set_ylabel("tank pressure, bar (absolute)")
     ax.set_title(f"{fit.method}: C {fit.C:.3e} m^3/(s Pa), b {fit.b:.3f}, m {fit.m:.3f}",

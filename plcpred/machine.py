@@ -24,6 +24,7 @@ from .parser.files import confined_to, env_roots, read_bytes, resolved
 from .physics.group import PlantError
 from .physics.meter import REFERENCES
 from .physics.strokes import auto_stroke_times
+from .physics.units import BAR_PER_PSI, P_ATM_KPA, P_ATM_PA, PA_PER_BAR, T0_K, ZERO_C_K
 
 CYLINDER_KINDS = ("single_acting", "double_acting", "double_rod", "rodless", "semi_rotary",
                   "gripper")
@@ -83,7 +84,7 @@ class Consumer:
     partial_strokes: bool = False       # air-model option: strokes cut short (off)
     line: str | None = None             # the [[line]] it hangs on (plant only)
     # (supply Pa, atmosphere Pa, ambient K, file) for stroke times from the plant
-    supply_context: tuple = (701_325.0, 101_325.0, 293.15, "")
+    supply_context: tuple = (6.0 * PA_PER_BAR + P_ATM_PA, P_ATM_PA, T0_K, "")
     plant: dict = field(default_factory=dict)  # plant-only keys (emulate), validated
 
     @property
@@ -173,7 +174,7 @@ class Machine:
     program_path: Path
     scan_ms: float = 10.0
     supply_bar_g: float = 6.0
-    atmosphere_kpa: float = 101.325
+    atmosphere_kpa: float = P_ATM_KPA
     ambient_c: float = 20.0
     signals: dict[str, str] = field(default_factory=dict)  # hardware address -> name
     inputs: list[InputSchedule] = field(default_factory=list)
@@ -270,7 +271,6 @@ MAX_PULSES = 1_000_000
 # factory compressed air is 6-10 bar(g), high-pressure networks up to 16: a larger number
 # is most likely psi typed as bar (87 psi = 6 bar)
 PLAUSIBLE_SUPPLY_BAR_G = 16.0
-PSI_TO_BAR = 0.0689476
 
 
 class _Reader:
@@ -653,12 +653,12 @@ def machine_from_data(data: dict, path, allowed_roots=None) -> Machine:
         allowed_roots=roots,
         scan_ms=r.number("scan_ms", 10.0, positive=True),
         supply_bar_g=r.number("supply_bar_g", required=True, nonneg=True),
-        atmosphere_kpa=r.number("atmosphere_kpa", 101.325, positive=True),
+        atmosphere_kpa=r.number("atmosphere_kpa", P_ATM_KPA, positive=True),
         ambient_c=r.number("ambient_c", 20.0),
     )
     if "cycle_signal" in data["machine"]:
         machine.cycle_signal = _signal_name(r, "cycle_signal", data["machine"]["cycle_signal"])
-    if machine.ambient_c <= -273.15:
+    if machine.ambient_c <= -ZERO_C_K:
         raise r.error("ambient_c must be above absolute zero")
     libraries = data["machine"].get("libraries", [])
     if not isinstance(libraries, list) or not all(isinstance(x, str) and x for x in libraries):
@@ -695,9 +695,9 @@ def machine_from_data(data: dict, path, allowed_roots=None) -> Machine:
         machine.warnings.append(
             f"{file}: [machine]: supply_bar_g = {machine.supply_bar_g:g} is above what "
             f"factory air runs at (up to {PLAUSIBLE_SUPPLY_BAR_G:g} bar(g)); if it is in "
-            f"psi, that is {machine.supply_bar_g * PSI_TO_BAR:.2f} bar(g)")
-    supply_context = ((machine.supply_bar_g * 1e5 + machine.atmosphere_kpa * 1e3),
-                      machine.atmosphere_kpa * 1e3, machine.ambient_c + 273.15, file)
+            f"psi, that is {machine.supply_bar_g * BAR_PER_PSI:.2f} bar(g)")
+    supply_context = ((machine.supply_bar_g * PA_PER_BAR + machine.atmosphere_kpa * 1e3),
+                      machine.atmosphere_kpa * 1e3, machine.ambient_c + ZERO_C_K, file)
     for c in machine.consumers:
         c.supply_context = supply_context
         if c.stroke_time_s == "auto":

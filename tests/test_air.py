@@ -11,11 +11,18 @@ import numpy as np
 import pytest
 
 from plcpred.air import activation_matrix, consumer_models, default_dt, demand_profile
-from plcpred.air.demand import (ConsumerModel, cut_stroke_volumes_nl, residual_fill_nl,
-                                 stroke_cuts, stroke_rectangles, valve_transitions)
-from plcpred.physics.flow import (P0_PA, P_ATM_PA, flow_nl_min, orifice_conductance, phi)
-from plcpred.physics.volumes import consumer_stroke_volumes_nl
+from plcpred.air.demand import (
+    ConsumerModel,
+    cut_stroke_volumes_nl,
+    residual_fill_nl,
+    stroke_cuts,
+    stroke_rectangles,
+    valve_transitions,
+)
 from plcpred.machine import Consumer, load_machine
+from plcpred.physics.flow import flow_nl_min, orifice_conductance, phi
+from plcpred.physics.units import P0_PA, P_ATM_PA
+from plcpred.physics.volumes import consumer_stroke_volumes_nl
 from plcpred.sequencer.timeline import Signal, Timeline
 
 SAMPLES = Path(__file__).resolve().parent.parent / "samples"

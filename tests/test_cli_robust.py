@@ -8,6 +8,7 @@ import sys
 import pytest
 
 from plcpred import cli
+from plcpred.cli import check as cli_check
 from plcpred.output import MANIFEST, OutputError, check_out_dir, dumps_json, output_dir
 from conftest import SAMPLES
 
@@ -43,7 +44,7 @@ def test_every_writing_command_checks_out(command, tmp_path, capsys):
 def test_internal_error_is_one_line_with_exit_3_and_debug_shows_it(monkeypatch, capsys):
     def broken(args):
         raise RuntimeError("boom\nsecond line")
-    monkeypatch.setattr(cli, "cmd_check", broken)
+    monkeypatch.setattr(cli_check, "cmd_check", broken)
     assert cli.main(["check", "x.st"]) == 3
     err = capsys.readouterr().err
     assert err.strip() == ("plcpred: internal error: RuntimeError: boom (please report it; "
@@ -55,7 +56,7 @@ def test_internal_error_is_one_line_with_exit_3_and_debug_shows_it(monkeypatch, 
 def test_user_errors_not_caught_by_a_command_exit_2(monkeypatch, capsys):
     def failing(args):
         raise OutputError("--out x: disk full")
-    monkeypatch.setattr(cli, "cmd_check", failing)
+    monkeypatch.setattr(cli_check, "cmd_check", failing)
     assert cli.main(["check", "x.st"]) == 2
     assert capsys.readouterr().err.strip() == "plcpred: error: --out x: disk full"
 

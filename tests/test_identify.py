@@ -66,7 +66,7 @@ def test_iso6358_method_fixes_m_and_finds_b():
 def test_knife_circuit_from_plant_flows():
     p_up, p_down = bench_points()
     rng = np.random.default_rng(7)
-    q = np.array([physics.mass_flow_kg_s(*KNIVES, pu, 293.15, pd, 293.15)
+    q = np.array([physics.signed_mass_flow_kg_s(*KNIVES, pu, 293.15, pd, 293.15)
                   for pu, pd in zip(p_up, p_down)]) / 1.185 * 60_000.0
     q *= 1 + 0.003 * rng.standard_normal(len(q))
     fit = identify_steady(FlowData(p_up, p_down, q, np.full(len(q), 293.15)))

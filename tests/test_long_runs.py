@@ -5,12 +5,13 @@ import re
 
 import numpy as np
 import pytest
+from conftest import SAMPLES
 
 from plcpred import cli, predict, unfold
 from plcpred.air.predict import GridError
+from plcpred.cli import args as cli_args
 from plcpred.sequencer import SequencerError, TimelineTooLarge
 from plcpred.sequencer.timeline import DEFAULT_MAX_CHANGES, Timeline
-from conftest import SAMPLES
 
 PICK = SAMPLES / "pick_place.toml"
 
@@ -99,7 +100,7 @@ def test_too_fine_a_grid_is_refused_before_it_is_built(tmp_path, capsys):
 
 
 def test_cli_default_matches_the_sequencer():
-    assert cli.DEFAULT_MAX_CHANGES == DEFAULT_MAX_CHANGES
+    assert cli_args.DEFAULT_MAX_CHANGES == DEFAULT_MAX_CHANGES
     assert re.search(r"--max-events N", cli.build_parser().format_help()) is None  # per command
 
 
@@ -114,8 +115,8 @@ def test_a_periodic_input_starting_after_the_horizon(tmp_path):
 
 
 def test_jittered_schedules_are_the_same_whatever_the_block_size(monkeypatch):
-    from plcpred.sequencer.executor import Schedule
     from plcpred.machine import InputSchedule
+    from plcpred.sequencer.executor import Schedule
     spec = InputSchedule("x", period_s=1.0, offset_s=0.3, pulse_ms=100, jitter_s=0.2, seed=7)
 
     def edges(block):

@@ -56,18 +56,18 @@ def hand_d2_nl_min(C, b, m, p_up, p_down, a=1.0):
 
 def test_flow_function_is_d2_and_runs_both_ways():
     for r in (0.1, 0.3, 0.6, 0.9, 0.99):
-        q = physics.mass_flow_kg_s(6.56e-9, 0.22, 0.55, 5e5, T0, 5e5 * r, T0)
+        q = physics.signed_mass_flow_kg_s(6.56e-9, 0.22, 0.55, 5e5, T0, 5e5 * r, T0)
         assert q == pytest.approx(hand_d2_nl_min(6.56e-9, 0.22, 0.55, 5e5, 5e5 * r)
                                   / 60_000.0 * RHO0, rel=1e-9)
     # the laminar tail near r = 1 lies below D2, above zero, and falls to 0 at r = 1
     at_tail = hand_d2_nl_min(1e-8, 0.3, 0.5, 5e5, 5e5 * physics.R_LAMINAR) / 60_000 * RHO0
     for r in (0.996, 0.998, 0.9999):
-        q = physics.mass_flow_kg_s(1e-8, 0.3, 0.5, 5e5, T0, 5e5 * r, T0)
+        q = physics.signed_mass_flow_kg_s(1e-8, 0.3, 0.5, 5e5, T0, 5e5 * r, T0)
         hand = hand_d2_nl_min(1e-8, 0.3, 0.5, 5e5, 5e5 * r) / 60_000.0 * RHO0
         assert 0 < q < hand < at_tail
-    assert physics.mass_flow_kg_s(1e-8, 0.3, 0.5, 5e5, T0, 5e5, T0) == 0.0
-    back = physics.mass_flow_kg_s(1e-8, 0.3, 0.5, 2e5, T0, 5e5, T0)
-    assert back == pytest.approx(-physics.mass_flow_kg_s(1e-8, 0.3, 0.5, 5e5, T0, 2e5, T0))
+    assert physics.signed_mass_flow_kg_s(1e-8, 0.3, 0.5, 5e5, T0, 5e5, T0) == 0.0
+    back = physics.signed_mass_flow_kg_s(1e-8, 0.3, 0.5, 2e5, T0, 5e5, T0)
+    assert back == pytest.approx(-physics.signed_mass_flow_kg_s(1e-8, 0.3, 0.5, 5e5, T0, 2e5, T0))
 
 
 def test_eckersten_series_of_two_equal_restrictions():

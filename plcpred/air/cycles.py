@@ -17,7 +17,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..sequencer.timeline import NS, Timeline
-from .demand import DemandSteps
 
 
 @dataclass

@@ -1,6 +1,7 @@
-"""From a timeline to an air-demand profile: the activation/transition model (docs/reference/physics.md
-section 2), kept as one rectangle of air per stroke or on-period and read onto a regular
-time grid where asked (a repeating machine: one period's rectangles, repeated).
+"""From a timeline to an air-demand profile: the activation/transition model
+(docs/reference/physics.md section 2), kept as one rectangle of air per stroke or on-period
+and read onto a regular time grid where asked (a repeating machine: one period's
+rectangles, repeated).
 
 * **Active consumers** (cylinders, semi-rotary drives, grippers) take their D1 volume on
   each change of their valve's effective command: rising (extend, cap end) or falling
@@ -10,8 +11,8 @@ time grid where asked (a repeating machine: one period's rectangles, repeated).
 * **Passive consumers** (nozzles, air knives) flow at their D2 rate while their output is
   on; **leaks** always.
 
-Shape of a stroke: nothing flows during the valve's switching delay (docs/reference/physics.md: dynamic model:
-flow starts t_sw after the command); then the volume is spread evenly (a rectangle) over
+Shape of a stroke: nothing flows during the valve's switching delay
+(docs/reference/physics.md: dynamic model: flow starts t_sw after the command); then the volume is spread evenly (a rectangle) over
 the stroke time in that direction, while the piston moves. Without a stroke time it is
 spread over the switching delay from the edge, and without either it lands at the edge
 instant. Volumes are placed on the grid by integrating exactly, so each edge's total is
@@ -37,7 +38,8 @@ import numpy as np
 from ..errors import PlcpredError
 from ..machine import CYLINDER_KINDS
 from ..output import SHOWN_CONSUMERS, atomic_writer, csv_column_name, write_json
-from ..physics.flow import bar_g_to_pa, celsius_to_k, flow_nl_min, orifice_conductance
+from ..physics.flow import flow_nl_min, orifice_conductance
+from ..physics.units import bar_g_to_pa, celsius_to_k
 from ..physics.volumes import consumer_stroke_volumes_nl, dead_fill_volumes_nl, swept_volumes_nl
 from ..sequencer.timeline import NS, seconds_texts
 

@@ -34,7 +34,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ..machine import HOURS_PER_YEAR
-from ..physics.flow import P0_PA
+from ..physics.units import CFM_M3_MIN, P0_PA, P_ATM_KPA, PA_PER_BAR
 from .cycles import cycles_of, last_switch_s, rest_mask
 
 DEFAULT_ALLOWANCE = 0.10
@@ -95,7 +95,7 @@ class Sizing:
         return asdict(self)
 
 
-def specific_energy_kwh_per_nm3(supply_bar_g: float, atmosphere_kpa: float = 101.325,
+def specific_energy_kwh_per_nm3(supply_bar_g: float, atmosphere_kpa: float = P_ATM_KPA,
                                 isothermal_efficiency: float = ISOTHERMAL_EFFICIENCY
                                 ) -> float:
     """(E1) Specific energy of compressed air, kWh per normal m^3 (ISO 8778): the
@@ -105,12 +105,12 @@ def specific_energy_kwh_per_nm3(supply_bar_g: float, atmosphere_kpa: float = 101
     if isothermal_efficiency <= 0:
         raise ValueError("the isothermal efficiency must be positive")
     p_atm_pa = atmosphere_kpa * 1000.0
-    p_supply_pa = p_atm_pa + supply_bar_g * 1e5
+    p_supply_pa = p_atm_pa + supply_bar_g * PA_PER_BAR
     work_j_per_nm3 = P0_PA * math.log(p_supply_pa / p_atm_pa)
     return work_j_per_nm3 / 3.6e6 / isothermal_efficiency
 
 
-CFM_M3_MIN = 0.028316846592          # one cubic foot per minute, in m^3/min
+
 
 
 @dataclass(frozen=True)
@@ -136,17 +136,17 @@ class CompressorSheet:
     def from_kw_per_100cfm(cls, kw_per_100cfm: float, rated_bar_g: float = 7.0):
         return cls(kw_per_100cfm / (100.0 * CFM_M3_MIN), rated_bar_g)
 
-    def isothermal_efficiency(self, atmosphere_kpa: float = 101.325) -> float:
+    def isothermal_efficiency(self, atmosphere_kpa: float = P_ATM_KPA) -> float:
         sheet_kwh_per_nm3 = self.kw_per_m3_min / 60.0          # kW per m^3/min
         return specific_energy_kwh_per_nm3(self.rated_bar_g, atmosphere_kpa, 1.0) \
             / sheet_kwh_per_nm3
 
-    def sec_kwh_per_nm3(self, supply_bar_g: float, atmosphere_kpa: float = 101.325
+    def sec_kwh_per_nm3(self, supply_bar_g: float, atmosphere_kpa: float = P_ATM_KPA
                         ) -> float:
         return specific_energy_kwh_per_nm3(supply_bar_g, atmosphere_kpa,
                                            self.isothermal_efficiency(atmosphere_kpa))
 
-    def describe(self, atmosphere_kpa: float = 101.325) -> str:
+    def describe(self, atmosphere_kpa: float = P_ATM_KPA) -> str:
         return (f"the compressor's data sheet: {self.kw_per_m3_min:.3g} kW per m³/min "
                 f"({self.kw_per_m3_min * 100.0 * CFM_M3_MIN:.3g} kW per 100 cfm) at "
                 f"{self.rated_bar_g:g} bar(g), "
@@ -226,7 +226,7 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
     mean = profile.mean_l_min
     design = mean * (1.0 + allowance)
     deficit, at_s, _ = receiver_deficit(total, profile.dt_s, design)
-    receiver_l = deficit * P0_PA / (band_bar * 1e5)
+    receiver_l = deficit * P0_PA / (band_bar * PA_PER_BAR)
     split = profile.by_role_nl()
     idle = idle_mask(profile, idle_after_s)
     if waiting is not None:

@@ -9,11 +9,11 @@ less). A diagnosis that reads that error as a fault blames healthy machines, sin
 free parameter absorbs a few per cent.
 
 So the nominal model is allowed to flex within the band before any effect is credited:
-:class:`ModelForm` is a nuisance "effect" with a parameter per consumer (where within
-its band each drive's strokes lie, a factor on each nozzle and leak), fitted like the
-clock and the meter's lag. An effect is a finding only where it beats the nominal model flexed so, on
-held-out samples (:func:`~plcpred.diagnose.core.diagnose`), and :func:`band_pct` states
-the band in total air for the report.
+:class:`ModelForm` is a nuisance "effect" with a parameter per consumer (where within its band each
+drive's strokes lie, a factor on each nozzle and leak), fitted like the clock and the meter's lag.
+An effect is a finding only where it beats the nominal model flexed so, on held-out samples
+(:func:`~plcpred.diagnose.core.diagnose`), and :func:`band_pct` states the band in total air for the
+report.
 """
 from __future__ import annotations
 

@@ -18,8 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..air.demand import sonic_conductance
-from ..physics.flow import P0_PA, T0_K, bar_g_to_pa, celsius_to_k, flow_nl_min
+from ..physics.flow import flow_nl_min
 from ..physics.meter import REFERENCES, reference_factor
+from ..physics.units import P0_PA, T0_K, bar_g_to_pa, celsius_to_k
 from ..physics.volumes import held_air_nl, inner_dead_volumes_cm3
 from .model import MachineModel, ModelParams
 
@@ -547,8 +548,8 @@ class ValveDelay(_Timing):
 
 
 class StrokeTime(_Timing):
-    """Strokes faster or slower than the file says (a flow control turned, a payload):
-    a factor on each drive's stroke times. Air per stroke stays (docs/reference/physics.md: what D4 adds); its
+    """Strokes faster or slower than the file says (a flow control turned, a payload): a factor on
+    each drive's stroke times. Air per stroke stays (docs/reference/physics.md: what D4 adds); its
     shape in time changes."""
     name, title = "stroke_time", "different stroke times"
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-from .flow import GAMMA, P0_PA, R_J_KG_K, RHO0_KG_M3, T0_K
+from .units import GAMMA, P0_PA, R_J_KG_K, RHO0_KG_M3, T0_K
 
 CP_J_KG_K = GAMMA * R_J_KG_K / (GAMMA - 1.0)
 G_M_S2 = 9.80665
@@ -24,9 +24,11 @@ SOUND_M_S = 343.0          # speed of sound at 20 degC: the pressure wave's spee
 R_LAMINAR = 0.995
 
 
-def phi(r: float, b: float, m: float, a: float = 1.0) -> float:
-    """(D2) the flow function of the extended ISO 6358 equation for ``r = P_d/P_u``
-    (0 <= r), with the laminar tail above ``R_LAMINAR * a`` (see module note)."""
+def phi_with_laminar_tail(r: float, b: float, m: float, a: float = 1.0) -> float:
+    """(D2) the flow function of :func:`.flow.phi` for one ``r = P_d/P_u`` (0 <= r),
+    with the laminar tail above ``R_LAMINAR * a`` (see module note). A scalar function of
+    its own because the chambers' equations call it per step, where numpy's overhead on
+    one value costs more than the arithmetic."""
     if r <= b:
         return 1.0
     if r >= a:
@@ -37,15 +39,17 @@ def phi(r: float, b: float, m: float, a: float = 1.0) -> float:
     return sub if r <= r_lam else sub * (a - r) / (a - r_lam)
 
 
-def mass_flow_kg_s(C: float, b: float, m: float, p_a_pa: float, t_a_k: float,
-                   p_b_pa: float, t_b_k: float, a: float = 1.0) -> float:
+def signed_mass_flow_kg_s(C: float, b: float, m: float, p_a_pa: float, t_a_k: float,
+                          p_b_pa: float, t_b_k: float, a: float = 1.0) -> float:
     """(D2) mass flow from side a to side b through a restriction (C, b, m, a), negative
     when the air flows from b to a: ``qm = rho0 C P_u sqrt(T0/T_u) phi(P_d/P_u)`` with
-    the upstream side whichever pressure is higher."""
+    the upstream side whichever pressure is higher (:func:`.flow.mass_flow_kg_s` with
+    the laminar tail, for one value)."""
     if p_a_pa >= p_b_pa:
-        return RHO0_KG_M3 * C * p_a_pa * math.sqrt(T0_K / t_a_k) * phi(p_b_pa / p_a_pa,
-                                                                          b, m, a)
-    return -RHO0_KG_M3 * C * p_b_pa * math.sqrt(T0_K / t_b_k) * phi(p_a_pa / p_b_pa, b, m, a)
+        return RHO0_KG_M3 * C * p_a_pa * math.sqrt(T0_K / t_a_k) * phi_with_laminar_tail(
+            p_b_pa / p_a_pa, b, m, a)
+    return -RHO0_KG_M3 * C * p_b_pa * math.sqrt(T0_K / t_b_k) * phi_with_laminar_tail(
+        p_a_pa / p_b_pa, b, m, a)
 
 
 def chamber_rates(p_pa, t_k, v_m3, dv_m3_s, q_net_kg_s, h_in_w, q_heat_w):
@@ -64,8 +68,8 @@ def chamber_rates(p_pa, t_k, v_m3, dv_m3_s, q_net_kg_s, h_in_w, q_heat_w):
 
 def friction_n(v_m_s: float, direction: float, F_coulomb_n: float, F_static_n: float,
                v_stribeck_m_s: float, beta_ns_m: float, delta: float = 2.0) -> float:
-    """(docs/reference/physics.md: dynamic model, Stribeck) friction of a sliding piston against its motion:
-    ``sgn(v) (F_c + (F_s - F_c) exp(-(|v|/v_s)^delta)) + beta v``; ``direction`` gives the
+    """(docs/reference/physics.md: dynamic model, Stribeck) friction of a sliding piston against its
+    motion: ``sgn(v) (F_c + (F_s - F_c) exp(-(|v|/v_s)^delta)) + beta v``; ``direction`` gives the
     sign while v passes through 0 at a breakaway."""
     return direction * (F_coulomb_n + (F_static_n - F_coulomb_n)
                         * math.exp(-(abs(v_m_s) / v_stribeck_m_s) ** delta)) + beta_ns_m * v_m_s
@@ -86,7 +90,8 @@ def air_mass_kg(p_pa, v_m3, t_k):
 
 
 def tube_transit_s(length_m: float) -> float:
-    """The time a pressure wave needs to cross a tube (docs/reference/physics.md: dynamic model: L_t / c)."""
+    """The time a pressure wave needs to cross a tube (docs/reference/physics.md: dynamic
+    model: L_t / c)."""
     return length_m / SOUND_M_S
 
 
@@ -99,5 +104,6 @@ def series_conductance(C1, b1, C2, b2):
 
 
 __all__ = ["CP_J_KG_K", "G_M_S2", "P0_PA", "R_LAMINAR", "SOUND_M_S", "air_mass_kg",
-           "chamber_rates", "friction_n", "mass_flow_kg_s", "mass_to_nl", "phi",
+           "chamber_rates", "friction_n", "signed_mass_flow_kg_s", "mass_to_nl",
+           "phi_with_laminar_tail",
            "series_conductance", "tube_transit_s"]

@@ -2,8 +2,8 @@
 volumetric flow at the reference condition (D3) and the orifice form for nozzles whose
 sonic conductance is not known.
 
-Reference condition (docs/reference/physics.md: reference conditions, ISO 8778 "ANR"): T0 = 293.15 K, P0 = 100 kPa,
-rho0 = 1.185 kg/m^3. Pressures here are absolute, in pascal, unless a name says otherwise.
+Pressures here are absolute, in pascal, unless a name says otherwise; the reference
+condition (ISO 8778) is in :mod:`.units`.
 """
 from __future__ import annotations
 
@@ -11,12 +11,7 @@ import math
 
 import numpy as np
 
-T0_K = 293.15
-P0_PA = 100_000.0
-RHO0_KG_M3 = 1.185
-R_J_KG_K = 287.05
-GAMMA = 1.4
-P_ATM_PA = 101_325.0
+from .units import GAMMA, R_J_KG_K, RHO0_KG_M3, T0_K
 
 # sqrt(gamma/R * (2/(gamma+1))^((gamma+1)/(gamma-1))), the choked orifice constant
 _ORIFICE_K = math.sqrt(GAMMA / R_J_KG_K * (2 / (GAMMA + 1)) ** ((GAMMA + 1) / (GAMMA - 1)))
@@ -50,17 +45,9 @@ def flow_nl_min(C_m3_s_pa: float, b: float, m: float, a: float, p_up_pa, p_down_
 
 
 def orifice_conductance(orifice_mm: float, Cd: float) -> float:
-    """The sonic conductance (m^3/(s Pa)) equivalent to a sharp orifice of diameter
-    ``orifice_mm`` and discharge coefficient ``Cd`` (docs/reference/physics.md: restrictions, orifice form:
-    ``qm = Cd * A * P_u / sqrt(T_u) * K``; matching D2 when choked gives
-    ``C = Cd * A * K / (rho0 * sqrt(T0))``)."""
+    """The sonic conductance (m^3/(s Pa)) equivalent to a sharp orifice of diameter ``orifice_mm``
+    and discharge coefficient ``Cd`` (docs/reference/physics.md: restrictions, orifice form: ``qm =
+    Cd * A * P_u / sqrt(T_u) * K``; matching D2 when choked gives ``C = Cd * A * K / (rho0 *
+    sqrt(T0))``)."""
     area_m2 = math.pi * (orifice_mm / 1000.0) ** 2 / 4.0
     return Cd * area_m2 * _ORIFICE_K / (RHO0_KG_M3 * math.sqrt(T0_K))
-
-
-def bar_g_to_pa(p_bar_g: float, atmosphere_kpa: float = 101.325) -> float:
-    return p_bar_g * 1e5 + atmosphere_kpa * 1e3
-
-
-def celsius_to_k(t_c: float) -> float:
-    return t_c + 273.15

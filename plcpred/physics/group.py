@@ -1,8 +1,8 @@
 """Drives that share one supply, integrated together between discrete events.
 
-A group is either one drive on the ideal supply (the machine's regulated pressure, no
-dynamics), or every drive and passive consumer on one ``[[line]]``: a volume fed by a
-regulator, through which the drives exchange air (docs/reference/physics.md: what D4 adds, shared supply).
+A group is either one drive on the ideal supply (the machine's regulated pressure, no dynamics), or
+every drive and passive consumer on one ``[[line]]``: a volume fed by a regulator, through which the
+drives exchange air (docs/reference/physics.md: what D4 adds, shared supply).
 
 The state is integrated with scipy's LSODA (stiff when chambers are nearly full, not
 stiff while pistons move) in *pieces*: a piece ends at the next discrete event (a valve
@@ -31,7 +31,15 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import PlcpredError
-from .chamber import CP_J_KG_K, R_J_KG_K, air_mass_kg, chamber_rates, friction_n, mass_flow_kg_s
+from .chamber import (
+    CP_J_KG_K,
+    R_J_KG_K,
+    air_mass_kg,
+    chamber_rates,
+    friction_n,
+    signed_mass_flow_kg_s,
+)
+from .units import P_ATM_PA, PA_PER_BAR
 
 MAX_PIECE_S = 30.0
 SETTLE_P_REL = 5e-4
@@ -181,7 +189,7 @@ class _Dense:
 class Group:
     """Drives on one supply. Times are float seconds; ``t`` is how far it is integrated."""
 
-    def __init__(self, drives, supply: Supply, passives=(), atmosphere_pa=101_325.0,
+    def __init__(self, drives, supply: Supply, passives=(), atmosphere_pa=P_ATM_PA,
                  ambient_k=293.15, cache: dict | None = None):
         self.drives = list(drives)
         self.supply = supply
@@ -268,14 +276,14 @@ class Group:
 
     # ------------------------------------------------------------------ physics
     def _force(self, i: int, p1: float, p2: float, y: float) -> float:
-        """(docs/reference/physics.md: dynamic model, motion) the pressure, atmosphere, load and spring forces
-        on drive i's piston, + extending."""
+        """(docs/reference/physics.md: dynamic model, motion) the pressure, atmosphere, load and
+        spring forces on drive i's piston, + extending."""
         P = self._par[i]
         return (p1 * P.area1 - p2 * P.area2 - self.p_atm * P.rod_area - P.load
                 - (P.spring0 + P.spring_rate * y))
 
     def _passive_flows(self, p_line, on):
-        return np.array([mass_flow_kg_s(self.pC[j], self.pb[j], self.pm[j],
+        return np.array([signed_mass_flow_kg_s(self.pC[j], self.pb[j], self.pm[j],
                                         min(p_line, self.p_own[j]), self.t_amb,
                                         self.p_atm, self.t_amb, self.pa[j]) if on[j] else 0.0
                          for j in range(self.k)])
@@ -285,7 +293,7 @@ class Group:
         opening = min(max((s.pressure_pa - p_line) / s.droop_pa, 0.0), 1.0)
         if opening <= 0.0:
             return 0.0
-        q = opening * mass_flow_kg_s(s.C, s.b, s.m, s.network_pa, s.temperature_k, p_line,
+        q = opening * signed_mass_flow_kg_s(s.C, s.b, s.m, s.network_pa, s.temperature_k, p_line,
                                      s.temperature_k)
         return max(q, 0.0)   # a regulator does not feed the network back
 
@@ -293,15 +301,16 @@ class Group:
         """Mass flows (kg/s) of drive i: supply->1, 1->exhaust, supply->2, 2->exhaust."""
         P = self._par[i]
         p_atm, t_amb = self.p_atm, self.t_amb
-        qs1 = u1 * mass_flow_kg_s(P.Cs1, P.bs1, P.ms1, p_sup, t_sup, p1, t1) if u1 > 0 else 0.0
-        qe1 = (1.0 - u1) * mass_flow_kg_s(P.Ce1, P.be1, P.me1, p1, t1, p_atm, t_amb) \
+        qs1 = u1 * signed_mass_flow_kg_s(P.Cs1, P.bs1, P.ms1, p_sup, t_sup, p1, t1) \
+            if u1 > 0 else 0.0
+        qe1 = (1.0 - u1) * signed_mass_flow_kg_s(P.Ce1, P.be1, P.me1, p1, t1, p_atm, t_amb) \
             if u1 < 1 else 0.0
         if P.vented2:   # vented rod end
             qs2 = qe2 = 0.0
         else:
-            qs2 = u2 * mass_flow_kg_s(P.Cs2, P.bs2, P.ms2, p_sup, t_sup, p2, t2) \
+            qs2 = u2 * signed_mass_flow_kg_s(P.Cs2, P.bs2, P.ms2, p_sup, t_sup, p2, t2) \
                 if u2 > 0 else 0.0
-            qe2 = (1.0 - u2) * mass_flow_kg_s(P.Ce2, P.be2, P.me2, p2, t2, p_atm, t_amb) \
+            qe2 = (1.0 - u2) * signed_mass_flow_kg_s(P.Ce2, P.be2, P.me2, p2, t2, p_atm, t_amb) \
                 if u2 < 1 else 0.0
         if P.check:   # supply check valve
             qs1, qs2 = max(qs1, 0.0), max(qs2, 0.0)
@@ -735,7 +744,7 @@ class Group:
         if self.has_line and s.C > 0 and s.network_pa > 0:
             tau = s.volume_m3 * s.droop_pa / (rt0 * s.C * s.network_pa)
             out.append((tau, f'[[line]] "{s.line}": its regulator (C = {s.C:.3g} '
-                             f'm^3/(s Pa), droop_bar = {s.droop_pa / 1e5:g}) refills its '
+                             f'm^3/(s Pa), droop_bar = {s.droop_pa / PA_PER_BAR:g}) refills its '
                              f'volume_l = {s.volume_m3 * 1e3:g} in about {tau:.2g} s; '
                              "regulators have C of 1e-8 to 1e-6, lines hold 0.01 to 100 l"))
         for d in self.drives:

@@ -1,10 +1,9 @@
 """What a flow meter makes of a flow: its response lag and its logging intervals.
 
-Comparing a prediction with a log means comparing like with like: the prediction's flow
-on a fine grid goes through the meter's first-order response and is averaged over each
-logged sample's interval, as a thermal-mass meter with a 1-2 Hz logger reports it
-(docs/reference/physics.md: figures: "the flow sensor acts as a low-pass filter"; section 7: meters lag
-0.1-0.6 s).
+Comparing a prediction with a log means comparing like with like: the prediction's flow on a fine
+grid goes through the meter's first-order response and is averaged over each logged sample's
+interval, as a thermal-mass meter with a 1-2 Hz logger reports it (docs/reference/physics.md:
+figures: "the flow sensor acts as a low-pass filter"; section 7: meters lag 0.1-0.6 s).
 """
 from __future__ import annotations
 
@@ -12,11 +11,11 @@ import math
 
 import numpy as np
 
-from .flow import P0_PA, T0_K
+from .units import P0_PA, P_ATM_PA, T0_K, ZERO_C_K
 
 # the reference conditions a meter's normal litres may be given at: (pressure Pa, K)
-REFERENCES = {"iso8778": (P0_PA, T0_K), "din1343": (101_325.0, 273.15),
-              "iso2533": (101_325.0, 288.15)}
+REFERENCES = {"iso8778": (P0_PA, T0_K), "din1343": (P_ATM_PA, ZERO_C_K),
+              "iso2533": (P_ATM_PA, 288.15)}
 
 
 def reference_factor(reference: str) -> float:

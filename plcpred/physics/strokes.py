@@ -15,6 +15,7 @@ import math
 
 from .drive import drive_params
 from .group import Group, PlantError, Supply
+from .units import pa_to_bar_g
 
 _CACHE: dict = {}
 SEARCH_STEPS = 12
@@ -135,5 +136,5 @@ def auto_stroke_times(consumer, supply_pa: float, atmosphere_pa: float, ambient_
     for t, what in zip(times, ("extend", "retract")):
         if t is None:
             raise PlantError(f"the plant model says it does not {what} fully within a minute "
-                             f"at {(supply_pa - atmosphere_pa) / 1e5:g} bar(g) with its load")
+                             f"at {pa_to_bar_g(supply_pa, atmosphere_pa):g} bar(g) with its load")
     return times

@@ -1,5 +1,5 @@
-"""Free-air volume per stroke of an active consumer (docs/reference/physics.md D1a, D1b), stated at the
-reference condition (section 1).
+"""Free-air volume per stroke of an active consumer (docs/reference/physics.md D1a, D1b), stated at
+the reference condition (section 1).
 
 D1 gives the free air at atmospheric pressure: the swept volume plus the tube dead volume
 between valve and port, filled isothermally to the absolute supply pressure,
@@ -14,13 +14,13 @@ Areas by kind (D1, "rodless and double-rod cylinders use the same area both ways
 |---|---|---|
 | double_acting, single_acting | pi D^2/4 | pi (D^2 - d^2)/4 (single-acting: no air) |
 | double_rod | pi (D^2 - d^2)/4 | pi (D^2 - d^2)/4 |
-| rodless, semi_rotary, gripper | pi D^2/4 | pi D^2/4 (``stroke_mm`` is the equivalent stroke of the swept volume) |
+| rodless, semi_rotary, gripper | pi D^2/4 | pi D^2/4 (``stroke_mm``: the swept volume's stroke) |
 """
 from __future__ import annotations
 
 import math
 
-from .flow import P0_PA, T0_K
+from .units import P0_PA, T0_K
 
 
 def swept_areas_mm2(kind: str, bore_mm: float, rod_mm: float = 0.0) -> tuple[float, float]:

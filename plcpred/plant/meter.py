@@ -1,7 +1,7 @@
-"""What a real flow meter reports of a true flow (docs/reference/physics.md: figures, what D4 adds): its
-reference condition, first-order response, logging intervals (each reading the mean over
-its interval, or with ``sampling = "instant"`` the response at the reading's time), noise,
-zero offset and full-scale clipping."""
+"""What a real flow meter reports of a true flow (docs/reference/physics.md: figures, what D4 adds):
+its reference condition, first-order response, logging intervals (each reading the mean over its
+interval, or with ``sampling = "instant"`` the response at the reading's time), noise, zero offset
+and full-scale clipping."""
 from __future__ import annotations
 
 from dataclasses import dataclass

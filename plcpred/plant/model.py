@@ -7,11 +7,11 @@ import math
 import numpy as np
 
 from ..air.demand import sonic_conductance
-from ..physics.chamber import mass_flow_kg_s, mass_to_nl
+from ..physics.chamber import signed_mass_flow_kg_s, mass_to_nl
 from ..physics.drive import drive_params
-from ..physics.flow import bar_g_to_pa, celsius_to_k
 from ..physics.group import Group, Passive, Supply
 from ..physics.strokes import throttle_to
+from ..physics.units import PA_PER_BAR, bar_g_to_pa, celsius_to_k
 
 NS = 1_000_000_000
 
@@ -103,7 +103,7 @@ class PlantModel:
             supply = Supply(set_pa, self.ambient_k, line=name,
                             volume_m3=ln.volume_l / 1000.0, network_pa=net_pa,
                             C=ln.C if ln.C is not None else 1e-7, b=ln.b, m=ln.m,
-                            droop_pa=ln.droop_bar * 1e5)
+                            droop_pa=ln.droop_bar * PA_PER_BAR)
             plist = [Passive(c.name, sonic_conductance(c), c.b, c.m, c.a or 1.0,
                              c.kind == "leak",
                              bar_g_to_pa(c.pressure_bar_g, machine.atmosphere_kpa)
@@ -173,7 +173,7 @@ class PlantModel:
         if c.pressure_bar_g is not None:
             own = bar_g_to_pa(c.pressure_bar_g, self.machine.atmosphere_kpa)
             p_up = own if c.kind == "leak" else min(p_up, own)
-        return float(mass_flow_kg_s(sonic_conductance(c), c.b, c.m, p_up, self.ambient_k,
+        return float(signed_mass_flow_kg_s(sonic_conductance(c), c.b, c.m, p_up, self.ambient_k,
                                     self.atm_pa, self.ambient_k, c.a or 1.0))
 
     def _passive_mass_kg(self, c, edges_s):
@@ -216,7 +216,7 @@ class PlantModel:
             group_states[id(g)] = g.state_at(times_s)
         x = group_states[id(g)]
         n = g.n
-        to_bar_g = lambda p: (p - self.atm_pa) / 1e5  # noqa: E731
+        to_bar_g = lambda p: (p - self.atm_pa) / PA_PER_BAR  # noqa: E731
         return {"position_mm": x[:, 4 * n + i] * 1000.0, "p_cap_bar_g": to_bar_g(x[:, i]),
                 "p_rod_bar_g": to_bar_g(x[:, n + i])}
 
@@ -227,5 +227,5 @@ class PlantModel:
         wanted = meter.line if meter is not None else None
         for g in self.groups:
             if g.has_line and wanted in (None, g.supply.line):
-                return (g.state_at(times_s)[:, 7 * g.n] - self.atm_pa) / 1e5
+                return (g.state_at(times_s)[:, 7 * g.n] - self.atm_pa) / PA_PER_BAR
         return np.full(len(times_s), self.machine.supply_bar_g)
