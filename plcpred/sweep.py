@@ -33,7 +33,7 @@ from .air import predict
 from .air.cycles import blowing_only_in_cycle
 from .air.sizing import DEFAULT_PRICE, size_prediction
 from .errors import PlcpredError
-from .machine import MachineError, machine_from_data, read_machine_data
+from .machine import MachineError, machine_from_data, read_machine_data, schema
 from .memory import use_large_malloc_thresholds
 from .parser import ProgramError, parse_st
 
@@ -52,11 +52,13 @@ MAX_SCENARIOS = 10_000
 DASK_WORKER_CONFIG = {"distributed.worker.profile.enabled": False,
                       "distributed.worker.memory.monitor-interval": "1s",
                       "distributed.admin.system-monitor.interval": "2s"}
-MACHINE_KEYS = ("supply_bar_g", "scan_ms", "ambient_c", "atmosphere_kpa")
-_FLOAT_FIELDS = {"bore_mm", "rod_mm", "stroke_mm", "tube_id_mm", "switch_delay_s",
-                 "pressure_bar_g", "C", "b", "m", "a", "orifice_mm", "Cd", "pulse_ms",
-                 "period_s", "offset_s", "jitter_s"}
-_PAIR_FIELDS = {"stroke_time_s", "tube_length_m"}
+# what a sweep may vary: the machine file's numbers the air model reads (machine.schema)
+MACHINE_KEYS = tuple(k for k, t in schema.key_types("machine").items() if t == "number")
+_INPUT_NUMBERS = {k for k, t in schema.key_types("input").items() if t == "number"}
+_CONSUMER_NUMBERS = {k for k, t in schema.key_types("consumer", plant=False).items()
+                     if t == "number"}
+_PAIR_FIELDS = {k for k, t in schema.key_types("consumer", plant=False).items()
+                if t == "pair"}
 
 
 class SweepError(PlcpredError, ValueError):
@@ -118,7 +120,7 @@ def apply_settings(data: dict, path, program, scenario: dict):
                           if str(t.get("signal", "")).upper() == sig.upper()), None)
             if table is None:
                 raise SweepError(f"{key}: no [[input]] for signal '{sig}'")
-            if field not in _FLOAT_FIELDS:
+            if field not in _INPUT_NUMBERS:
                 raise SweepError(f"{key}: cannot sweep '{field}' of an input")
             table[field] = _number(key, value)
             continue
@@ -129,7 +131,7 @@ def apply_settings(data: dict, path, program, scenario: dict):
         if field in _PAIR_FIELDS:
             nums = [_number(key, p) for p in value.split("/")]
             table[field] = [nums[0], nums[-1]]
-        elif field in _FLOAT_FIELDS:
+        elif field in _CONSUMER_NUMBERS:
             table[field] = _number(key, value)
             if field in ("orifice_mm", "Cd"):
                 table.pop("C", None)

@@ -199,16 +199,70 @@ stroke_time_s = 0.2
     assert no_rod == with_rod and no_rod[1] == 0.0
 
 
-def test_every_machine_file_key_is_documented():
-    """docs/reference/machine-file.md names every key the loader accepts."""
+def test_the_docs_key_tables_are_the_schemas():
+    """docs/reference/machine-file.md's key tables are made from machine.schema
+    (``python -m plcpred.machine.schema`` writes them): one place says what a key is."""
     from pathlib import Path
 
-    from plcpred import machine as mf
-    doc = (Path(__file__).resolve().parent.parent / "docs" / "reference" / "machine-file.md").read_text()
-    keys = (mf._MACHINE_KEYS | mf._INPUT_KEYS | mf._CONSUMER_KEYS | mf._LINE_KEYS
-            | mf._METER_KEYS | mf._CALENDAR_KEYS)
-    missing = sorted(k for k in keys if f"`{k}`" not in doc)
-    assert not missing, f"undocumented keys: {missing}"
+    from plcpred.machine import schema
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "reference"
+           / "machine-file.md").read_text()
+    assert schema.with_tables(doc) == doc
+    changed = schema.with_tables(doc.replace("| `bore_mm` | required |", "| `bore_mm` | 7 |"))
+    assert changed == doc
+
+
+def test_the_reader_reads_every_key_of_the_schema_and_no_other():
+    """Every key the loader reads by name (r.number("bore_mm"), table.get("valve"), ...) is
+    in the schema of some table, and every schema key is read: the two cannot drift."""
+    import ast
+    from pathlib import Path
+
+    from plcpred.machine import load, schema
+    tree = ast.parse(Path(load.__file__).read_text())
+    read = set()
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                and node.func.attr in ("number", "pair", "string", "flag", "get", "_checked")
+                and node.args and isinstance(node.args[0], ast.Constant)
+                and isinstance(node.args[0].value, str)):
+            read.add(node.args[0].value)
+        if isinstance(node, ast.Compare) and isinstance(node.left, ast.Constant) and any(
+                isinstance(op, ast.In) for op in node.ops):
+            read.add(node.left.value)
+        if isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Constant) \
+                and isinstance(node.slice.value, str):
+            read.add(node.slice.value)
+    every = set().union(*(schema.keys(t) for t in schema.TABLES))
+    unread = every - read - set(schema.PLANT_DRIVE_KEYS)
+    assert not unread, f"schema keys the loader never reads: {sorted(unread)}"
+    tables = {"machine", "input", "consumer", "line", "meter", "calendar", "signals",
+              "retracted", "extended"}
+    names = {k for k in read if k.isidentifier() and k not in tables}
+    unknown = {k for k in names - every if k.islower() or k in ("C", "Cd")}
+    assert not unknown, f"keys read that the schema does not declare: {sorted(unknown)}"
+
+
+def test_init_writes_only_keys_the_schema_declares(tmp_path):
+    """The commented blocks of ``plcpred init`` use keys of their tables."""
+    import re
+
+    from plcpred.machine import schema
+    from plcpred.parser import parse_st
+    from plcpred.skeleton import machine_skeleton
+    program = parse_st("PROGRAM P VAR xIn AT %IX0.0 : BOOL; qOut AT %QX0.0 : BOOL; "
+                       "END_VAR qOut := xIn; END_PROGRAM", "p.st")
+    text = machine_skeleton(program, tmp_path / "p.st", tmp_path / "m.toml")
+    table = None
+    for line in text.splitlines():
+        body = line.lstrip("# ").strip()
+        head = re.fullmatch(r"\[\[?(\w+)\]?\]", body)
+        if head:
+            table = head.group(1)
+            continue
+        key = re.match(r"(\w+) = ", body)
+        if key and table:
+            assert key.group(1) in schema.keys(table), (table, key.group(1))
 
 
 def _one_knife(tmp_path, supply_bar_g, extra: str = ""):

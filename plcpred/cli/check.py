@@ -6,12 +6,12 @@ import sys
 from functools import reduce
 from pathlib import Path
 
-from ..init import machine_skeleton
 from ..output import OutputError, atomic_write_text
 from ..parser import ProgramError, ir, load_program
 from ..parser.check import ExternalWarning, check_program
 from ..parser.libraries import library_program
 from ..sequencer.compiler import compile_program
+from ..skeleton import machine_skeleton
 
 
 def _summary(program) -> str:

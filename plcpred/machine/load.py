@@ -9,264 +9,34 @@ from __future__ import annotations
 
 import difflib
 import math
-import os
-import re
 import stat as stat_module
 import tomllib
-from dataclasses import dataclass, field
 from pathlib import Path
 
-from .errors import PlcpredError
-from .output import atomic_write_text
-from .parser import ProgramError, files, ir, load_program
-from .parser.check import Checker
-from .parser.files import confined_to, env_roots, read_bytes, resolved
-from .physics.group import PlantError
-from .physics.meter import REFERENCES
-from .physics.strokes import auto_stroke_times
-from .physics.units import BAR_PER_PSI, P_ATM_KPA, P_ATM_PA, PA_PER_BAR, T0_K, ZERO_C_K
+from ..parser import ProgramError, files
+from ..parser.files import confined_to, env_roots, read_bytes, resolved
+from ..physics.units import BAR_PER_PSI, P_ATM_KPA, PA_PER_BAR, ZERO_C_K
+from .model import (
+    FLOW_MODELS,
+    HOURS_PER_YEAR,
+    KINDS,
+    Calendar,
+    Consumer,
+    InputSchedule,
+    Line,
+    Machine,
+    MachineError,
+    Meter,
+)
+from .schema import (
+    CALENDAR_IDLE_STATES,
+    METER_REFERENCES,
+    METER_SAMPLINGS,
+    PLANT_DRIVE_KEYS,
+    RANGES,
+    keys,
+)
 
-CYLINDER_KINDS = ("single_acting", "double_acting", "double_rod", "rodless", "semi_rotary",
-                  "gripper")
-PASSIVE_KINDS = ("nozzle", "leak")
-KINDS = CYLINDER_KINDS + PASSIVE_KINDS
-FLOW_MODELS = ("iso6358", "choked")
-
-
-class MachineError(PlcpredError):
-    def __init__(self, file: str, where: str, message: str):
-        super().__init__(message)
-        self.file, self.where, self.message = file, where, message
-
-    def __str__(self) -> str:
-        return f"{self.file}: {self.where + ': ' if self.where else ''}{self.message}"
-
-    def __reduce__(self):  # survives the trip back from a sweep's worker process
-        return (type(self), (self.file, self.where, self.message))
-
-
-@dataclass
-class InputSchedule:
-    """An external input: pulses at given times, or a periodic train (part arrivals)."""
-    signal: str
-    pulses_s: list[float] = field(default_factory=list)
-    pulse_ms: float = 200.0
-    period_s: float | None = None
-    offset_s: float = 0.0
-    jitter_s: float = 0.0
-    seed: int | None = None
-    initial: bool = False
-
-
-@dataclass
-class Consumer:
-    name: str
-    kind: str
-    valve: list[str] = field(default_factory=list)  # [] (leak), [sol] (monostable), [a, b] bistable
-    bore_mm: float | None = None
-    rod_mm: float | None = None
-    stroke_mm: float | None = None
-    tube_id_mm: float | None = None
-    tube_length_m: tuple[float, float] = (0.0, 0.0)  # valve to cap end, valve to rod end
-    stroke_time_s: tuple[float, float] | str | None = None  # (extend, retract) or "auto"
-    switch_delay_s: float = 0.0
-    switches: dict[str, str] = field(default_factory=dict)  # retracted / extended -> signal
-    initial: str = "retracted"
-    pressure_bar_g: float | None = None
-    C: float | None = None  # sonic conductance, m^3/(s Pa)
-    b: float | None = None
-    m: float | None = None
-    a: float | None = None  # cracking pressure ratio
-    orifice_mm: float | None = None
-    Cd: float | None = None
-    flow_model: str = "iso6358"
-    exhaust_tau_s: float | None = None  # air-model option: incomplete exhaust (off)
-    partial_strokes: bool = False       # air-model option: strokes cut short (off)
-    line: str | None = None             # the [[line]] it hangs on (plant only)
-    # (supply Pa, atmosphere Pa, ambient K, file) for stroke times from the plant
-    supply_context: tuple = (6.0 * PA_PER_BAR + P_ATM_PA, P_ATM_PA, T0_K, "")
-    plant: dict = field(default_factory=dict)  # plant-only keys (emulate), validated
-
-    @property
-    def is_cylinder(self) -> bool:
-        return self.kind in CYLINDER_KINDS
-
-    def stroke_times(self) -> tuple[float, float] | None:
-        """(extend, retract) stroke times in s; ``"auto"`` asks the physics plant."""
-        if self.stroke_time_s == "auto":
-            return self.auto_stroke_times()
-        return self.stroke_time_s
-
-    def auto_stroke_times(self) -> tuple[float, float]:
-        """(extend, retract) seconds from valve switch to end of stroke, by the physics
-        plant at the machine's supply pressure with this drive's load and circuit
-        (:mod:`plcpred.physics.strokes`; cached per configuration)."""
-        *conditions, file = self.supply_context
-        try:
-            return auto_stroke_times(self, *conditions)
-        except PlantError as e:
-            raise MachineError(file, f'consumer "{self.name}"',
-                               f'stroke_time_s = "auto": {e}') from None
-
-    @property
-    def bistable(self) -> bool:
-        return len(self.valve) == 2
-
-
-@dataclass
-class Meter:
-    """The flow meter a measured run comes from (``[meter]``): what ``diagnose`` compares
-    a prediction through, and what ``emulate`` imitates. All optional."""
-    tau_s: float | None = None          # first-order response time
-    rate_hz: float | None = None        # logging rate (readings averaged over 1/rate)
-    reference: str = "iso8778"          # iso8778 | din1343 | iso2533
-    noise_l_min: float = 0.0
-    offset_l_min: float = 0.0           # reading at zero flow
-    full_scale_l_min: float | None = None
-    line: str | None = None             # on one [[line]] (after its regulator); default: the drop
-    # what a reading is: "mean" (the response averaged over its logging interval, as a
-    # meter's own logger reports) or "instant" (the response when it was read, as a PLC
-    # polling the meter's analogue output does); None: not said (read as "mean")
-    sampling: str | None = None
-
-
-@dataclass
-class Line:
-    """A supply line (``[[line]]``, plant only): a regulator from the network into a
-    volume that the consumers naming it draw from."""
-    name: str
-    volume_l: float = 1.0
-    pressure_bar_g: float | None = None   # regulator set point (default: the machine's)
-    network_bar_g: float | None = None    # upstream of the regulator (default set + 1 bar)
-    C: float | None = None                # regulator's sonic conductance (default: ample)
-    b: float = 0.3
-    m: float = 0.5
-    droop_bar: float = 0.3                # pressure drop from no flow to wide open
-    check_valves: bool = False            # every drive on the line has a supply check valve
-
-
-HOURS_PER_YEAR = 8760.0
-
-
-@dataclass
-class Calendar:
-    """When the machine produces (``[calendar]``), for annual air, energy and cost: the
-    supply stays pressurised all year, so leaks count for 8,760 h."""
-    shifts_per_day: float = 1.0
-    hours_per_shift: float = 8.0
-    days_per_week: float = 5.0
-    weeks_per_year: float = 52.0
-    production_share: float = 1.0     # of the scheduled hours, the share it produces
-    idle_state: str = "off"           # outside production: "off" (valves de-energised:
-    #                                   leaks only) or "program" (as the program leaves it
-    #                                   when nothing moves: leaks and blowers left on)
-
-    @property
-    def production_hours(self) -> float:
-        return (self.shifts_per_day * self.hours_per_shift * self.days_per_week
-                * self.weeks_per_year * self.production_share)
-
-
-@dataclass
-class Machine:
-    name: str
-    path: Path
-    program_path: Path
-    scan_ms: float = 10.0
-    supply_bar_g: float = 6.0
-    atmosphere_kpa: float = P_ATM_KPA
-    ambient_c: float = 20.0
-    signals: dict[str, str] = field(default_factory=dict)  # hardware address -> name
-    inputs: list[InputSchedule] = field(default_factory=list)
-    consumers: list[Consumer] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
-    meter: Meter | None = None
-    calendar: Calendar | None = None
-    lines: list[Line] = field(default_factory=list)
-    # a BOOL that rises (or a counter that counts up) once per machine cycle or part
-    cycle_signal: str | None = None
-    # declarations of vendor libraries the program uses (files or folders)
-    library_paths: list[Path] = field(default_factory=list)
-    # the folders its program and libraries may be read from: the machine file's, and
-    # those the user allows (--allow-root); () for a machine made in code: the program's
-    # own folder
-    allowed_roots: tuple = ()
-
-    def read_program(self, path=None):
-        """The machine's program (or the one at ``path``, which the user names: its
-        folder may be read too), with what it uses from its libraries."""
-        roots = tuple(self.allowed_roots) or None
-        if path is not None and roots is not None:
-            own = resolved(Path(path))
-            roots += (own if own.is_dir() else own.parent,)
-        return load_program(self.program_path if path is None else path,
-                            lib_dirs=self.library_paths, allowed_roots=roots)
-
-    def consumer(self, name: str) -> Consumer:
-        for c in self.consumers:
-            if c.name == name:
-                return c
-        raise KeyError(name)
-
-
-_MACHINE_KEYS = {"name", "program", "scan_ms", "supply_bar_g", "atmosphere_kpa", "ambient_c",
-                 "cycle_signal", "libraries"}
-_INPUT_KEYS = {"signal", "pulses_s", "pulse_ms", "period_s", "offset_s", "jitter_s", "seed",
-               "initial"}
-_CONSUMER_KEYS = {"name", "kind", "valve", "bore_mm", "rod_mm", "stroke_mm", "tube_id_mm",
-                  "tube_length_m", "stroke_time_s", "switch_delay_s", "switches", "initial",
-                  "pressure_bar_g", "C", "b", "m", "a", "orifice_mm", "Cd", "flow_model",
-                  "exhaust_tau_s", "partial_strokes", "line"}
-# plant-only keys of a drive (emulate; the activation model ignores them): name -> kind
-PLANT_DRIVE_KEYS = {
-    "payload_kg": "number", "mount_angle_deg": "number", "moving_mass_kg": "number",
-    "supply_C": "pair", "supply_b": "pair", "supply_m": "pair",
-    "exhaust_C": "pair", "exhaust_b": "pair", "exhaust_m": "pair",
-    "check_valve": "bool", "friction_static_n": "pair", "friction_coulomb_n": "pair",
-    "friction_viscous_ns_m": "pair", "stribeck_velocity_m_s": "pair",
-    "spring_n": "pair", "switch_ramp_s": "number", "heat_transfer_w_m2k": "number",
-    "dead_volume_cm3": "pair",
-}
-_CONSUMER_KEYS |= set(PLANT_DRIVE_KEYS)
-_LINE_KEYS = {"name", "volume_l", "pressure_bar_g", "network_bar_g", "C", "b", "m",
-              "droop_bar", "check_valves"}
-_METER_KEYS = {"tau_s", "rate_hz", "reference", "noise_l_min", "offset_l_min",
-               "full_scale_l_min", "line", "sampling"}
-METER_REFERENCES = tuple(REFERENCES)
-METER_SAMPLINGS = ("mean", "instant")
-_CALENDAR_KEYS = {"shifts_per_day", "hours_per_shift", "days_per_week", "weeks_per_year",
-                  "production_share", "idle_state"}
-CALENDAR_IDLE_STATES = ("off", "program")
-
-
-# Physical ranges of every number in a machine file: (lowest, highest). Wider than any real
-# machine, so they only catch typos, unit mix-ups and values that would overflow the
-# arithmetic (a 1e300 s stroke, a 1e-300 s pulse). Bounds are inclusive unless the key is
-# also required to be positive.
-RANGES = {
-    "scan_ms": (0.01, 60_000.0), "supply_bar_g": (0.0, 100.0),
-    "atmosphere_kpa": (50.0, 120.0), "ambient_c": (-60.0, 150.0),
-    # sizes a drive can have: the smallest pneumatic cylinders have 2.5 mm bores and
-    # strokes of a few mm (5e-324 passed "> 0" and divided by zero in the plant)
-    "bore_mm": (0.1, 2_000.0), "rod_mm": (0.0, 2_000.0), "stroke_mm": (0.01, 20_000.0),
-    "tube_id_mm": (0.1, 200.0), "tube_length_m": (0.0, 1_000.0),
-    "stroke_time_s": (1e-4, 3_600.0), "switch_delay_s": (0.0, 60.0),
-    "pressure_bar_g": (0.0, 100.0), "C": (1e-15, 1e-3), "m": (0.0, 10.0), "a": (0.0, 1.0),
-    "orifice_mm": (0.001, 1_000.0), "Cd": (0.0, 1.0),
-    "pulse_ms": (1e-3, 1e9), "period_s": (1e-3, 1e8), "offset_s": (0.0, 1e9),
-    "jitter_s": (0.0, 1e8), "pulses_s": (0.0, 1e9), "exhaust_tau_s": (1e-4, 60.0),
-    "tau_s": (0.0, 600.0), "rate_hz": (1e-4, 1e5), "noise_l_min": (0.0, 1e7),
-    "offset_l_min": (-1e6, 1e6), "full_scale_l_min": (0.0, 1e8),
-    "payload_kg": (0.0, 1e5), "mount_angle_deg": (-90.0, 90.0), "moving_mass_kg": (0.0, 1e5),
-    "supply_C": (1e-15, 1e-3), "exhaust_C": (1e-15, 1e-3), "supply_b": (-1.0, 0.99),
-    "exhaust_b": (-1.0, 0.99), "supply_m": (0.05, 10.0), "exhaust_m": (0.05, 10.0),
-    "friction_static_n": (0.0, 1e6), "friction_coulomb_n": (0.0, 1e6),
-    "friction_viscous_ns_m": (0.0, 1e7), "stribeck_velocity_m_s": (1e-5, 10.0),
-    "spring_n": (0.0, 1e6), "switch_ramp_s": (0.0, 10.0), "heat_transfer_w_m2k": (0.0, 1e4),
-    "dead_volume_cm3": (0.0, 1e7), "volume_l": (1e-4, 1e6), "network_bar_g": (0.0, 100.0),
-    "droop_bar": (1e-3, 50.0), "shifts_per_day": (0.0, 24.0), "hours_per_shift": (0.0, 24.0),
-    "days_per_week": (0.0, 7.0), "weeks_per_year": (0.0, 53.0), "production_share": (0.0, 1.0),
-}
 MAX_PULSES = 1_000_000
 # factory compressed air is 6-10 bar(g), high-pressure networks up to 16: a larger number
 # is most likely psi typed as bar (87 psi = 6 bar)
@@ -360,7 +130,7 @@ def _signal_name(r: _Reader, key: str, v) -> str:
 def _consumer(file: str, index: int, table: dict, warnings: list) -> Consumer:
     label = f'consumer "{table.get("name")}"' if isinstance(table, dict) and table.get(
         "name") else f"consumer #{index + 1}"
-    r = _Reader(file, label, table, _CONSUMER_KEYS)
+    r = _Reader(file, label, table, keys("consumer"))
     kind = r.string("kind", required=True, choices=KINDS)
     c = Consumer(r.string("name", required=True), kind)
     valve = table.get("valve")
@@ -452,7 +222,7 @@ def _plant_keys(r: _Reader, table: dict, kind: str) -> dict:
     for key, form in PLANT_DRIVE_KEYS.items():
         if key not in table:
             continue
-        if form == "bool":
+        if form == "flag":
             out[key] = r.flag(key)
         elif form == "pair":
             out[key] = r.pair(key, None, positive=key.endswith("_C"), nonneg=True) \
@@ -471,7 +241,7 @@ def _plant_keys(r: _Reader, table: dict, kind: str) -> dict:
 def _line(file: str, index: int, table: dict) -> Line:
     label = f'line "{table.get("name")}"' if isinstance(table, dict) and table.get(
         "name") else f"line #{index + 1}"
-    r = _Reader(file, label, table, _LINE_KEYS)
+    r = _Reader(file, label, table, keys("line"))
     line = Line(r.string("name", required=True),
                 volume_l=r.number("volume_l", 1.0, positive=True),
                 pressure_bar_g=r.number("pressure_bar_g", nonneg=True),
@@ -488,7 +258,7 @@ def _line(file: str, index: int, table: dict) -> Line:
 def _input(file: str, index: int, table: dict) -> InputSchedule:
     label = f'input "{table.get("signal")}"' if isinstance(table, dict) and table.get(
         "signal") else f"input #{index + 1}"
-    r = _Reader(file, label, table, _INPUT_KEYS)
+    r = _Reader(file, label, table, keys("input"))
     s = InputSchedule(_signal_name(r, "signal", r.string("signal", required=True)))
     pulses = table.get("pulses_s", [])
     if not isinstance(pulses, list) or len(pulses) > MAX_PULSES:
@@ -514,7 +284,7 @@ def _input(file: str, index: int, table: dict) -> InputSchedule:
 
 
 def _meter(file: str, table: dict) -> Meter:
-    r = _Reader(file, "[meter]", table, _METER_KEYS)
+    r = _Reader(file, "[meter]", table, keys("meter"))
     return Meter(tau_s=r.number("tau_s", nonneg=True),
                  rate_hz=r.number("rate_hz", positive=True),
                  reference=r.string("reference", "iso8778", choices=METER_REFERENCES),
@@ -526,7 +296,7 @@ def _meter(file: str, table: dict) -> Meter:
 
 
 def _calendar(file: str, table: dict) -> Calendar:
-    r = _Reader(file, "[calendar]", table, _CALENDAR_KEYS)
+    r = _Reader(file, "[calendar]", table, keys("calendar"))
     c = Calendar(shifts_per_day=r.number("shifts_per_day", 1.0, nonneg=True),
                  hours_per_shift=r.number("hours_per_shift", 8.0, nonneg=True),
                  days_per_week=r.number("days_per_week", 5.0, nonneg=True),
@@ -643,7 +413,7 @@ def machine_from_data(data: dict, path, allowed_roots=None) -> Machine:
                                        "[[consumer]], [[line]], [meter], [calendar])")
     if "machine" not in data:
         raise MachineError(file, "", "missing the [machine] table")
-    r = _Reader(file, "[machine]", data["machine"], _MACHINE_KEYS)
+    r = _Reader(file, "[machine]", data["machine"], keys("machine"))
     program = r.string("program", required=True)
     roots = machine_roots(path, allowed_roots)
     machine = Machine(
@@ -726,192 +496,3 @@ def machine_from_data(data: dict, path, allowed_roots=None) -> Machine:
             raise MachineError(file, f'input "{s.signal}"', "scheduled twice")
         seen.add(s.signal)
     return machine
-
-
-def program_addresses(program) -> dict[str, str]:
-    """Hardware address -> name of the variable declared AT it (``"%QX0.0" -> "Y_A"``), so
-    a machine file may name a signal by its address without a [signals] entry."""
-    out = {}
-    blocks = [g.block for g in program.globals]
-    blocks += [b for c in program.configurations for b in c.var_blocks]
-    blocks += [b for c in program.configurations for r in c.resources for b in r.var_blocks]
-    blocks += [b for p in program.pous if p.kind == "PROGRAM" for b in p.var_blocks]
-    for b in blocks:
-        for d in b.decls:
-            if d.address and "*" not in d.address:
-                out.setdefault(d.address.upper(), d.name)
-    return out
-
-
-def _program_io(program):
-    """(all variable names, output names, names read anywhere: upper case; inputs: upper
-    case -> as declared) of a program."""
-
-    names, outputs, inputs = set(), set(), {}
-    blocks = [g.block for g in program.globals]
-    blocks += [b for c in program.configurations for b in c.var_blocks]
-    blocks += [b for c in program.configurations for r in c.resources for b in r.var_blocks]
-    for pou in program.pous:
-        if pou.kind == "PROGRAM":
-            blocks += pou.var_blocks
-    for b in blocks:
-        for d in b.decls:
-            key = d.name.upper()
-            names.add(key)
-            if b.kind == "VAR_OUTPUT" or (d.address or "").upper().startswith("%Q"):
-                outputs.add(key)
-            elif b.kind == "VAR_INPUT" or (d.address or "").upper().startswith("%I"):
-                inputs[key] = d.name
-    usage = Checker(program).run().program_usage
-    return names, outputs, usage.read, inputs
-
-
-def check_against_program(machine: Machine, program) -> list[str]:
-    """Cross-check the machine's signals with the program's variables. Unknown signals are
-    errors (raised); outputs that drive no consumer, switches the program never reads and
-    inputs it reads that nothing drives are returned (and added to ``machine.warnings``)."""
-    file = str(machine.path)
-    names, outputs, read, inputs = _program_io(program)
-    by_address = program_addresses(program)
-    by_address.update({addr.upper(): name for addr, name in machine.signals.items()})
-    # the program checked (a --program given instead of the file's is named as itself)
-    program_file = next((Path(p.pos.file).name for p in program.pous if p.pos is not None
-                         and p.pos.file and not p.pos.file.startswith("<")),
-                        machine.program_path.name)
-
-    def resolve(signal: str) -> str:
-        return by_address.get(signal.upper(), signal)
-
-    def require(where: str, key: str, signal: str) -> str:
-        name = resolve(signal)
-        if name.upper() in used_addresses:
-            return name.upper()  # an address the code uses directly
-        base, dot, bit = name.rpartition(".")
-        if dot and re.fullmatch(r"[0-9]+", bit) and base.upper() in names:
-            name = base  # one bit of a WORD/BYTE variable
-        if name.upper() not in names:
-            # a path into a variable (aValve[3], fbCyl[2].q, PRG.stCell.xOut): its
-            # variable is checked here, the path itself when the program is compiled
-            path = re.match(r"\s*([A-Za-z_][A-Za-z0-9_]*)\s*(?:\.\s*([A-Za-z_][A-Za-z0-9_]*))?"
-                            r"\s*[.\[]", name + ".", re.ASCII)
-            if path:
-                first, second = path.group(1).upper(), (path.group(2) or "").upper()
-                if first in names:
-                    return first
-                if first in programs and second in names:
-                    return second
-            raise MachineError(file, where, f"{key} '{signal}' is not a variable of "
-                                            f"{program_file}")
-        return name.upper()
-
-    programs = {p.name.upper() for p in program.pous if p.kind == "PROGRAM"}
-    programs |= {i.name.upper() for c in program.configurations for r in c.resources
-                 for i in r.programs}
-    used_addresses = {a.upper() for a in ir.names_in(program, ir.DirectAddress, "address")}
-    names |= used_addresses
-    read = set(read) | used_addresses
-    driven = set()
-    fed = set()     # inputs something drives: a schedule or a switch
-    warnings = []
-    for c in machine.consumers:
-        where = f'consumer "{c.name}"'
-        for v in c.valve:
-            name = require(where, "valve", v)
-            driven.add(name)
-            if name in inputs:
-                warnings.append(f"{file}: {where}: valve '{v}' is an input of "
-                                f"{program_file}, not an output: the program cannot drive it")
-        for role, sig in c.switches.items():
-            name = require(where, f"switches.{role}", sig)
-            fed.add(name)
-            if name not in read:
-                warnings.append(f"{file}: {where}: switch '{sig}' is never read by "
-                                f"{program_file}")
-    for s in machine.inputs:
-        fed.add(require(f'input "{s.signal}"', "signal", s.signal))
-    if machine.cycle_signal:
-        # counted, not a consumer: an output that drives none is no surprise here
-        driven.add(require("[machine]", "cycle_signal", machine.cycle_signal))
-    for out in sorted(outputs - driven):
-        warnings.append(f"{file}: output '{out}' of {program_file} drives no consumer")
-    for key in sorted((set(inputs) & set(read)) - fed):
-        warnings.append(f"{file}: input '{inputs[key]}' is read by {program_file} but nothing "
-                        "drives it (no [[input]] schedule, no switch): it keeps its initial "
-                        "value")
-    machine.warnings.extend(warnings)
-    return warnings
-
-
-def save_machine(data: dict, source: Machine, path, header: str = "") -> None:
-    """Write machine-file data derived from ``source`` to ``path``: the program path made
-    relative to the new file when it is near (else absolute), the data checked by
-    loading it first (a file that does not load is a bug), written atomically."""
-    path = Path(path)
-
-    def near(target: Path) -> str:
-        rel = Path(os.path.relpath(target, path.resolve().parent)).as_posix()
-        return rel if rel.count("../") <= 2 else target.as_posix()
-
-    data["machine"]["program"] = near(source.program_path)
-    if source.library_paths:
-        data["machine"]["libraries"] = [near(p) for p in source.library_paths]
-    # where the source's program may be read from, the written file's may too (a file
-    # written outside the source's folder then needs --allow-root to be read again)
-    machine_from_data(data, path, source.allowed_roots)
-    atomic_write_text(path, dump_machine_toml(data, header))
-
-
-# ---------------------------------------------------------------------- machine files
-
-def _toml_key(key: str) -> str:
-    return key if re.fullmatch(r"[A-Za-z0-9_-]+", key) else _toml_value(key)
-
-
-def _toml_value(v) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if not math.isfinite(v):
-            raise ValueError(f"cannot write {v!r} to a machine file")
-        return repr(v)
-    if isinstance(v, str):
-        out = ['"']
-        for ch in v:
-            if ch in '"\\':
-                out.append("\\" + ch)
-            elif ord(ch) < 0x20 or ord(ch) == 0x7F:
-                out.append(f"\\u{ord(ch):04x}")
-            else:
-                out.append(ch)
-        out.append('"')
-        return "".join(out)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{_toml_key(k)} = {_toml_value(x)}"
-                                for k, x in v.items()) + " }"
-    raise ValueError(f"cannot write a {type(v).__name__} to a machine file")
-
-
-def dump_machine_toml(data: dict, header: str = "") -> str:
-    """A machine file's TOML data as text (the tables plcpred knows, in their usual
-    order; comments of the original are not kept, ``header`` is written first)."""
-    lines = [f"# {line}" if line else "#" for line in header.splitlines()]
-    if lines:
-        lines.append("")
-    for table in ("machine", "signals", "meter"):
-        if table in data:
-            lines.append(f"[{table}]")
-            lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in data[table].items()]
-            lines.append("")
-    for array in ("input", "line", "consumer"):
-        for t in data.get(array, []):
-            lines.append(f"[[{array}]]")
-            lines += [f"{_toml_key(k)} = {_toml_value(v)}" for k, v in t.items()]
-            lines.append("")
-    for table, v in data.items():
-        if table not in ("machine", "signals", "meter", "input", "line", "consumer"):
-            raise ValueError(f"cannot write the table [{table}]")
-    return "\n".join(lines)
