@@ -174,3 +174,12 @@ Fill := a[1];
 END_METHOD
 END_FUNCTION_BLOCK""")
     assert errors == [(4, "undeclared name 'LEN_B'")]
+
+
+def test_a_warning_is_not_an_error():
+    """``except ProgramError`` must not swallow a warning, and a warning prints as one."""
+    from plcpred.parser.errors import ProgramError, ProgramWarning
+    w = ProgramWarning("unused variable", "a.st", 3, 7)
+    assert not isinstance(w, ProgramError) and not isinstance(w, BaseException)
+    assert str(w) == "a.st:3:7: warning: unused variable"
+    assert str(ProgramError("bad", "a.st", 1, 2)) == "a.st:1:2: bad"

@@ -4,30 +4,36 @@ from __future__ import annotations
 from ..errors import PlcpredError
 
 
-class ProgramError(PlcpredError):
-    """A problem at ``file:line:col``. ``str()`` gives the one-line form the CLI prints.
-    A syntax error carries the file's further syntax errors in ``more``."""
-    more: tuple = ()
+class Positioned:
+    """A message about ``file:line:col`` of a program; ``str()`` gives the one-line form
+    the CLI prints."""
+    prefix = ""
 
     def __init__(self, message: str, file: str = "<input>", line: int = 0, col: int = 0):
-        super().__init__(message)
+        if isinstance(self, BaseException):
+            super().__init__(message)
         self.message = message
         self.file = file
         self.line = line
         self.col = col
 
     def __str__(self) -> str:
-        return f"{self.file}:{self.line}:{self.col}: {self.message}"
+        return f"{self.file}:{self.line}:{self.col}: {self.prefix}{self.message}"
 
     def __reduce__(self):  # survives the trip back from a sweep's worker process
         return (type(self), (self.message, self.file, self.line, self.col))
 
 
-class ProgramWarning(ProgramError):
-    """Not fatal: reported with ``warning:`` in front of the message."""
+class ProgramError(Positioned, PlcpredError):
+    """A problem at ``file:line:col`` that stops the program from being read or run. A
+    syntax error carries the file's further syntax errors in ``more``."""
+    more: tuple = ()
 
-    def __str__(self) -> str:
-        return f"{self.file}:{self.line}:{self.col}: warning: {self.message}"
+
+class ProgramWarning(Positioned):
+    """Not fatal: collected, never raised (so ``except ProgramError`` never takes one),
+    and reported with ``warning:`` in front of the message."""
+    prefix = "warning: "
 
 
 def at(pos, message: str, cls=ProgramError) -> ProgramError:
