@@ -611,7 +611,7 @@ def test_instantaneous_meter_readings_against_a_hand_calculation(tmp_path):
     second: read at the moment (a PLC polling the analogue output), the reading at t is
     60 (1 - exp(-(t - 1)/0.5)); as interval means, 60 (1 - 0.5 (1 - exp(-2)))
     at t = 2 s and the means of the response over each second after."""
-    from plcpred.plant.meter import MeterSettings, meter_readings
+    from plcpred.plant.flow_meter import MeterSettings, meter_readings
 
     edges = np.linspace(0.0, 4.0, 401)
     cell_flow = np.where(edges[:-1] >= 1.0 - 1e-9, 60.0, 0.0)

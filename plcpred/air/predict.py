@@ -7,7 +7,7 @@ import time
 from dataclasses import dataclass, field
 
 from ..errors import PlcpredError
-from ..machine import Machine, load_machine
+from ..machine import as_machine
 from ..sequencer import parse_horizon, unfold
 from ..sequencer.timeline import NS, Timeline
 from .demand import (
@@ -87,8 +87,7 @@ def predict(machine, horizon="60s", dt=None, program=None, timeline=None,
 
     stages = {}
     t0 = time.perf_counter()
-    if not isinstance(machine, Machine):
-        machine = load_machine(machine)
+    machine = as_machine(machine)
     if timeline is None:
         extra = {} if max_events is None else {"max_events": max_events}
         timeline = unfold(machine, horizon, program=program, **extra)

@@ -30,8 +30,10 @@ from .model import (
 )
 from .schema import (
     CALENDAR_IDLE_STATES,
+    CYLINDER_KEYS,
     METER_REFERENCES,
     METER_SAMPLINGS,
+    PASSIVE_KEYS,
     PLANT_DRIVE_KEYS,
     RANGES,
     keys,
@@ -148,72 +150,82 @@ def _consumer(file: str, index: int, table: dict, warnings: list) -> Consumer:
         raise r.error("valve must be a signal name (monostable) or two (bistable), "
                       f"not {valve!r}")
     if c.is_cylinder:
-        c.bore_mm = r.number("bore_mm", required=True, positive=True)
-        c.stroke_mm = r.number("stroke_mm", required=kind not in ("semi_rotary", "gripper"),
-                               positive=True)
-        if kind in ("semi_rotary", "gripper") and c.stroke_mm is None:
-            raise r.error("missing required key 'stroke_mm' (for a semi-rotary drive or a "
-                          "gripper: the equivalent stroke of its swept volume)")
-        # a single-acting cylinder fills only its cap end: its rod does not matter to the air
-        needs_rod = kind in ("double_acting", "double_rod")
-        c.rod_mm = r.number("rod_mm", 0.0 if not needs_rod else None, required=needs_rod,
-                            nonneg=True)
-        if c.rod_mm is not None and c.rod_mm >= c.bore_mm:
-            raise r.error(f"rod_mm ({c.rod_mm:g}) must be smaller than bore_mm "
-                          f"({c.bore_mm:g})")
-        c.tube_id_mm = r.number("tube_id_mm", 0.0, nonneg=True)
-        c.tube_length_m = r.pair("tube_length_m", (0.0, 0.0), nonneg=True)
-        st = table.get("stroke_time_s")
-        if st == "auto":
-            c.stroke_time_s = "auto"
-        else:
-            c.stroke_time_s = r.pair("stroke_time_s", None, positive=True)
-        c.switch_delay_s = r.number("switch_delay_s", 0.0, nonneg=True)
-        sw = table.get("switches", {})
-        if not isinstance(sw, dict) or set(sw) - {"retracted", "extended"} or not all(
-                isinstance(v, str) and v for v in sw.values()):
-            raise r.error("switches must be { retracted = \"...\", extended = \"...\" }")
-        c.switches = {k: _signal_name(r, f"switches.{k}", v) for k, v in sw.items()}
-        c.initial = r.string("initial", "retracted", choices=("retracted", "extended"))
-        c.exhaust_tau_s = r.number("exhaust_tau_s", positive=True)
-        c.partial_strokes = r.flag("partial_strokes")
-        if c.partial_strokes and c.stroke_time_s is None:
-            raise r.error("partial_strokes needs stroke_time_s (how far a piston gets "
-                          "before the next edge)")
-        c.plant = _plant_keys(r, table, kind)
-        for key in ("C", "b", "m", "a", "orifice_mm", "Cd", "pressure_bar_g", "flow_model"):
-            if key in table:
-                raise r.error(f"'{key}' applies to nozzles and leaks, not to a {kind}")
+        _cylinder_keys(r, table, c)
     else:
-        for key in ("bore_mm", "rod_mm", "stroke_mm", "stroke_time_s", "switches",
-                    "tube_length_m", "tube_id_mm", "switch_delay_s", "initial",
-                    "exhaust_tau_s", "partial_strokes", *PLANT_DRIVE_KEYS):
-            if key in table:
-                raise r.error(f"'{key}' applies to cylinders, not to a {kind}")
-        c.C = r.number("C", positive=True)
-        c.orifice_mm = r.number("orifice_mm", positive=True)
-        c.Cd = r.number("Cd", positive=True)
-        if c.C is None and c.orifice_mm is None:
-            raise r.error("give the sonic conductance C (m^3/(s Pa)) or orifice_mm and Cd")
-        if c.C is not None and c.orifice_mm is not None:
-            raise r.error("give either C or orifice_mm, not both")
-        if c.orifice_mm is not None and c.Cd is None:
-            raise r.error("orifice_mm needs a discharge coefficient Cd")
-        if c.Cd is not None and c.Cd > 1:
-            raise r.error("Cd must be at most 1")
-        c.b = r.number("b", 0.528 if c.C is None else None)  # ideal nozzle by default
-        if c.b is None:
-            raise r.error("missing required key 'b' (critical pressure ratio) with C")
-        if not -1.0 < c.b < 1.0:
-            raise r.error("b must lie between -1 and 1")
-        c.m = r.number("m", 0.5, positive=True)
-        c.a = r.number("a", 1.0, positive=True)
-        if c.a <= c.b or c.a > 1.0:
-            raise r.error("a (cracking pressure ratio) must be > b and <= 1")
-        c.pressure_bar_g = r.number("pressure_bar_g", nonneg=True)
-        c.flow_model = r.string("flow_model", "iso6358", choices=FLOW_MODELS)
+        _passive_keys(r, table, c)
     c.line = r.string("line")
     return c
+
+
+def _cylinder_keys(r: _Reader, table: dict, c: Consumer) -> None:
+    """A cylinder-like consumer's size, tubes, stroke times, switches and plant keys."""
+    kind = c.kind
+    c.bore_mm = r.number("bore_mm", required=True, positive=True)
+    c.stroke_mm = r.number("stroke_mm", required=kind not in ("semi_rotary", "gripper"),
+                           positive=True)
+    if kind in ("semi_rotary", "gripper") and c.stroke_mm is None:
+        raise r.error("missing required key 'stroke_mm' (for a semi-rotary drive or a "
+                      "gripper: the equivalent stroke of its swept volume)")
+    # a single-acting cylinder fills only its cap end: its rod does not matter to the air
+    needs_rod = kind in ("double_acting", "double_rod")
+    c.rod_mm = r.number("rod_mm", 0.0 if not needs_rod else None, required=needs_rod,
+                        nonneg=True)
+    if c.rod_mm is not None and c.rod_mm >= c.bore_mm:
+        raise r.error(f"rod_mm ({c.rod_mm:g}) must be smaller than bore_mm "
+                      f"({c.bore_mm:g})")
+    c.tube_id_mm = r.number("tube_id_mm", 0.0, nonneg=True)
+    c.tube_length_m = r.pair("tube_length_m", (0.0, 0.0), nonneg=True)
+    st = table.get("stroke_time_s")
+    if st == "auto":
+        c.stroke_time_s = "auto"
+    else:
+        c.stroke_time_s = r.pair("stroke_time_s", None, positive=True)
+    c.switch_delay_s = r.number("switch_delay_s", 0.0, nonneg=True)
+    sw = table.get("switches", {})
+    if not isinstance(sw, dict) or set(sw) - {"retracted", "extended"} or not all(
+            isinstance(v, str) and v for v in sw.values()):
+        raise r.error("switches must be { retracted = \"...\", extended = \"...\" }")
+    c.switches = {k: _signal_name(r, f"switches.{k}", v) for k, v in sw.items()}
+    c.initial = r.string("initial", "retracted", choices=("retracted", "extended"))
+    c.exhaust_tau_s = r.number("exhaust_tau_s", positive=True)
+    c.partial_strokes = r.flag("partial_strokes")
+    if c.partial_strokes and c.stroke_time_s is None:
+        raise r.error("partial_strokes needs stroke_time_s (how far a piston gets "
+                      "before the next edge)")
+    c.plant = _plant_keys(r, table, kind)
+    for key in PASSIVE_KEYS:
+        if key in table:
+            raise r.error(f"'{key}' applies to nozzles and leaks, not to a {kind}")
+
+
+def _passive_keys(r: _Reader, table: dict, c: Consumer) -> None:
+    """A nozzle's or leak's restriction (C, b, m, a or an orifice) and regulator."""
+    kind = c.kind
+    for key in (*CYLINDER_KEYS, *PLANT_DRIVE_KEYS):
+        if key in table:
+            raise r.error(f"'{key}' applies to cylinders, not to a {kind}")
+    c.C = r.number("C", positive=True)
+    c.orifice_mm = r.number("orifice_mm", positive=True)
+    c.Cd = r.number("Cd", positive=True)
+    if c.C is None and c.orifice_mm is None:
+        raise r.error("give the sonic conductance C (m^3/(s Pa)) or orifice_mm and Cd")
+    if c.C is not None and c.orifice_mm is not None:
+        raise r.error("give either C or orifice_mm, not both")
+    if c.orifice_mm is not None and c.Cd is None:
+        raise r.error("orifice_mm needs a discharge coefficient Cd")
+    if c.Cd is not None and c.Cd > 1:
+        raise r.error("Cd must be at most 1")
+    c.b = r.number("b", 0.528 if c.C is None else None)  # ideal nozzle by default
+    if c.b is None:
+        raise r.error("missing required key 'b' (critical pressure ratio) with C")
+    if not -1.0 < c.b < 1.0:
+        raise r.error("b must lie between -1 and 1")
+    c.m = r.number("m", 0.5, positive=True)
+    c.a = r.number("a", 1.0, positive=True)
+    if c.a <= c.b or c.a > 1.0:
+        raise r.error("a (cracking pressure ratio) must be > b and <= 1")
+    c.pressure_bar_g = r.number("pressure_bar_g", nonneg=True)
+    c.flow_model = r.string("flow_model", "iso6358", choices=FLOW_MODELS)
 
 
 def _plant_keys(r: _Reader, table: dict, kind: str) -> dict:
@@ -316,6 +328,12 @@ _PROGRAM_SUFFIXES = {".st", ".iecst", ".seq", ".xml", ".tcpou", ".tcgvl", ".tcdu
                      ".tctto", ".plcproj"}
 
 
+def as_machine(machine) -> Machine:
+    """``machine`` itself when it is a loaded :class:`Machine`, else the machine file at
+    that path, loaded: what every entry point that takes either does first."""
+    return machine if isinstance(machine, Machine) else load_machine(machine)
+
+
 def load_machine(path, allowed_roots=None) -> Machine:
     """Read and validate a machine file. Raises :class:`MachineError`. Its program and
     libraries must be under its folder, or one of ``allowed_roots`` (see
@@ -401,48 +419,9 @@ def machine_from_data(data: dict, path, allowed_roots=None) -> Machine:
     reached without leaving them through ``..`` or a symbolic link."""
     path = Path(path)
     file = str(path)
-    unknown = sorted(set(data) - {"machine", "signals", "input", "consumer", "meter", "line",
-                                  "calendar"})
-    if unknown:
-        near = difflib.get_close_matches(unknown[0], ["machine", "signals", "input",
-                                                      "consumer", "meter", "line",
-                                                      "calendar"], n=1, cutoff=0.6)
-        raise MachineError(file, "", f"unknown table [{unknown[0]}] ("
-                                     + (f"did you mean [{near[0]}]? " if near else "")
-                                     + "known: [machine], [signals], [[input]], "
-                                       "[[consumer]], [[line]], [meter], [calendar])")
-    if "machine" not in data:
-        raise MachineError(file, "", "missing the [machine] table")
-    r = _Reader(file, "[machine]", data["machine"], keys("machine"))
-    program = r.string("program", required=True)
-    roots = machine_roots(path, allowed_roots)
-    machine = Machine(
-        name=r.string("name", path.stem),
-        path=path,
-        program_path=_contained_path(r, "program", program, path, roots),
-        allowed_roots=roots,
-        scan_ms=r.number("scan_ms", 10.0, positive=True),
-        supply_bar_g=r.number("supply_bar_g", required=True, nonneg=True),
-        atmosphere_kpa=r.number("atmosphere_kpa", P_ATM_KPA, positive=True),
-        ambient_c=r.number("ambient_c", 20.0),
-    )
-    if "cycle_signal" in data["machine"]:
-        machine.cycle_signal = _signal_name(r, "cycle_signal", data["machine"]["cycle_signal"])
-    if machine.ambient_c <= -ZERO_C_K:
-        raise r.error("ambient_c must be above absolute zero")
-    libraries = data["machine"].get("libraries", [])
-    if not isinstance(libraries, list) or not all(isinstance(x, str) and x for x in libraries):
-        raise r.error('libraries must be a list of paths, like ["libs/MyLib/"]')
-    if len(libraries) > 100:
-        raise r.error(f"libraries: {len(libraries)} of them; at most 100")
-    for lib in libraries:
-        machine.library_paths.append(_contained_path(r, "libraries", lib, path, roots))
-    signals = data.get("signals", {})
-    if not isinstance(signals, dict) or not all(
-            isinstance(v, str) and v and len(v) <= 255 and v.isprintable()
-            for v in signals.values()):
-        raise MachineError(file, "[signals]", 'entries must look like "%IX0.0" = "PB1"')
-    machine.signals = dict(signals)
+    _check_table_names(data, file)
+    machine = _machine_table(data["machine"], path, machine_roots(path, allowed_roots))
+    machine.signals = _signals_table(data.get("signals", {}), file)
     for key, what, builder, out in (("input", "[[input]]", _input, machine.inputs),
                                     ("consumer", "[[consumer]]", _consumer, machine.consumers),
                                     ("line", "[[line]]", _line, machine.lines)):
@@ -456,28 +435,74 @@ def machine_from_data(data: dict, path, allowed_roots=None) -> Machine:
         machine.meter = _meter(file, data["meter"])
     if "calendar" in data:
         machine.calendar = _calendar(file, data["calendar"])
+    _check_names(machine, file)
+    _check_supply(machine, file)
+    return machine
+
+
+KNOWN_TABLES = ("machine", "signals", "input", "consumer", "meter", "line", "calendar")
+
+
+def _check_table_names(data: dict, file: str) -> None:
+    """Only tables a machine file has, and a [machine] among them."""
+    unknown = sorted(set(data) - set(KNOWN_TABLES))
+    if unknown:
+        near = difflib.get_close_matches(unknown[0], KNOWN_TABLES, n=1, cutoff=0.6)
+        raise MachineError(file, "", f"unknown table [{unknown[0]}] ("
+                                     + (f"did you mean [{near[0]}]? " if near else "")
+                                     + "known: [machine], [signals], [[input]], "
+                                       "[[consumer]], [[line]], [meter], [calendar])")
+    if "machine" not in data:
+        raise MachineError(file, "", "missing the [machine] table")
+
+
+def _machine_table(table: dict, path: Path, roots) -> Machine:
+    """The [machine] table: the program and libraries (under ``roots``), the scan, the
+    supply and the ambient conditions, the cycle signal."""
+    file = str(path)
+    r = _Reader(file, "[machine]", table, keys("machine"))
+    program = r.string("program", required=True)
+    machine = Machine(
+        name=r.string("name", path.stem),
+        path=path,
+        program_path=_contained_path(r, "program", program, path, roots),
+        allowed_roots=roots,
+        scan_ms=r.number("scan_ms", 10.0, positive=True),
+        supply_bar_g=r.number("supply_bar_g", required=True, nonneg=True),
+        atmosphere_kpa=r.number("atmosphere_kpa", P_ATM_KPA, positive=True),
+        ambient_c=r.number("ambient_c", 20.0),
+    )
+    if "cycle_signal" in table:
+        machine.cycle_signal = _signal_name(r, "cycle_signal", table["cycle_signal"])
+    if machine.ambient_c <= -ZERO_C_K:
+        raise r.error("ambient_c must be above absolute zero")
+    libraries = table.get("libraries", [])
+    if not isinstance(libraries, list) or not all(isinstance(x, str) and x for x in libraries):
+        raise r.error('libraries must be a list of paths, like ["libs/MyLib/"]')
+    if len(libraries) > 100:
+        raise r.error(f"libraries: {len(libraries)} of them; at most 100")
+    for lib in libraries:
+        machine.library_paths.append(_contained_path(r, "libraries", lib, path, roots))
+    return machine
+
+
+def _signals_table(signals, file: str) -> dict:
+    """[signals]: hardware addresses named (``"%IX0.0" = "PB1"``)."""
+    if not isinstance(signals, dict) or not all(
+            isinstance(v, str) and v and len(v) <= 255 and v.isprintable()
+            for v in signals.values()):
+        raise MachineError(file, "[signals]", 'entries must look like "%IX0.0" = "PB1"')
+    return dict(signals)
+
+
+def _check_names(machine: Machine, file: str) -> None:
+    """Consumer and line names each used once, every line a consumer or the meter names
+    declared, every input scheduled once."""
     seen = set()
     for c in machine.consumers:
         if c.name in seen:
             raise MachineError(file, f'consumer "{c.name}"', "name is used twice")
         seen.add(c.name)
-    if machine.supply_bar_g > PLAUSIBLE_SUPPLY_BAR_G:
-        machine.warnings.append(
-            f"{file}: [machine]: supply_bar_g = {machine.supply_bar_g:g} is above what "
-            f"factory air runs at (up to {PLAUSIBLE_SUPPLY_BAR_G:g} bar(g)); if it is in "
-            f"psi, that is {machine.supply_bar_g * BAR_PER_PSI:.2f} bar(g)")
-    supply_context = ((machine.supply_bar_g * PA_PER_BAR + machine.atmosphere_kpa * 1e3),
-                      machine.atmosphere_kpa * 1e3, machine.ambient_c + ZERO_C_K, file)
-    for c in machine.consumers:
-        c.supply_context = supply_context
-        if c.stroke_time_s == "auto":
-            c.auto_stroke_times()   # fails here, naming the drive, if it cannot move
-        if c.kind == "nozzle" and c.pressure_bar_g is not None and \
-                c.pressure_bar_g > machine.supply_bar_g:
-            machine.warnings.append(
-                f'{file}: consumer "{c.name}": pressure_bar_g = {c.pressure_bar_g:g} is above '
-                f"supply_bar_g = {machine.supply_bar_g:g}; a regulator cannot raise its "
-                "supply (predict takes the nozzle's pressure as given, emulate the supply)")
     lines = {ln.name for ln in machine.lines}
     if len(lines) != len(machine.lines):
         raise MachineError(file, "[[line]]", "a line name is used twice")
@@ -495,4 +520,27 @@ def machine_from_data(data: dict, path, allowed_roots=None) -> Machine:
         if s.signal in seen:
             raise MachineError(file, f'input "{s.signal}"', "scheduled twice")
         seen.add(s.signal)
-    return machine
+
+
+def _check_supply(machine: Machine, file: str) -> None:
+    """The supply against what factory air runs at and what each consumer needs: a warning
+    for psi typed as bar and for a nozzle regulated above the supply; each drive's
+    ``"auto"`` stroke times computed now, so that a drive the supply cannot move is an
+    error naming it."""
+    if machine.supply_bar_g > PLAUSIBLE_SUPPLY_BAR_G:
+        machine.warnings.append(
+            f"{file}: [machine]: supply_bar_g = {machine.supply_bar_g:g} is above what "
+            f"factory air runs at (up to {PLAUSIBLE_SUPPLY_BAR_G:g} bar(g)); if it is in "
+            f"psi, that is {machine.supply_bar_g * BAR_PER_PSI:.2f} bar(g)")
+    supply_context = ((machine.supply_bar_g * PA_PER_BAR + machine.atmosphere_kpa * 1e3),
+                      machine.atmosphere_kpa * 1e3, machine.ambient_c + ZERO_C_K, file)
+    for c in machine.consumers:
+        c.supply_context = supply_context
+        if c.stroke_time_s == "auto":
+            c.auto_stroke_times()   # fails here, naming the drive, if it cannot move
+        if c.kind == "nozzle" and c.pressure_bar_g is not None and \
+                c.pressure_bar_g > machine.supply_bar_g:
+            machine.warnings.append(
+                f'{file}: consumer "{c.name}": pressure_bar_g = {c.pressure_bar_g:g} is above '
+                f"supply_bar_g = {machine.supply_bar_g:g}; a regulator cannot raise its "
+                "supply (predict takes the nozzle's pressure as given, emulate the supply)")

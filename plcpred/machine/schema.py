@@ -283,6 +283,16 @@ def key_types(table: str, plant: bool = True) -> dict[str, str]:
             and (plant or not is_plant_section(s)) for row in s.rows for k in row.keys}
 
 
+def section_keys(heading: str) -> tuple[str, ...]:
+    """The keys of the section under ``heading``, in the docs' order."""
+    section = next(s for s in SECTIONS if s.heading == heading)
+    return tuple(k for row in section.rows for k in row.keys)
+
+
+CYLINDER_KEYS = section_keys("### Cylinder-like consumers")
+PASSIVE_KEYS = section_keys("### Nozzles and leaks")
+
+
 def is_plant_section(section: Section) -> bool:
     return section.heading.startswith("## Physics-plant")
 

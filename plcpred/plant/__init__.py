@@ -6,7 +6,7 @@ The drives' own physics (chambers, friction, one supply's group integrated betwe
 events, stroke times) is in :mod:`plcpred.physics`; this package runs a whole machine.
 
 * :mod:`~plcpred.plant.model` - the machine as groups, and the sequencer's adapters
-* :mod:`~plcpred.plant.meter` - what a flow meter reports
+* :mod:`~plcpred.plant.flow_meter` - what a flow meter reports
 * :mod:`~plcpred.plant.truth` - truth files (the real machine's deviations)
 * :mod:`~plcpred.plant.replay` - the plant switched by given edges (open loop), or run
   against the program without a meter: the diagnosis' reference of the nominal machine

@@ -12,7 +12,7 @@ from ..machine import Machine, check_against_program
 from ..physics.meter import interval_means_l_min
 from ..sequencer import Sequencer, parse_horizon
 from ..sequencer.timeline import HorizonError
-from .meter import MeterSettings, meter_readings
+from .flow_meter import MeterSettings, meter_readings
 from .model import PlantModel
 from .truth import load_real_machine
 
