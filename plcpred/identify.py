@@ -128,17 +128,29 @@ def read_flow_data(path, atmosphere_kpa: float = P_ATM_KPA, temperature_c: float
     """Steady-flow or tank data from a CSV (see the module note). Errors name the file,
     line and column. The file is read a line at a time: at most MAX_POINTS rows, each
     value of a known column within COLUMN_RANGES."""
-
     path = Path(path)
     atm = atmosphere_kpa * 1e3
     if not (math.isfinite(temperature_c) and
             TEMPERATURE_C[0] <= temperature_c <= TEMPERATURE_C[1]):
         raise IdentifyError(f"the temperature {temperature_c:g} C is outside "
                             f"{TEMPERATURE_C[0]:g} to {TEMPERATURE_C[1]:g} C")
+    header, values = _read_rows(path)
+    if "flow_l_min" in header:
+        return _steady_flow(path, values, atm, temperature_c)
+    if "time_s" in header:
+        return _tank(path, values, atm)
+    raise IdentifyError(f"{path}: columns {', '.join(header)}: expected steady-flow data "
+                        "(p_up_bar_g, p_down_bar_g, flow_l_min) or a tank's pressure "
+                        "(time_s, p_bar_g)")
+
+
+def _read_rows(path: Path) -> tuple[list[str], list[tuple[int, dict]]]:
+    """(the header's lower-case names, (line, column -> value) of each data row): every
+    value a finite number within its column's range."""
     header: list[str] | None = None
     col: dict[str, int] = {}
     ranges: dict[str, tuple[float, float] | None] = {}
-    values: list[tuple[int, dict]] = []     # (line, column -> value)
+    values: list[tuple[int, dict]] = []
     with DataLines(path, IdentifyError) as lines:
         for k, line in enumerate(lines, start=1):
             if not line.strip() or line.lstrip().startswith("#"):
@@ -154,58 +166,65 @@ def read_flow_data(path, atmosphere_kpa: float = P_ATM_KPA, temperature_c: float
                 continue
             if len(values) >= MAX_POINTS:
                 raise IdentifyError(f"{path}:{k}: more than {MAX_POINTS:,} data rows")
-            parsed = {}
-            for name, i in col.items():
-                if i >= len(row) or not row[i].strip():
-                    continue
-                try:
-                    v = float(row[i])
-                except ValueError:
-                    raise IdentifyError(f"{path}:{k}:{i + 1}: {name}: not a number: "
-                                        f"{row[i][:40]!r}") from None
-                if not math.isfinite(v):
-                    raise IdentifyError(f"{path}:{k}:{i + 1}: {name}: not a finite number")
-                lo_hi = ranges[name]
-                if lo_hi is not None and not lo_hi[0] <= v <= lo_hi[1]:
-                    raise IdentifyError(f"{path}:{k}:{i + 1}: {name}: {row[i].strip()[:40]} "
-                                        f"is outside {lo_hi[0]:g} to {lo_hi[1]:g} (a unit "
-                                        "mix-up?)")
-                parsed[name] = v
-            values.append((k, parsed))
+            values.append((k, _row_values(path, k, row, col, ranges)))
     if header is None or not values:
         raise IdentifyError(f"{path}: needs a header and data rows")
-    if "flow_l_min" in col:
-        pu, pd, q, tk = [], [], [], []
-        for k, v in values:
-            p_up = _pressure(v.get, "p_up", atm)
-            if p_up is None or "flow_l_min" not in v:
-                raise IdentifyError(f"{path}:{k}: needs p_up_bar_g (or p_up_bar, "
-                                    "p_up_kpa) and flow_l_min")
-            p_down = _pressure(v.get, "p_down", atm, default=atm)
-            if p_up <= 0 or p_down <= 0:
-                raise IdentifyError(f"{path}:{k}: pressures must be above absolute zero")
-            pu.append(p_up)
-            pd.append(p_down)
-            q.append(v["flow_l_min"])
-            tk.append(v.get("t_up_c", temperature_c) + ZERO_C_K)
-        return FlowData(*(np.array(x) for x in (pu, pd, q, tk)), path=str(path))
-    if "time_s" in col:
-        t, p = [], []
-        for k, v in values:
-            pk = _pressure(v.get, "p", atm)
-            if pk is None or "time_s" not in v:
-                raise IdentifyError(f"{path}:{k}: needs time_s and p_bar_g (or p_bar, p_kpa)")
-            if pk <= 0:
-                raise IdentifyError(f"{path}:{k}: the pressure must be above absolute zero")
-            t.append(v["time_s"])
-            p.append(pk)
-        t, p = np.array(t), np.array(p)
-        if np.any(np.diff(t) <= 0):
-            raise IdentifyError(f"{path}: time_s must increase")
-        return TankData(t, p, path=str(path))
-    raise IdentifyError(f"{path}: columns {', '.join(header)}: expected steady-flow data "
-                        "(p_up_bar_g, p_down_bar_g, flow_l_min) or a tank's pressure "
-                        "(time_s, p_bar_g)")
+    return header, values
+
+
+def _row_values(path, k: int, row: list[str], col: dict, ranges: dict) -> dict:
+    parsed = {}
+    for name, i in col.items():
+        if i >= len(row) or not row[i].strip():
+            continue
+        try:
+            v = float(row[i])
+        except ValueError:
+            raise IdentifyError(f"{path}:{k}:{i + 1}: {name}: not a number: "
+                                f"{row[i][:40]!r}") from None
+        if not math.isfinite(v):
+            raise IdentifyError(f"{path}:{k}:{i + 1}: {name}: not a finite number")
+        lo_hi = ranges[name]
+        if lo_hi is not None and not lo_hi[0] <= v <= lo_hi[1]:
+            raise IdentifyError(f"{path}:{k}:{i + 1}: {name}: {row[i].strip()[:40]} "
+                                f"is outside {lo_hi[0]:g} to {lo_hi[1]:g} (a unit "
+                                "mix-up?)")
+        parsed[name] = v
+    return parsed
+
+
+def _steady_flow(path, values, atm: float, temperature_c: float) -> FlowData:
+    pu, pd, q, tk = [], [], [], []
+    for k, v in values:
+        p_up = _pressure(v.get, "p_up", atm)
+        if p_up is None or "flow_l_min" not in v:
+            raise IdentifyError(f"{path}:{k}: needs p_up_bar_g (or p_up_bar, "
+                                "p_up_kpa) and flow_l_min")
+        p_down = _pressure(v.get, "p_down", atm, default=atm)
+        if p_up <= 0 or p_down <= 0:
+            raise IdentifyError(f"{path}:{k}: pressures must be above absolute zero")
+        pu.append(p_up)
+        pd.append(p_down)
+        q.append(v["flow_l_min"])
+        tk.append(v.get("t_up_c", temperature_c) + ZERO_C_K)
+    return FlowData(*(np.array(x) for x in (pu, pd, q, tk)), path=str(path))
+
+
+def _tank(path, values, atm: float) -> TankData:
+    t, p = [], []
+    for k, v in values:
+        pk = _pressure(v.get, "p", atm)
+        if pk is None or "time_s" not in v:
+            raise IdentifyError(f"{path}:{k}: needs time_s and p_bar_g (or p_bar, p_kpa)")
+        if pk <= 0:
+            raise IdentifyError(f"{path}:{k}: the pressure must be above absolute zero")
+        t.append(v["time_s"])
+        p.append(pk)
+    t, p = np.array(t), np.array(p)
+    if np.any(np.diff(t) <= 0):
+        raise IdentifyError(f"{path}: time_s must increase")
+    return TankData(t, p, path=str(path))
+
 
 
 # what an identified component may be (the machine file's ranges for a nozzle or leak)

@@ -203,21 +203,8 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
     A ``compressor`` data sheet (:class:`CompressorSheet`) sets E1's efficiency
     instead of the default one; ``sec_kwh_per_nm3`` overrides both."""
     warnings = []
-    if sec_kwh_per_nm3 is not None:
-        sec_basis = "given (--sec)"
-    elif supply is None:
-        sec_kwh_per_nm3, sec_basis = DEFAULT_SEC_KWH_NM3, "the published figure at 7 bar(g)"
-    elif compressor is not None:
-        sec_kwh_per_nm3 = compressor.sec_kwh_per_nm3(*supply)
-        sec_basis = compressor.describe(supply[1])
-        if supply[0] > compressor.rated_bar_g:
-            warnings.append(f"the supply ({supply[0]:g} bar(g)) is above the pressure the "
-                            f"compressor is rated at ({compressor.rated_bar_g:g} bar(g)): "
-                            "its energy there is extrapolated along E1")
-    else:
-        sec_kwh_per_nm3 = specific_energy_kwh_per_nm3(*supply)
-        sec_basis = ("isothermal compression to the supply pressure over "
-                     f"{100 * ISOTHERMAL_EFFICIENCY:.1f} % efficiency (E1)")
+    sec_kwh_per_nm3, sec_basis = _specific_energy(sec_kwh_per_nm3, supply, compressor,
+                                                  warnings)
     if allowance < 0 or band_bar <= 0 or hours_per_year < 0 or sec_kwh_per_nm3 < 0 \
             or efficiency <= 0:
         raise ValueError("allowance, hours and specific energy must be >= 0, the pressure "
@@ -235,16 +222,8 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
     idle_nl = float(idle_by_consumer.sum())
     roles = np.array(profile.roles)
     idle_blowers_nl = float(idle_by_consumer[roles == "passive"].sum())
-    idle_hours = idle_flow = 0.0
-    if calendar is not None:
-        if hours_per_year > HOURS_PER_YEAR:
-            raise ValueError(f"{hours_per_year:g} production hours do not fit in a year "
-                             f"({HOURS_PER_YEAR:g} h)")
-        idle_hours = HOURS_PER_YEAR - hours_per_year
-        idle_flow = split["leak"] / profile.horizon_s * 60.0          # leaks: always
-        idle_s = float(np.diff(profile.edges_s)[idle].sum())
-        if calendar.idle_state == "program" and idle_s > 0:
-            idle_flow += idle_blowers_nl / idle_s * 60.0
+    idle_hours, idle_flow = _idle_year(profile, calendar, hours_per_year, idle, split["leak"],
+                                       idle_blowers_nl)
     # (E2) annual air: production hours at the mean, idle hours at the idle flow
     air_nm3 = (mean * hours_per_year + idle_flow * idle_hours) * 60.0 / 1000.0
     energy = air_nm3 * sec_kwh_per_nm3 / efficiency
@@ -274,6 +253,43 @@ def size(profile, allowance: float = DEFAULT_ALLOWANCE, band_bar: float = DEFAUL
             "cycle_source": cycles.source, "cycle_s": cycles.cycle_s,
             "nl_per_cycle": cycles.nl_per_cycle, "cycles_per_hour": cycles.per_hour}),
         warnings=warnings)
+
+
+def _specific_energy(sec_kwh_per_nm3, supply, compressor, warnings: list
+                     ) -> tuple[float, str]:
+    """(E1) the energy per normal m^3 and what it rests on: as given, from a compressor's
+    data sheet at the supply, isothermal compression to the supply over the default
+    efficiency, or the published figure when the supply is not known."""
+    if sec_kwh_per_nm3 is not None:
+        return sec_kwh_per_nm3, "given (--sec)"
+    if supply is None:
+        return DEFAULT_SEC_KWH_NM3, "the published figure at 7 bar(g)"
+    if compressor is not None:
+        if supply[0] > compressor.rated_bar_g:
+            warnings.append(f"the supply ({supply[0]:g} bar(g)) is above the pressure the "
+                            f"compressor is rated at ({compressor.rated_bar_g:g} bar(g)): "
+                            "its energy there is extrapolated along E1")
+        return compressor.sec_kwh_per_nm3(*supply), compressor.describe(supply[1])
+    return specific_energy_kwh_per_nm3(*supply), (
+        "isothermal compression to the supply pressure over "
+        f"{100 * ISOTHERMAL_EFFICIENCY:.1f} % efficiency (E1)")
+
+
+def _idle_year(profile, calendar, hours_per_year: float, idle, leak_nl: float,
+               idle_blowers_nl: float) -> tuple[float, float]:
+    """(E2) the hours a year the machine stands with the supply on, and its flow then
+    (NL/min): its leaks, and with ``idle_state = "program"`` the blowers the program
+    leaves on when nothing moves (their rate over the run's idle cells ``idle``)."""
+    if calendar is None:
+        return 0.0, 0.0
+    if hours_per_year > HOURS_PER_YEAR:
+        raise ValueError(f"{hours_per_year:g} production hours do not fit in a year "
+                         f"({HOURS_PER_YEAR:g} h)")
+    idle_flow = leak_nl / profile.horizon_s * 60.0          # leaks: always
+    idle_s = float(np.diff(profile.edges_s)[idle].sum())
+    if calendar.idle_state == "program" and idle_s > 0:
+        idle_flow += idle_blowers_nl / idle_s * 60.0
+    return HOURS_PER_YEAR - hours_per_year, idle_flow
 
 
 def production_hours(machine, hours: float | None) -> float:
