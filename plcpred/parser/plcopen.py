@@ -51,6 +51,22 @@ def _place(node, pos: ir.Pos) -> None:
                     stack.append(v)
 
 
+_SFC_PASSTHROUGH = {"selectionDivergence", "selectionConvergence", "simultaneousDivergence",
+                    "simultaneousConvergence"}
+
+
+def _number_selection_priorities(transitions: list) -> None:
+    """Selection divergence: a transition's order among those leaving the same steps,
+    where the file gives none."""
+    by_source: dict[tuple, list[ir.Transition]] = {}
+    for t in transitions:
+        by_source.setdefault(tuple(t.sources), []).append(t)
+    for group in by_source.values():
+        if all(t.priority == 0 for t in group):
+            for i, t in enumerate(group):
+                t.priority = i
+
+
 class PlcopenImporter:
     def __init__(self, filename: str):
         self.file = filename
@@ -342,6 +358,39 @@ class PlcopenImporter:
 
     # ------------------------------------------------------------------ SFC
     def sfc(self, sfc_el: XmlElement, pou_el: XmlElement) -> ir.Sfc:
+        nodes, preds, succs = self._sfc_graph(sfc_el)
+        steps = self._sfc_steps(nodes, sfc_el, pou_el)
+        step_names = {s.name for s in steps.values()}
+        transitions_el = pou_el.find("transitions")
+        named_conditions = {self.req(t, "name"): t for t in transitions_el.findall("transition")
+                            } if transitions_el is not None else {}
+        transitions = []
+        extra_actions = []
+        for lid, el in nodes.items():
+            if el.tag == "transition":
+                sources = self._sfc_reach(lid, preds, nodes, steps, step_names)
+                targets = self._sfc_reach(lid, succs, nodes, steps, step_names)
+                if not sources or not targets:
+                    raise self.error(el, "transition is not connected to steps on both sides")
+                cond = self.condition(el, named_conditions, sfc_el)
+                prio = self.int_attr(el, "priority", 0, -(1 << 31))
+                transitions.append(ir.Transition(sources, targets, cond, prio,
+                                                 pos=ir.Pos(self.file, el.line, el.col)))
+            elif el.tag == "actionBlock":
+                owners = [p for p in preds[lid] if p in steps]
+                if len(owners) != 1:
+                    raise self.error(el, "action block must be connected to one step")
+                step = steps[owners[0]]
+                for n, a in enumerate(el.findall("action")):
+                    step.actions.append(self.action_assoc(a, step, n, extra_actions))
+        self._sfc_drawn_conditions(sfc_el, list(steps.values()), extra_actions)
+        _number_selection_priorities(transitions)
+        return ir.Sfc(list(steps.values()), transitions, extra_actions,
+                      pos=ir.Pos(self.file, sfc_el.line, sfc_el.col))
+
+    def _sfc_graph(self, sfc_el: XmlElement):
+        """(localId -> element, localId -> the ids it is connected from, localId -> the
+        ids connected from it) of a chart."""
         nodes: dict[str, XmlElement] = {}
         for child in sfc_el.children:
             if "localId" in child.attrib:
@@ -356,86 +405,58 @@ class PlcopenImporter:
                         raise self.error(conn, f"connection to unknown localId {ref!r}")
                     preds[lid].append(ref)
                     succs[ref].append(lid)
-        steps = []
-        step_of_id = {}
+        return nodes, preds, succs
+
+    def _sfc_steps(self, nodes: dict, sfc_el: XmlElement, pou_el: XmlElement) -> dict:
+        """localId -> step, in the file's order; exactly one of them initial."""
+        steps = {}
         for lid, el in nodes.items():
             if el.tag == "step":
-                step = ir.Step(self.req(el, "name"), el.attrib.get("initialStep") == "true",
-                               pos=ir.Pos(self.file, el.line, el.col))
-                steps.append(step)
-                step_of_id[lid] = step
-        if sum(s.initial for s in steps) != 1:
+                steps[lid] = ir.Step(self.req(el, "name"), el.attrib.get("initialStep") == "true",
+                                     pos=ir.Pos(self.file, el.line, el.col))
+        if sum(s.initial for s in steps.values()) != 1:
             raise self.error(sfc_el, f"SFC of POU '{pou_el.attrib.get('name')}' needs exactly "
                                      "one initial step")
-        step_names = {s.name for s in steps}
-        transitions_el = pou_el.find("transitions")
-        named_conditions = {self.req(t, "name"): t for t in transitions_el.findall("transition")
-                            } if transitions_el is not None else {}
-        passthrough = {"selectionDivergence", "selectionConvergence",
-                       "simultaneousDivergence", "simultaneousConvergence"}
+        return steps
 
-        def walk(start, edges, found, seen):
-            # depth first through divergence and convergence nodes, iteratively (a
-            # file may chain any number of them)
-            pending = [iter(edges[start])]
-            while pending:
-                nxt = next(pending[-1], None)
-                if nxt is None:
-                    pending.pop()
-                    continue
-                if nxt in seen:
-                    continue
-                seen.add(nxt)
-                el = nodes[nxt]
-                if el.tag == "step":
-                    found.append(step_of_id[nxt].name)
-                elif el.tag == "jumpStep":
-                    target = el.attrib.get("targetName")
-                    if target not in step_names:
-                        raise self.error(el, f"jump to unknown step {target!r}")
-                    found.append(target)
-                elif el.tag in passthrough:
-                    pending.append(iter(edges[nxt]))
-            return found
+    def _sfc_reach(self, start: str, edges: dict, nodes: dict, steps: dict,
+                   step_names: set) -> list[str]:
+        """The steps (and jump targets) reached from ``start`` along ``edges``, through
+        divergence and convergence nodes: depth first, iteratively (a file may chain any
+        number of them)."""
+        found: list[str] = []
+        seen: set = set()
+        pending = [iter(edges[start])]
+        while pending:
+            nxt = next(pending[-1], None)
+            if nxt is None:
+                pending.pop()
+                continue
+            if nxt in seen:
+                continue
+            seen.add(nxt)
+            el = nodes[nxt]
+            if el.tag == "step":
+                found.append(steps[nxt].name)
+            elif el.tag == "jumpStep":
+                target = el.attrib.get("targetName")
+                if target not in step_names:
+                    raise self.error(el, f"jump to unknown step {target!r}")
+                found.append(target)
+            elif el.tag in _SFC_PASSTHROUGH:
+                pending.append(iter(edges[nxt]))
+        return found
 
-        transitions = []
-        extra_actions = []
-        for order, (lid, el) in enumerate(nodes.items()):
-            if el.tag == "transition":
-                sources = walk(lid, preds, [], set())
-                targets = walk(lid, succs, [], set())
-                if not sources or not targets:
-                    raise self.error(el, "transition is not connected to steps on both sides")
-                cond = self.condition(el, named_conditions, sfc_el)
-                prio = self.int_attr(el, "priority", 0, -(1 << 31))
-                transitions.append(ir.Transition(sources, targets, cond, prio,
-                                                 pos=ir.Pos(self.file, el.line, el.col)))
-            elif el.tag == "actionBlock":
-                owners = [p for p in preds[lid] if p in step_of_id]
-                if len(owners) != 1:
-                    raise self.error(el, "action block must be connected to one step")
-                step = step_of_id[owners[0]]
-                for n, a in enumerate(el.findall("action")):
-                    step.actions.append(self.action_assoc(a, step, n, extra_actions))
+    def _sfc_drawn_conditions(self, sfc_el: XmlElement, steps: list, extra_actions: list):
+        """The blocks the chart's drawn conditions use: an action every step runs (so
+        once in every scan of the chart)."""
         net = self._chart_networks.pop(id(sfc_el), None)
         if net is not None and net.stmts:
-            # the blocks the chart's drawn conditions use: an action every step runs
-            # (so once in every scan of the chart)
             name = self._hidden_name("ACTION")
             pos = ir.Pos(self.file, sfc_el.line, sfc_el.col)
             extra_actions.append(ir.SfcAction(name, net.stmts, pos=pos))
             for step in steps:
                 step.actions.insert(0, ir.ActionAssoc(name, "N", pos=pos))
-        # selection divergence: a transition's order among those leaving the same step
-        by_source: dict[tuple, list[ir.Transition]] = {}
-        for t in transitions:
-            by_source.setdefault(tuple(t.sources), []).append(t)
-        for group in by_source.values():
-            if all(t.priority == 0 for t in group):
-                for i, t in enumerate(group):
-                    t.priority = i
-        return ir.Sfc(steps, transitions, extra_actions,
-                      pos=ir.Pos(self.file, sfc_el.line, sfc_el.col))
 
     def condition(self, el: XmlElement, named: dict, sfc_el: XmlElement):
         cond = el.find("condition")
