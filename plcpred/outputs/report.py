@@ -9,6 +9,7 @@ import os
 import re
 import tempfile
 from collections import Counter
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -223,81 +224,104 @@ def plot_sizing(profile, sizing, path, title="Sizing") -> None:
     horizon as min, mean and max per bin (a long horizon is not drawn cell by cell); the
     receiver's deficit over the design flow."""
     plt = pyplot()
-
-
     total = profile.total_flow_l_min
     _, _, deficit = receiver_deficit(total, profile.dt_s, sizing.design_flow_l_min)
     # trend bins of whole cycles where there is one: a bin then never cuts a cycle in a
     # different place from its neighbour (the moire a long horizon otherwise shows)
     k = _whole_periods(_bin_width(len(total)), sizing.cycle_s, profile.dt_s, len(total))
-    mean_b, max_b = _bins(total, k), _bins(total, k, np.max)
-    min_b, def_b = _bins(total, k, np.min), _bins(deficit, k, np.max)
-    tb = np.arange(len(mean_b)) * profile.dt_s * k
-    scale, unit = _time_axis(profile.horizon_s)
+    bins = _SizingBins(k, np.arange(len(_bins(total, k))) * profile.dt_s * k,
+                       _bins(total, k, np.min), _bins(total, k), _bins(total, k, np.max),
+                       _bins(deficit, k, np.max))
     fig, axes = plt.subplots(2, 2, figsize=(12, 8), dpi=100,
                              gridspec_kw={"width_ratios": [3, 2], "height_ratios": [1, 1]})
     (ax_cycle, ax_ldc), (ax_trend, ax_def) = axes
+    _draw_cycle(ax_cycle, profile, sizing, title)
+    _draw_load_duration(ax_ldc, total, sizing)
+    scale, unit = _time_axis(profile.horizon_s)
+    _draw_trend(ax_trend, profile, sizing, bins, scale, unit)
+    _draw_deficit(ax_def, profile, sizing, bins, scale, unit)
+    fig.tight_layout()
+    save_fig(fig, path)
+
+
+@dataclass
+class _SizingBins:
+    """The horizon in bins of ``k`` cells: their start times and the total flow's min,
+    mean and max in each, and the receiver's largest deficit."""
+    k: int
+    start_s: np.ndarray
+    min_l_min: np.ndarray
+    mean_l_min: np.ndarray
+    max_l_min: np.ndarray
+    deficit_nl: np.ndarray
+
+
+def _levels(ax, sizing) -> None:
+    """The mean and the design flow as lines across a flow axis."""
     design = sizing.design_flow_l_min
+    ax.axhline(sizing.mean_l_min, color="black", ls="--", lw=1,
+               label=f"mean {sizing.mean_l_min:.1f} NL/min")
+    ax.axhline(design, color="#d62728", lw=1.3, label=f"design flow {design:.1f} NL/min")
+    ax.set_ylim(bottom=0)
+    ax.grid(True, alpha=0.3)
 
-    def levels(ax):
-        ax.axhline(sizing.mean_l_min, color="black", ls="--", lw=1,
-                   label=f"mean {sizing.mean_l_min:.1f} NL/min")
-        ax.axhline(design, color="#d62728", lw=1.3, label=f"design flow {design:.1f} NL/min")
-        ax.set_ylim(bottom=0)
-        ax.grid(True, alpha=0.3)
 
-    # one cycle at full resolution, by consumer
+def _draw_cycle(ax, profile, sizing, title) -> None:
+    """One cycle at full resolution, by consumer."""
     a, b, what = _cycle_window(profile, sizing)
     edges = profile.edges_s[(profile.edges_s >= a - 1e-9) & (profile.edges_s <= b + 1e-9)]
     if len(edges) >= 2:
         layers, flows = _layers(profile, SHOWN_CONSUMERS, edges)
         if layers:
-            ax_cycle.stackplot(edges[:-1] - a, flows, step="post", alpha=0.85,
-                               labels=[_plain(label) for label, _, _ in layers])
-    levels(ax_cycle)
-    ax_cycle.set_xlim(0, b - a)
-    ax_cycle.set_xlabel(f"time in the window (s; it starts at {a:g} s)")
-    ax_cycle.set_ylabel("flow (NL/min)")
-    ax_cycle.set_title(f"{_plain(title)}\n{what}, grid {profile.dt_s:g} s", fontsize=10)
-    h, lab = ax_cycle.get_legend_handles_labels()
-    ax_cycle.legend(h[::-1], lab[::-1], loc="upper right", fontsize=7, framealpha=0.9)
+            ax.stackplot(edges[:-1] - a, flows, step="post", alpha=0.85,
+                         labels=[_plain(label) for label, _, _ in layers])
+    _levels(ax, sizing)
+    ax.set_xlim(0, b - a)
+    ax.set_xlabel(f"time in the window (s; it starts at {a:g} s)")
+    ax.set_ylabel("flow (NL/min)")
+    ax.set_title(f"{_plain(title)}\n{what}, grid {profile.dt_s:g} s", fontsize=10)
+    h, lab = ax.get_legend_handles_labels()
+    ax.legend(h[::-1], lab[::-1], loc="upper right", fontsize=7, framealpha=0.9)
 
-    # load-duration curve
+
+def _draw_load_duration(ax, total, sizing) -> None:
     ordered = np.sort(total)[::-1]
     share = (np.arange(len(ordered)) + 0.5) / max(len(ordered), 1) * 100.0
-    ax_ldc.step(share, ordered, where="mid", color="#3182bd", lw=1.2, label="demand")
-    levels(ax_ldc)
-    ax_ldc.set_xlim(0, 100)
-    ax_ldc.set_xlabel("share of the time the flow is at least this (%)")
-    ax_ldc.set_ylabel("flow (NL/min)")
-    ax_ldc.set_title("load-duration curve", fontsize=10)
-    ax_ldc.legend(loc="upper right", fontsize=8)
+    ax.step(share, ordered, where="mid", color="#3182bd", lw=1.2, label="demand")
+    _levels(ax, sizing)
+    ax.set_xlim(0, 100)
+    ax.set_xlabel("share of the time the flow is at least this (%)")
+    ax.set_ylabel("flow (NL/min)")
+    ax.set_title("load-duration curve", fontsize=10)
+    ax.legend(loc="upper right", fontsize=8)
 
-    # the trend: min, mean and max per bin
-    span = profile.dt_s * k
-    ax_trend.fill_between(tb * scale, min_b, max_b, step="post", color="#c6dbef",
-                          label=f"min to max per {span:g} s")
-    ax_trend.step(tb * scale, mean_b, where="post", color="#3182bd", lw=1.0,
-                  label=f"mean per {span:g} s")
-    levels(ax_trend)
-    ax_trend.set_xlim(0, profile.horizon_s * scale)
-    ax_trend.set_xlabel(f"time ({unit})")
-    ax_trend.set_ylabel("flow (NL/min)")
-    ax_trend.set_title("over the horizon", fontsize=10)
-    ax_trend.legend(loc="upper right", fontsize=8)
 
-    # the receiver's deficit
-    ax_def.fill_between(tb * scale, 0, def_b, step="post", color="#fdae6b")
-    ax_def.axvline(sizing.deficit_at_s * scale, color="#d62728", lw=1)
-    ax_def.set_ylabel("deficit over design flow (NL)")
-    ax_def.set_xlabel(f"time ({unit})")
-    ax_def.set_xlim(0, profile.horizon_s * scale)
-    ax_def.set_ylim(bottom=0)
-    ax_def.grid(True, alpha=0.3)
-    ax_def.set_title(f"largest {sizing.deficit_nl:.2f} NL -> receiver "
-                     f"{sizing.receiver_l:.1f} L for {sizing.band_bar:g} bar", fontsize=10)
-    fig.tight_layout()
-    save_fig(fig, path)
+def _draw_trend(ax, profile, sizing, bins: _SizingBins, scale: float, unit: str) -> None:
+    """Min, mean and max per bin over the horizon."""
+    span = profile.dt_s * bins.k
+    ax.fill_between(bins.start_s * scale, bins.min_l_min, bins.max_l_min, step="post",
+                    color="#c6dbef", label=f"min to max per {span:g} s")
+    ax.step(bins.start_s * scale, bins.mean_l_min, where="post", color="#3182bd", lw=1.0,
+            label=f"mean per {span:g} s")
+    _levels(ax, sizing)
+    ax.set_xlim(0, profile.horizon_s * scale)
+    ax.set_xlabel(f"time ({unit})")
+    ax.set_ylabel("flow (NL/min)")
+    ax.set_title("over the horizon", fontsize=10)
+    ax.legend(loc="upper right", fontsize=8)
+
+
+def _draw_deficit(ax, profile, sizing, bins: _SizingBins, scale: float, unit: str) -> None:
+    """The receiver's deficit over the design flow, its largest marked."""
+    ax.fill_between(bins.start_s * scale, 0, bins.deficit_nl, step="post", color="#fdae6b")
+    ax.axvline(sizing.deficit_at_s * scale, color="#d62728", lw=1)
+    ax.set_ylabel("deficit over design flow (NL)")
+    ax.set_xlabel(f"time ({unit})")
+    ax.set_xlim(0, profile.horizon_s * scale)
+    ax.set_ylim(bottom=0)
+    ax.grid(True, alpha=0.3)
+    ax.set_title(f"largest {sizing.deficit_nl:.2f} NL -> receiver "
+                 f"{sizing.receiver_l:.1f} L for {sizing.band_bar:g} bar", fontsize=10)
 
 
 def sizing_assumptions(machine, s, today=None) -> list[tuple[str, str]]:
