@@ -11,6 +11,7 @@ import pytest
 from plcpred.air import default_dt, predict
 from plcpred.air.demand import _cumulative
 from plcpred.air.predict import csv_columns
+from plcpred.outputs.files import write_demand_csv
 
 N_VALVES = 17
 
@@ -60,7 +61,7 @@ def test_totals_are_the_same_at_every_grid_and_equal_the_grid_sums(tmp_path):
 def test_csv_written_in_stretches_equals_the_exact_cumulative_on_the_whole_grid(tmp_path):
     m = wide_machine(tmp_path)
     prof = predict(m, "25s", dt=0.01).profile            # 2,500 cells
-    prof.to_csv(tmp_path / "all.csv", shown=None, values_per_write=1)   # 1,000-row stretches
+    write_demand_csv(prof, tmp_path / "all.csv", shown=None, values_per_write=1)   # 1,000-row stretches
     header, body = read_csv(tmp_path / "all.csv")
     assert header[2:] == [f"cyl_{k}_l_min" for k in range(N_VALVES)] + ["blow_l_min", "leak_l_min"]
     assert len(body) == 2500 and body[:, 0] == pytest.approx(np.arange(2500) * 0.01)
@@ -95,7 +96,7 @@ def test_groups_read_in_pieces_equal_the_exact_cumulative(tmp_path, monkeypatch)
 def test_a_wide_machine_shows_its_largest_users_and_other(tmp_path):
     m = wide_machine(tmp_path)
     prof = predict(m, "20s", dt=0.01).profile
-    prof.to_csv(tmp_path / "d.csv", shown=5)
+    write_demand_csv(prof, tmp_path / "d.csv", shown=5)
     header, body = read_csv(tmp_path / "d.csv")
     top = sorted(np.argsort(-prof.consumer_nl)[:5].tolist())
     assert header == ["time_s", "total_l_min"] + [
@@ -159,10 +160,10 @@ def test_a_tiled_timeline_gives_each_signal_its_edges_without_building_the_whole
 
 
 def test_demand_csv_times_are_exact_decimals_at_any_horizon():
-    from plcpred.air.demand import _csv_rows
-    text = _csv_rows(8_639_998, 10_000_000, np.array([[1.0, 2.5], [1.0, 2.5]]))
+    from plcpred.outputs.files import csv_rows
+    text = csv_rows(8_639_998, 10_000_000, np.array([[1.0, 2.5], [1.0, 2.5]]))
     assert text == "86399.98,1.000000,2.500000\n86399.99,1.000000,2.500000\n"
-    text = _csv_rows(0, 250_000_000, np.array([[-1e-12], [1 / 3], [0.0], [1 / 3]]))
+    text = csv_rows(0, 250_000_000, np.array([[-1e-12], [1 / 3], [0.0], [1 / 3]]))
     assert text == "0,0.000000\n0.25,0.333333\n0.5,0.000000\n0.75,0.333333\n"
 
 
@@ -212,9 +213,9 @@ def test_a_run_that_does_not_repeat_is_plotted_in_whole_arrival_periods(tmp_path
                                                                         monkeypatch):
     # jittered arrivals never tile; bins of a fixed length over a 4 s cycle would draw
     # a moire, bins of the arrival period average one part each
+    from plcpred.machine import machine_from_data, read_machine_data
     from plcpred.outputs import report
     from plcpred.outputs.files import write_prediction
-    from plcpred.machine import machine_from_data, read_machine_data
     path = SAMPLES / "pick_place.toml"
     data = read_machine_data(path)
     for t in data["input"]:

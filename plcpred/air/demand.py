@@ -37,11 +37,11 @@ import numpy as np
 
 from ..errors import PlcpredError
 from ..machine import CYLINDER_KINDS
-from ..output import SHOWN_CONSUMERS, atomic_writer, csv_column_name, write_json
+from ..output import SHOWN_CONSUMERS
 from ..physics.flow import flow_nl_min, orifice_conductance
 from ..physics.units import bar_g_to_pa, celsius_to_k
 from ..physics.volumes import consumer_stroke_volumes_nl, dead_fill_volumes_nl, swept_volumes_nl
-from ..sequencer.timeline import NS, seconds_texts
+from ..sequencer.timeline import NS
 
 
 @dataclass
@@ -720,7 +720,7 @@ class DemandProfile:
             members[i] = _Series([self.rects[i]])
         return members[i]
 
-    def _cells_of(self, which):
+    def cells_of(self, which):
         """A function of grid edges giving the normal litres per cell of the consumers at
         indices ``which`` (each consumer's rectangles cut to the stretch asked for)."""
         if self.templates is None:
@@ -735,7 +735,7 @@ class DemandProfile:
         """Normal litres per cell of the consumers at indices ``which`` together (default
         all) on ``edges_s`` (default the profile's grid)."""
         which = range(len(self.names)) if which is None else which
-        return self._cells_of(which)(self.edges_s if edges_s is None else edges_s)
+        return self.cells_of(which)(self.edges_s if edges_s is None else edges_s)
 
     @functools.cached_property
     def total_cell_nl(self) -> np.ndarray:
@@ -867,28 +867,6 @@ class DemandProfile:
         return [(self.names[i], [i]) for i in top] + [(f"other ({len(rest)})", rest)]
 
     # ------------------------------------------------------------------ files
-    def to_csv(self, path, shown: int | None = SHOWN_CONSUMERS,
-               values_per_write: int = 1_000_000) -> None:
-        """``demand.csv``: ``time_s,total_l_min,<consumer>_l_min...`` (with more than
-        ``shown + 1`` consumers, the ``shown`` largest and ``other_l_min``); each row is
-        the mean flow over the cell starting at ``time_s``. Written in stretches of the
-        grid, so memory does not grow with the horizon."""
-        groups = self.groups(shown)
-        cells_of = [self._cells_of(idx) for _, idx in groups]   # every consumer is in one
-        header = "time_s,total_l_min," + ",".join(
-            ("other" if len(idx) > 1 else csv_column_name(label)) + "_l_min" for label, idx in groups)
-        rows = max(1000, values_per_write // (len(groups) + 2))
-        per_min = 60.0 / self.dt_s
-        dt_ns = round(self.dt_s * NS)
-        with atomic_writer(path) as f:
-            f.write(header + "\n")
-            for a in range(0, self.n_cells, rows):
-                e = self.edges_s[a:min(self.n_cells, a + rows) + 1]
-                cols = [cells(e) * per_min for cells in cells_of]
-                flows = np.column_stack([np.sum(cols, axis=0) if cols else
-                                         np.zeros(len(e) - 1)] + cols)
-                f.write(_csv_rows(a, dt_ns, flows))
-
     def summary(self) -> dict:
         consumers = {}
         active, passive = self.active_nl, self.passive_nl
@@ -914,33 +892,6 @@ class DemandProfile:
                 "horizon_s": self.horizon_s, "dt_s": self.dt_s,
                 "active_nl": split["active"], "passive_nl": split["passive"],
                 "leak_nl": split["leak"], "consumers": consumers}
-
-    def write_summary(self, path, extra: dict | None = None) -> None:
-        data = self.summary()
-        if extra:
-            data.update(extra)
-        write_json(path, data)
-
-
-def _csv_rows(first_cell: int, dt_ns: int, flows: np.ndarray) -> str:
-    """``time,flow,flow...`` lines of cells ``first_cell, first_cell + 1, ...`` of
-    ``dt_ns``, flows to 6 decimals. A machine's demand takes few distinct rows (a cycle's
-    worth, the idle row), so each distinct row is formatted once and the lines are put
-    together from it and the time (exact decimal seconds, from integer nanoseconds)."""
-    micro = np.rint(flows * 1e6).astype(np.int64)       # what %.6f prints, as integers
-    # distinct rows through a hash of each row (checked: a collision falls back to sorting
-    # the rows themselves)
-    weights = np.random.default_rng(0).integers(1, 2**62, micro.shape[1]) | 1
-    key = micro @ weights
-    _, first, which = np.unique(key, return_index=True, return_inverse=True)
-    distinct = micro[first]
-    if not np.array_equal(distinct[which.ravel()], micro):
-        distinct, which = np.unique(micro, axis=0, return_inverse=True)
-    texts = [",".join([f"{x / 1e6:.6f}" for x in row]) for row in distinct.tolist()]
-    whole, frac_k, frac_texts = seconds_texts(
-        (first_cell + np.arange(len(micro), dtype=np.int64)) * dt_ns)
-    return "".join([f"{w}{frac_texts[f]},{texts[k]}\n" for w, f, k in zip(
-        whole, frac_k, which.ravel().tolist())])
 
 
 def demand_profile(timeline, models: list[ConsumerModel], dt_s: float = 0.01,

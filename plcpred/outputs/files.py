@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from ..air.cycles import arrival_period_s
-from ..output import atomic_writer, csv_column_name
+from ..output import SHOWN_CONSUMERS, atomic_writer, csv_column_name, write_json
+from ..sequencer.timeline import NS, seconds_texts
 from .report import plot_demand, plot_emulation
 
 
@@ -26,8 +27,8 @@ def write_prediction(prediction, out_dir, plot: bool = True, timeline: bool = Tr
     if timeline:
         p.timeline.to_csv(out / "timeline.csv")
         files.append(out / "timeline.csv")
-    p.profile.to_csv(out / "demand.csv", shown=p.shown)
-    p.profile.write_summary(out / "summary.json", {
+    write_demand_csv(p.profile, out / "demand.csv", shown=p.shown)
+    write_summary(p.profile, out / "summary.json", {
         "machine": p.machine.name, "supply_bar_g": p.machine.supply_bar_g})
     p.stage_s["write_csv"] = time.perf_counter() - t0
     files += [out / "demand.csv", out / "summary.json"]
@@ -48,6 +49,58 @@ def _span(seconds: float) -> str:
     if seconds >= 120:
         return f"{seconds / 60:g} min"
     return f"{seconds:g} s"
+
+
+def write_demand_csv(profile, path, shown: int | None = SHOWN_CONSUMERS,
+                 values_per_write: int = 1_000_000) -> None:
+    """``demand.csv``: ``time_s,total_l_min,<consumer>_l_min...`` (with more than
+    ``shown + 1`` consumers, the ``shown`` largest and ``other_l_min``); each row is
+    the mean flow over the cell starting at ``time_s``. Written in stretches of the
+    grid, so memory does not grow with the horizon."""
+    groups = profile.groups(shown)
+    cells_of = [profile.cells_of(idx) for _, idx in groups]   # every consumer is in one
+    header = "time_s,total_l_min," + ",".join(
+        ("other" if len(idx) > 1 else csv_column_name(label)) + "_l_min" for label, idx in groups)
+    rows = max(1000, values_per_write // (len(groups) + 2))
+    per_min = 60.0 / profile.dt_s
+    dt_ns = round(profile.dt_s * NS)
+    with atomic_writer(path) as f:
+        f.write(header + "\n")
+        for a in range(0, profile.n_cells, rows):
+            e = profile.edges_s[a:min(profile.n_cells, a + rows) + 1]
+            cols = [cells(e) * per_min for cells in cells_of]
+            flows = np.column_stack([np.sum(cols, axis=0) if cols else
+                                     np.zeros(len(e) - 1)] + cols)
+            f.write(csv_rows(a, dt_ns, flows))
+
+
+def write_summary(profile, path, extra: dict | None = None) -> None:
+    """``summary.json``: the profile's summary, with ``extra`` keys."""
+    data = profile.summary()
+    if extra:
+        data.update(extra)
+    write_json(path, data)
+
+
+def csv_rows(first_cell: int, dt_ns: int, flows: np.ndarray) -> str:
+    """``time,flow,flow...`` lines of cells ``first_cell, first_cell + 1, ...`` of
+    ``dt_ns``, flows to 6 decimals. A machine's demand takes few distinct rows (a cycle's
+    worth, the idle row), so each distinct row is formatted once and the lines are put
+    together from it and the time (exact decimal seconds, from integer nanoseconds)."""
+    micro = np.rint(flows * 1e6).astype(np.int64)       # what %.6f prints, as integers
+    # distinct rows through a hash of each row (checked: a collision falls back to sorting
+    # the rows themselves)
+    weights = np.random.default_rng(0).integers(1, 2**62, micro.shape[1]) | 1
+    key = micro @ weights
+    _, first, which = np.unique(key, return_index=True, return_inverse=True)
+    distinct = micro[first]
+    if not np.array_equal(distinct[which.ravel()], micro):
+        distinct, which = np.unique(micro, axis=0, return_inverse=True)
+    texts = [",".join([f"{x / 1e6:.6f}" for x in row]) for row in distinct.tolist()]
+    whole, frac_k, frac_texts = seconds_texts(
+        (first_cell + np.arange(len(micro), dtype=np.int64)) * dt_ns)
+    return "".join([f"{w}{frac_texts[f]},{texts[k]}\n" for w, f, k in zip(
+        whole, frac_k, which.ravel().tolist())])
 
 
 def write_measured(emulation, path) -> None:
