@@ -39,14 +39,13 @@ from .parser import ProgramError, parse_st
 
 DASK_CONNECT_TIMEOUT_S = 10
 # scenarios a sweep runs at most unless asked for more: every one is validated in this
-# process first, and 2x10^8 of them took 5.8 GB before a single one ran
+# process first, and memory grows with their number (2x10^8 of them are 5.8 GB)
 MAX_SCENARIOS = 10_000
 # Dask settings for workers that run scenarios at the local pool's speed. A worker
 # samples its running task's stack every 10 ms for its profile, and it, its nanny and
 # the scheduler poll memory and system counters several times a second; a sweep keeps
-# every core busy, so each of these takes its time from a scenario. Measured on two
-# cores (bench/sweep_speed.py, four interleaved rounds): local 2.57 s, Dask 2.81 s with
-# the defaults, 2.62 s with these. Set them where the workers start (``dask.config.set``
+# every core busy, so each of these takes its time from a scenario (bench/sweep_speed.py
+# compares the local pool with Dask). Set them where the workers start (``dask.config.set``
 # around a LocalCluster, or the DASK_DISTRIBUTED__... environment variables of
 # ``dask worker``, docs/reference/cli.md); plcpred cannot change a running cluster's.
 DASK_WORKER_CONFIG = {"distributed.worker.profile.enabled": False,

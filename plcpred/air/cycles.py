@@ -147,8 +147,8 @@ def rest_mask(machine, timeline, profile) -> np.ndarray | None:
     """Grid cells in which the machine's valve outputs are in its *waiting state*
     (:func:`rest_spells_ns`). None when no consumer has a valve. A repeating run is read
     for one period: the time waited up to each grid edge is the start-up's, whole
-    periods', and the part of a period's (never every spell to the horizon: 10 years of a
-    fast machine took 1.5 GB)."""
+    periods', and the part of a period's (never every spell to the horizon, which for 10
+    years of a fast machine is gigabytes)."""
     pieces = _rest_pieces(machine, timeline)
     if pieces is None:
         return None

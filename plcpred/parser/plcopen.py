@@ -111,8 +111,8 @@ class PlcopenImporter:
     def _fragment(self, header: str, text: str, line: int, col: int, footer: str):
         """The program of ST text ``text`` that stands at ``line``:``col`` of the file,
         after a header of ours: positions as in the file, from the tokenizer's origin
-        (padding it with as many lines and spaces was quadratic in the file's size: a
-        0.9 MB one-line file took 53 s)."""
+        (padding it with as many lines and spaces would be quadratic in the file's
+        size)."""
         if line < 1:
             return parse_st(f"{header} {text}{footer}", self.file)
         return parse_st(f"{header}\n{text}{footer}", self.file, origin=(2, line, col))

@@ -10,7 +10,7 @@ from .files import decode
 
 MAX_XML_DEPTH = 500  # a PLCopen file nests about 12 deep; FBD/LD layouts a few more
 # elements read at most: a large CODESYS export with LD/FBD layouts holds a few hundred
-# thousand; 12 MB of empty elements (3 million) took 1 GB before this bound
+# thousand; 12 MB of empty elements (3 million) would take 1 GB
 MAX_XML_ELEMENTS = 1_500_000
 _NONE = ()      # the children and text of an element that has none (shared, never changed)
 _NO_ATTRS: dict = {}   # likewise its attributes (read, never written)
