@@ -426,7 +426,7 @@ def test_every_sample_predicts_hand_totals_from_its_strokes_and_on_times(path):
 def test_cell_volumes_equal_the_differences_of_the_exact_cumulative():
     # the linear-time placement onto the grid against the exact cumulative volume, for
     # rectangles and steps anywhere: inside cells, on edges, past the horizon
-    from plcpred.air.demand import _cell_volumes, _cumulative, grid_edges_s
+    from plcpred.air.demand import rectangles_cell_nl, rectangles_cumulative_nl, grid_edges_s
 
     rng = np.random.default_rng(0)
     for _ in range(200):
@@ -437,5 +437,5 @@ def test_cell_volumes_equal_the_differences_of_the_exact_cumulative():
         start[: n // 3] = edges[rng.integers(0, len(edges), n // 3)]
         dur = np.where(rng.random(n) < 0.3, 0.0, rng.uniform(0, 5, n))
         amount = rng.uniform(0, 3, n)
-        assert _cell_volumes(edges, start, dur, amount) == pytest.approx(
-            np.diff(_cumulative(edges, start, dur, amount)), rel=1e-9, abs=1e-9)
+        assert rectangles_cell_nl(edges, start, dur, amount) == pytest.approx(
+            np.diff(rectangles_cumulative_nl(edges, start, dur, amount)), rel=1e-9, abs=1e-9)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from plcpred.air import default_dt, predict
-from plcpred.air.demand import _cumulative
+from plcpred.air.demand import rectangles_cumulative_nl
 from plcpred.air.predict import csv_columns
 from plcpred.outputs.files import write_demand_csv
 
@@ -69,7 +69,7 @@ def test_csv_written_in_stretches_equals_the_exact_cumulative_on_the_whole_grid(
     for i, rect in enumerate(prof.rects):
         # each column against the differences of the exact cumulative volume, written
         # independently of the stretch-by-stretch placement
-        expected = np.diff(_cumulative(edges, *rect)) / 0.01 * 60
+        expected = np.diff(rectangles_cumulative_nl(edges, *rect)) / 0.01 * 60
         assert body[:, 2 + i] == pytest.approx(expected, abs=2e-6), prof.names[i]
     assert body[:, 1] == pytest.approx(body[:, 2:].sum(axis=1), abs=1e-4)
 
@@ -83,14 +83,14 @@ def test_groups_read_in_pieces_equal_the_exact_cumulative(tmp_path, monkeypatch)
     edges = prof.edges_s
     which = [0, 3, 5, 16, 18]                     # cylinders, the leak
     rects = [np.concatenate([prof.rects[i][k] for i in which]) for k in range(3)]
-    expected = np.diff(_cumulative(edges, *rects))
+    expected = np.diff(rectangles_cumulative_nl(edges, *rects))
     whole = prof.cells_nl(which)
     monkeypatch.setattr(demand, "CELL_ITEMS", 7)    # a piece per 7 rectangles
     pieces = prof.cells_nl(which)
     assert whole == pytest.approx(expected, abs=1e-12)
     assert pieces == pytest.approx(expected, abs=1e-12)
     assert prof.cells_nl([4], edges[100:2001:3]) == pytest.approx(
-        np.diff(_cumulative(edges[100:2001:3], *prof.rects[4])), abs=1e-12)
+        np.diff(rectangles_cumulative_nl(edges[100:2001:3], *prof.rects[4])), abs=1e-12)
 
 
 def test_a_wide_machine_shows_its_largest_users_and_other(tmp_path):
@@ -229,8 +229,8 @@ def test_a_run_that_does_not_repeat_is_plotted_in_whole_arrival_periods(tmp_path
     assert arrival_period_s(jittered.machine, jittered.timeline) == period
     assert arrival_period_s(tiled.machine, tiled.timeline) is None
     widths = []
-    real = report._whole_periods
-    monkeypatch.setattr(report, "_whole_periods",
+    real = report.whole_periods
+    monkeypatch.setattr(report, "whole_periods",
                         lambda *a: widths.append(real(*a)) or widths[-1])
     write_prediction(jittered, tmp_path, plot=True)
     cells = round(period / jittered.profile.dt_s)

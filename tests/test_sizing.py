@@ -417,15 +417,15 @@ def test_the_report_says_what_the_sizing_rests_on(tmp_path):
 
 
 def test_long_horizon_plots_bin_whole_cycles():
-    from plcpred.outputs.report import MAX_CYCLES_DRAWN, _whole_periods
+    from plcpred.outputs.report import MAX_CYCLES_DRAWN, whole_periods
     # a 4 s cycle on a 10 ms grid over an hour: 900 cycles, bins of 120 cells would cut
     # cycles in drifting places; they become one whole cycle (400 cells) or more
-    assert _whole_periods(120, 4.0, 0.01, 360_000) == 400
-    assert _whole_periods(1000, 4.0, 0.01, 360_000) == 1200
+    assert whole_periods(120, 4.0, 0.01, 360_000) == 400
+    assert whole_periods(1000, 4.0, 0.01, 360_000) == 1200
     # few cycles on the axis: drawn as they are
     cells = int(MAX_CYCLES_DRAWN * 400)
-    assert _whole_periods(20, 4.0, 0.01, cells) == 20
-    assert _whole_periods(20, None, 0.01, 360_000) == 20
+    assert whole_periods(20, 4.0, 0.01, cells) == 20
+    assert whole_periods(20, None, 0.01, 360_000) == 20
 
 
 def _with_calendar(tmp_path, calendar: str):

@@ -12,8 +12,9 @@ rectangles, repeated).
   on; **leaks** always.
 
 Shape of a stroke: nothing flows during the valve's switching delay
-(docs/reference/physics.md: dynamic model: flow starts t_sw after the command); then the volume is spread evenly (a rectangle) over
-the stroke time in that direction, while the piston moves. Without a stroke time it is
+(docs/reference/physics.md: dynamic model: flow starts t_sw after the command); then
+the volume is spread evenly (a rectangle) over the stroke time in that direction, while
+the piston moves. Without a stroke time it is
 spread over the switching delay from the edge, and without either it lands at the edge
 instant. Volumes are placed on the grid by integrating exactly, so each edge's total is
 the same whatever the grid (air that would flow after the horizon is not counted).
@@ -177,7 +178,7 @@ def passive_intervals(timeline, model: ConsumerModel, signal_map=None, until_ns=
 
 # ---------------------------------------------------------------------- grid integration
 
-def _cumulative(points_s, start_s, duration_s, amount):
+def rectangles_cumulative_nl(points_s, start_s, duration_s, amount):
     """Sum over items of ``amount * clip((x - start) / duration, 0, 1)`` at ``points_s``:
     the cumulative volume of rectangles, exact at any point. A zero duration is a step
     counted from strictly after its start (so it lands in the cell that starts there)."""
@@ -228,7 +229,7 @@ def _periodic_cumulative(points_s, template, period_s: float) -> np.ndarray:
         ok = j <= j_last
         if not ok.any():
             break
-        out[ok] += _cumulative(points_s[ok] - j[ok] * period_s, start, dur, vol)
+        out[ok] += rectangles_cumulative_nl(points_s[ok] - j[ok] * period_s, start, dur, vol)
     return out
 
 
@@ -262,7 +263,7 @@ def stroke_cells(edges_s, t_s, extend, extend_nl: float, retract_nl: float,
     the module docstring), less the residual of an incomplete exhaust when
     ``exhaust_tau_s`` is given (:func:`residual_fill_nl`), strokes cut short by the next
     edge taking their share with ``partial_strokes`` (:func:`cut_stroke_volumes_nl`)."""
-    return _cell_volumes(edges_s, *stroke_rectangles(
+    return rectangles_cell_nl(edges_s, *stroke_rectangles(
         t_s, extend, extend_nl, retract_nl, delay_s, stroke_time_s, exhaust_tau_s,
         dead_fill_nl, swept_nl, swept_held_nl, partial_strokes))
 
@@ -363,7 +364,7 @@ def stroke_rectangles(t_s, extend, extend_nl: float, retract_nl: float,
 def interval_cells(edges_s, starts_s, ends_s, flow_l_min: float) -> np.ndarray:
     """(D2 while on) normal litres per grid cell of a consumer flowing ``flow_l_min``
     over the given periods."""
-    return _cell_volumes(edges_s, *interval_rectangles(starts_s, ends_s, flow_l_min))
+    return rectangles_cell_nl(edges_s, *interval_rectangles(starts_s, ends_s, flow_l_min))
 
 
 def interval_rectangles(starts_s, ends_s, flow_l_min: float):
@@ -373,10 +374,10 @@ def interval_rectangles(starts_s, ends_s, flow_l_min: float):
     return starts_s, dur, flow_l_min / 60.0 * dur
 
 
-def _cell_volumes(edges_s, start_s, duration_s, amount) -> np.ndarray:
+def rectangles_cell_nl(edges_s, start_s, duration_s, amount) -> np.ndarray:
     """The volume of each grid cell under the same rectangles (and steps) as
-    :func:`_cumulative`, i.e. ``np.diff(_cumulative(edges_s, ...))``, in time linear in
-    cells plus items: each rectangle's rate is switched on and off at its two
+    :func:`rectangles_cumulative_nl`, i.e.
+    ``np.diff(rectangles_cumulative_nl(edges_s, ...))``, in time linear in cells plus items: each rectangle's rate is switched on and off at its two
     breakpoints, a cell takes the rate in force over its whole width plus the part of
     each breakpoint inside it."""
     edges_s = np.asarray(edges_s, dtype=float)
@@ -590,8 +591,8 @@ def _cells_in_pieces(edges_s, members: list) -> np.ndarray:
         if not parts:
             return np.zeros(len(e) - 1)
         if len(parts) == 1:
-            return _cell_volumes(e, *parts[0])
-        return _cell_volumes(e, *(np.concatenate([p[k] for p in parts]) for k in range(3)))
+            return rectangles_cell_nl(e, *parts[0])
+        return rectangles_cell_nl(e, *(np.concatenate([p[k] for p in parts]) for k in range(3)))
 
     n_cells = len(edges_s) - 1
     items = sum(len(m.reaching(edges_s[0], edges_s[-1])[0]) for m in members)
@@ -707,7 +708,7 @@ class DemandProfile:
         def cumulative(at_s):
             at_s = np.minimum(np.asarray(at_s, dtype=float), self.horizon_s)
             flat = at_s.ravel()
-            out = _cumulative(flat, *base.rects)
+            out = rectangles_cumulative_nl(flat, *base.rects)
             if template is not None:
                 out += _periodic_cumulative(flat, template.rects, self.period_s)
             return out.reshape(at_s.shape)

@@ -46,7 +46,7 @@ def _bins(values, k: int, reduce=np.mean):
     return np.concatenate([head, tail], axis=-1)
 
 
-def _whole_periods(k: int, period_s: float | None, dt_s: float, n_cells: int) -> int:
+def whole_periods(k: int, period_s: float | None, dt_s: float, n_cells: int) -> int:
     """Cells per plotted bin for a repeating machine: whole periods when the horizon
     holds too many cycles to draw one by one (bins that cut cycles in drifting places
     draw a moire of stripes; bins of whole cycles all average the same air), else ``k``."""
@@ -95,7 +95,7 @@ def plot_demand(profile, path, title="Air demand", shown: int | None = SHOWN_CON
     whole cycles: the run's period, or ``cycle_s`` for a run that does not repeat."""
     plt = pyplot()
 
-    k = _whole_periods(_bin_width(profile.n_cells),
+    k = whole_periods(_bin_width(profile.n_cells),
                        getattr(profile, "period_s", None) or cycle_s,
                        profile.dt_s, profile.n_cells)
     bin_edges = profile.edges_s[::k]
@@ -228,7 +228,7 @@ def plot_sizing(profile, sizing, path, title="Sizing") -> None:
     _, _, deficit = receiver_deficit(total, profile.dt_s, sizing.design_flow_l_min)
     # trend bins of whole cycles where there is one: a bin then never cuts a cycle in a
     # different place from its neighbour (the moire a long horizon otherwise shows)
-    k = _whole_periods(_bin_width(len(total)), sizing.cycle_s, profile.dt_s, len(total))
+    k = whole_periods(_bin_width(len(total)), sizing.cycle_s, profile.dt_s, len(total))
     bins = _SizingBins(k, np.arange(len(_bins(total, k))) * profile.dt_s * k,
                        _bins(total, k, np.min), _bins(total, k), _bins(total, k, np.max),
                        _bins(deficit, k, np.max))
