@@ -14,9 +14,8 @@ rectangles, repeated).
 Shape of a stroke: nothing flows during the valve's switching delay
 (docs/reference/physics.md: dynamic model: flow starts t_sw after the command); then
 the volume is spread evenly (a rectangle) over the stroke time in that direction, while
-the piston moves. Without a stroke time it is
-spread over the switching delay from the edge, and without either it lands at the edge
-instant. Volumes are placed on the grid by integrating exactly, so each edge's total is
+the piston moves. Without a stroke time it is spread over the switching delay from the
+edge, and without either it lands at the edge instant. Volumes are placed on the grid by integrating exactly, so each edge's total is
 the same whatever the grid (air that would flow after the horizon is not counted).
 
 Grid: cells ``[k dt, (k+1) dt)``; a cell's flow is its volume divided by ``dt`` (also for a
