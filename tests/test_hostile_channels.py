@@ -168,8 +168,8 @@ def test_valves_absent_from_a_trace_are_held_at_their_initial_value(tmp_path):
 
 def test_the_diagnose_command_reads_a_partial_trace_with_the_machine(tmp_path, monkeypatch,
                                                                      capsys):
-    import plcpred.diagnose as diagnose_pkg
-    from plcpred.diagnose.fit import DiagnosisError
+    import plcpred.cli.diagnose as diagnose_command
+    from plcpred.diagnose import DiagnosisError
 
     seen = {}
 
@@ -177,7 +177,7 @@ def test_the_diagnose_command_reads_a_partial_trace_with_the_machine(tmp_path, m
         seen["io"], seen["warnings"] = io, list(machine.warnings)
         raise DiagnosisError("stopped here")
 
-    monkeypatch.setattr(diagnose_pkg, "diagnose", fake_diagnose)
+    monkeypatch.setattr(diagnose_command, "diagnose", fake_diagnose)
     log = _write(tmp_path / "run.csv", LOG)
     trace = _write(tmp_path / "trace.csv", "\n".join(
         line for line in TRACE.splitlines() if ",qX," not in line))

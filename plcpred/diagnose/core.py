@@ -34,12 +34,13 @@ import math
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
 from ..air.demand import stroke_cuts
 from ..errors import PlcpredError
-from ..machine import Machine, load_machine, read_machine_data, save_machine
+from ..machine import Machine, as_machine, read_machine_data, save_machine
 from ..plant.replay import closed_loop_total_cells_nl, replay_total_cells_nl
 from ..sequencer import compile_program, observed_names, unfold
 from .band import ModelForm, band_pct, drive_factor_range
@@ -238,36 +239,49 @@ class Diagnosis:
 
     def report(self) -> str:
         """The readable report printed by ``plcpred diagnose``."""
-        b = self.baseline
         lines = [f"{self.machine.name}: {len(self.runs)} run"
                  f"{'s' if len(self.runs) != 1 else ''}, noise {self.noise_l_min:.2g} NL/min"]
         for rd in self.runs:
-            src = rd.model.timeline.info.get("mode") == "recorded"
-            way = "instantaneous" if rd.run.sampling == "instant" else "interval means"
-            lines.append(f"  {rd.run.name}: {len(rd.end_s)} samples every "
-                         f"{rd.run.interval_s:g} s ({way}), clock offset {rd.offset_s:+.3f} s"
-                         f"{_clock_reading(rd.run, rd.offset_s)}, "
-                         f"meter lag {rd.meter_tau_s:.2f} s, correlation {rd.correlation:.2f}"
-                         f"{', edges from recorded I/O' if src else ''}")
-            logged = _logged_supply(rd.run)
-            if logged is not None:
-                said = self.machine.supply_bar_g
-                lines.append(f"    supply pressure in the log: {logged:.2f} bar(g) on average"
-                             + (f", the machine file says {said:g}: compare the verdict "
-                                "supply_pressure below" if abs(logged - said) >
-                                SUPPLY_NOTE_BAR else f" (machine file: {said:g})"))
-            spread = rd.run.source.get("spread_rows")
-            if spread:
-                lines.append(f"    times stamped to the whole second: {spread} readings "
-                             "spread evenly over their second")
-            if rd.run.unlogged_s > 0.5 * rd.run.interval_s:
-                lines.append(f"    gaps in the log: {rd.run.unlogged_s:.3g} s without a "
-                             "reading; measured and predicted air both cover only the "
-                             "logged intervals")
-        lines += ["", f"baseline: measured {b.measured_nl:.2f} NL, predicted "
-                      f"{b.predicted_nl:.2f} NL, error {b.error_pct:+.1f} %, RMSE "
-                      f"{b.rmse_l_min:.2f} NL/min", "",
-                  "where (residual = measured - predicted):"]
+            lines += self._run_lines(rd)
+        lines += self._where_lines()
+        lines += self._effect_lines()
+        lines += self._verdict_lines()
+        return "\n".join(lines)
+
+    def _run_lines(self, rd: RunData) -> list[str]:
+        """The report's lines on one run: its log, alignment and what the log holds
+        that the reader should know of (its supply pressure, spread times, gaps)."""
+        src = rd.model.timeline.info.get("mode") == "recorded"
+        way = "instantaneous" if rd.run.sampling == "instant" else "interval means"
+        lines = [f"  {rd.run.name}: {len(rd.end_s)} samples every "
+                 f"{rd.run.interval_s:g} s ({way}), clock offset {rd.offset_s:+.3f} s"
+                 f"{_clock_reading(rd.run, rd.offset_s)}, "
+                 f"meter lag {rd.meter_tau_s:.2f} s, correlation {rd.correlation:.2f}"
+                 f"{', edges from recorded I/O' if src else ''}"]
+        logged = _logged_supply(rd.run)
+        if logged is not None:
+            said = self.machine.supply_bar_g
+            lines.append(f"    supply pressure in the log: {logged:.2f} bar(g) on average"
+                         + (f", the machine file says {said:g}: compare the verdict "
+                            "supply_pressure below" if abs(logged - said) >
+                            SUPPLY_NOTE_BAR else f" (machine file: {said:g})"))
+        spread = rd.run.source.get("spread_rows")
+        if spread:
+            lines.append(f"    times stamped to the whole second: {spread} readings "
+                         "spread evenly over their second")
+        if rd.run.unlogged_s > 0.5 * rd.run.interval_s:
+            lines.append(f"    gaps in the log: {rd.run.unlogged_s:.3g} s without a "
+                         "reading; measured and predicted air both cover only the "
+                         "logged intervals")
+        return lines
+
+    def _where_lines(self) -> list[str]:
+        """The report's baseline and where the residual lies: by context, by consumer."""
+        b = self.baseline
+        lines = ["", f"baseline: measured {b.measured_nl:.2f} NL, predicted "
+                     f"{b.predicted_nl:.2f} NL, error {b.error_pct:+.1f} %, RMSE "
+                     f"{b.rmse_l_min:.2f} NL/min", "",
+                 "where (residual = measured - predicted):"]
         for c in self.contexts[:8]:
             mark = "  <- stands out" if c.stands_out else ""
             lines.append(f"  {c.context:<28} {c.residual_nl:+9.3f} NL  "
@@ -279,12 +293,18 @@ class Diagnosis:
                 how = (f"{a['flow_l_min']:+.2f} NL/min" if a["consumer"] == "always on"
                        else f"{a['relative_pct']:+.0f} % of its predicted air")
                 lines.append(f"  {a['consumer']:<28} {a['residual_nl']:+9.3f} NL  ({how})")
-        lines += ["", f"which effect (held-out: {self.fold_kind}):",
-                  f"  {'effect':<20} {'error after':>11} {'held-out':>9} {'RMSE held-out':>14}"
-                  "  parameters",
-                  f"  {'(baseline)':<20} {b.error_pct:>+10.1f}% "
-                  f"{self.baseline_heldout.error_pct:>+8.1f}% "
-                  f"{self.baseline_heldout.rmse_l_min:>14.2f}"]
+        return lines
+
+    def _effect_lines(self) -> list[str]:
+        """The report's table of effects: the baseline, each effect, and the nominal
+        models an effect must beat (the plant's, the model flexed within its accuracy)."""
+        b = self.baseline
+        lines = ["", f"which effect (held-out: {self.fold_kind}):",
+                 f"  {'effect':<20} {'error after':>11} {'held-out':>9} {'RMSE held-out':>14}"
+                 "  parameters",
+                 f"  {'(baseline)':<20} {b.error_pct:>+10.1f}% "
+                 f"{self.baseline_heldout.error_pct:>+8.1f}% "
+                 f"{self.baseline_heldout.rmse_l_min:>14.2f}"]
         # sorted by the column the verdict rests on (held-out RMSE)
         for e in sorted(self.effects, key=lambda e: e.heldout_score.rmse_l_min):
             note = "(at a bound of its range: not a verdict) " if e.at_bound else ""
@@ -303,7 +323,12 @@ class Diagnosis:
         if self.on_plant:
             lines.append("  (the plant explains part of the gap that D1 leaves out by "
                          "design: an effect must beat it too)")
-        lines += ["", f"verdict: {self.verdict}"]
+        return lines
+
+    def _verdict_lines(self) -> list[str]:
+        """The report's verdict: when a flow started, the noise and what is left beyond
+        it, why the verdict is what it is, and the combination."""
+        lines = ["", f"verdict: {self.verdict}"]
         onset = self._onset()
         if onset is not None:
             lines.append(f"  from {onset['onset_s']:.1f} s into {onset['onset_run']} on (its "
@@ -315,6 +340,18 @@ class Diagnosis:
                         "differences: the log has too few flat stretches)")
                      + f"; left beyond it on held-out samples: {self.left_l_min:.2g} NL/min "
                        "RMS")
+        lines += self._verdict_reasons()
+        if self.combination and len(self.combination["effects"]) > 1:
+            c = self.combination
+            lines.append(f"combination: {' + '.join(c['effects'])}: held-out error "
+                         f"{c['heldout'].error_pct:+.1f} %, RMSE "
+                         f"{c['heldout'].rmse_l_min:.2f} NL/min")
+        return lines
+
+    def _verdict_reasons(self) -> list[str]:
+        """Why the verdict is unexplained or none, and what it cannot be told from."""
+        b = self.baseline
+        lines = []
         if self.verdict == "unexplained":
             where = ", ".join(c.context for c in self.contexts[:3] if c.stands_out) or \
                 ", ".join(c.context for c in self.contexts[:2])
@@ -340,12 +377,7 @@ class Diagnosis:
         if self.alternatives:
             lines.append(f"  as good on held-out samples (the data cannot tell them apart): "
                          f"{', '.join(self.alternatives)}")
-        if self.combination and len(self.combination["effects"]) > 1:
-            c = self.combination
-            lines.append(f"combination: {' + '.join(c['effects'])}: held-out error "
-                         f"{c['heldout'].error_pct:+.1f} %, RMSE "
-                         f"{c['heldout'].rmse_l_min:.2f} NL/min")
-        return "\n".join(lines)
+        return lines
 
 
 def _short(physical: dict, depth: int = 0) -> str:
@@ -411,10 +443,44 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     the nominal machine through the physics plant (:func:`_dynamic_reference`); where it
     explains part of the gap, each effect is also fitted beyond it, and the gap is
     ``none`` where it explains it as well as the best effects."""
-
-    if not isinstance(machine, Machine):
-        machine = load_machine(machine)
+    machine = as_machine(machine)
     warnings = list(machine.warnings)
+    request = _checked_request(machine, runs, io, offsets, effects, warnings)
+    aligned = _prepare_runs(machine, request, max_offset_s, program, warnings)
+    g = _ground(machine, request, aligned, warnings)
+    # the steps below lower judge.noise to what their best fits leave: each judges at
+    # the noise known when it runs, so their order matters
+    judge = _judge(g)
+    nominal = _fit_nominal(g, dynamic)
+    results = _fit_candidates(g, nominal, judge)
+    results = _rank_candidates(results, g, nominal, judge)
+    exhaust = _exhaust_pairs(results, g, nominal, judge)
+    where = _locate(g, judge.noise)
+    results, verdict = _choose_verdict(results, exhaust, g, nominal, judge, max_combination)
+    left = _judge_against_models(verdict, g, nominal, judge)
+    return Diagnosis(machine, g.rds, g.base_score, nominal.heldout, judge.noise,
+                     where.contexts, where.step_contexts, where.locations, results,
+                     verdict.verdict, verdict.combination, g.fold_kind, warnings,
+                     bases=g.bases, machine_model=g.mm, alternatives=verdict.alternatives,
+                     reference=nominal.reference, on_plant=verdict.on_plant,
+                     dynamics_explain=verdict.dynamics_explain, flexed=nominal.flexed,
+                     band_pct=nominal.band, within_band=verdict.within_band,
+                     meter_noise_l_min=judge.meter_noise, flat_pairs=judge.flat_pairs,
+                     left_l_min=left, attribution=where.attribution)
+
+
+class _Request(NamedTuple):
+    """What :func:`diagnose` was asked, checked: one entry per run in each list."""
+    runs: list[MeasuredRun]         # as the machine file's [meter] says to read them
+    io: list                        # recorded I/O timelines (None: the sequencer's)
+    offsets: list                   # the logger's clock at the machine's start, or None
+    names: list[str]                # the effects to try
+
+
+def _checked_request(machine: Machine, runs: list[MeasuredRun], io, offsets, effects,
+                     warnings: list[str]) -> _Request:
+    """The runs, I/O traces, offsets and effect names of a diagnosis, refused where they
+    do not fit together or name an unknown effect."""
     if not runs:
         raise DiagnosisError("no measured runs given")
     io = list(io or [None] * len(runs))
@@ -427,357 +493,609 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
         raise DiagnosisError(f"unknown effect {unknown[0]!r} (known: {', '.join(EFFECTS)})")
     runs = [_meter_corrected(run, machine.meter, warnings) for run in runs] \
         if machine.meter else list(runs)
+    return _Request(runs, io, offsets, names)
+
+
+@dataclass
+class _Aligned:
+    """The measured runs aligned to their predictions, and what made the predictions."""
+    mm: MachineModel
+    meter_tau: float | None         # the machine file's meter lag, if it gives one
+    sequenced: bool                 # every prediction is the sequencer's (no --io)
+    program: object                 # the program the sequencer runs (parsed once)
+    compiled: object                # and compiled; None with recorded I/O
+    rds: list[RunData] = field(default_factory=list)
+    horizons: list[float] = field(default_factory=list)
+    windows_s: list[float] = field(default_factory=list)    # the offset searched within
+    period_s: float | None = None   # the machine's cycle, where the sequencer found one
+
+
+def _prepare_runs(machine: Machine, request: _Request, max_offset_s: float | None,
+                  program, warnings: list[str]) -> _Aligned:
+    """Each run predicted (the sequencer, or its recorded I/O) and aligned to its
+    prediction; where the logs do not say how they sample, a hint if instantaneous
+    readings fit far better; where the meter's lag is not given, one lag for all."""
     mm = MachineModel.of(machine)
     meter_tau = machine.meter.tau_s if machine.meter and machine.meter.tau_s is not None \
         else None
-    rds: list[RunData] = []
-    instants: list[RunData] = []    # the runs aligned as instantaneous readings
-    bases: list = []            # per run: the nominal model with the run's meter lag
-    residuals: list = []        # per run: measured - predicted readings
-    period_s = None
-    horizons, windows_s = [], []
-    sequenced = all(tl is None for tl in io)
+    sequenced = all(tl is None for tl in request.io)
     if sequenced and not hasattr(program, "pous"):
         # parsed once for every unfold (timing effects run the sequencer again)
         program = machine.read_program(program)
     compiled = compile_program(program, observed_names(machine, program)) if sequenced \
         else None
-    for run, tl, off in zip(runs, io, offsets):
-        window = max_offset_s if max_offset_s is not None else min(
-            120.0, max(2.0, 0.5 * run.span_s))
-        if window > max(2.0, run.span_s):
-            # an offset beyond the log's own length leaves no overlap to correlate, and
-            # the search's grid grew with it (1e7 s: 8 GB)
-            warnings.append(f"--max-offset {window:g} s is longer than the log "
-                            f"({run.span_s:g} s): searched within {max(2.0, run.span_s):g} s")
-            window = max(2.0, run.span_s)
-        if off is None:
-            horizon = run.span_s + window + 3.0
-        else:
-            horizon = max(1.0, float(run.time_s[-1]) - off + 1.0)
-        horizons.append(horizon)
-        windows_s.append(window)
-        if tl is None:
-            tl = unfold(machine, horizon, program=program, compiled=compiled)
-            if tl.info.get("period_s"):
-                period_s = float(tl.info["period_s"])
-                if run.span_s < period_s:
-                    raise DiagnosisError(
-                        f"{run.name}: the log covers {run.span_s:g} s, less than one cycle "
-                        f"of {machine.name} ({period_s:g} s)")
-        rm = RunModel(mm, tl, _grid_dt(tl.horizon_ns / 1e9))
-        rd = align(dataclasses.replace(run, sampling=run.sampling or "mean"), rm,
-                   mm.nominal(meter_tau or 0.0), window, meter_tau, off)
-        _check_run(rd, rd.readings(mm.nominal(rd.meter_tau_s)), machine.name,
-                   off is not None, warnings)
-        warnings += rd.notes
-        _check_coverage(rd, warnings)
-        rds.append(rd)
-        if run.sampling is None:
-            instants.append(align(dataclasses.replace(run, sampling="instant"), rm,
-                                  mm.nominal(meter_tau or 0.0), window, meter_tau, off))
-    if len(instants) == len(rds):
-        _sampling_hint(rds, instants, warnings)
+    aligned = _Aligned(mm, meter_tau, sequenced, program, compiled)
+    instants: list[RunData] = []    # the runs aligned as instantaneous readings
+    for run, tl, off in zip(request.runs, request.io, request.offsets):
+        instant = _align_run(machine, aligned, run, tl, off, max_offset_s, warnings)
+        if instant is not None:
+            instants.append(instant)
+    if len(instants) == len(aligned.rds):
+        _sampling_hint(aligned.rds, instants, warnings)
     if meter_tau is None:
-        rds = _common_lag(rds, mm, windows_s, offsets)
+        aligned.rds = _common_lag(aligned.rds, mm, aligned.windows_s, request.offsets)
+    return aligned
+
+
+def _align_run(machine: Machine, aligned: _Aligned, run: MeasuredRun, tl, off,
+               max_offset_s: float | None, warnings: list[str]) -> RunData | None:
+    """Add ``run`` aligned to its prediction to ``aligned``, checked against it; return
+    it aligned as instantaneous readings too where it does not say how it samples."""
+    window = _offset_window(run, max_offset_s, warnings)
+    if off is None:
+        horizon = run.span_s + window + 3.0
+    else:
+        horizon = max(1.0, float(run.time_s[-1]) - off + 1.0)
+    aligned.horizons.append(horizon)
+    aligned.windows_s.append(window)
+    if tl is None:
+        tl = _sequenced_timeline(machine, aligned, run, horizon)
+    mm, meter_tau = aligned.mm, aligned.meter_tau
+    rm = RunModel(mm, tl, _grid_dt(tl.horizon_ns / 1e9))
+    rd = align(dataclasses.replace(run, sampling=run.sampling or "mean"), rm,
+               mm.nominal(meter_tau or 0.0), window, meter_tau, off)
+    _check_run(rd, rd.readings(mm.nominal(rd.meter_tau_s)), machine.name,
+               off is not None, warnings)
+    warnings += rd.notes
+    _check_coverage(rd, warnings)
+    aligned.rds.append(rd)
+    if run.sampling is not None:
+        return None
+    return align(dataclasses.replace(run, sampling="instant"), rm,
+                 mm.nominal(meter_tau or 0.0), window, meter_tau, off)
+
+
+def _offset_window(run: MeasuredRun, max_offset_s: float | None, warnings: list[str]
+                   ) -> float:
+    """How far from the log's first sample its clock offset is searched: ``max_offset_s``,
+    by default half the run up to 120 s; never beyond the log's own length."""
+    window = max_offset_s if max_offset_s is not None else min(
+        120.0, max(2.0, 0.5 * run.span_s))
+    if window > max(2.0, run.span_s):
+        # an offset beyond the log's own length leaves no overlap to correlate, and
+        # the search's grid grows with it (a window of 1e7 s would take 8 GB)
+        warnings.append(f"--max-offset {window:g} s is longer than the log "
+                        f"({run.span_s:g} s): searched within {max(2.0, run.span_s):g} s")
+        window = max(2.0, run.span_s)
+    return window
+
+
+def _sequenced_timeline(machine: Machine, aligned: _Aligned, run: MeasuredRun,
+                        horizon: float):
+    """The sequencer's timeline of ``machine`` over ``horizon``; a log shorter than one
+    cycle of it is refused."""
+    tl = unfold(machine, horizon, program=aligned.program, compiled=aligned.compiled)
+    if tl.info.get("period_s"):
+        aligned.period_s = float(tl.info["period_s"])
+        if run.span_s < aligned.period_s:
+            raise DiagnosisError(
+                f"{run.name}: the log covers {run.span_s:g} s, less than one cycle "
+                f"of {machine.name} ({aligned.period_s:g} s)")
+    return tl
+
+
+@dataclass
+class _Ground:
+    """What every fit of a diagnosis works from: the aligned runs, each run's nominal
+    model, the folds that keep samples out of a fit, and the fits' context."""
+    machine: Machine
+    mm: MachineModel
+    rds: list[RunData]
+    bases: list                     # per run: the nominal model (its meter lag, onset)
+    residuals: list                 # per run: measured - predicted readings
+    base_score: Score               # the nominal model on all samples, as aligned
+    onsets: list[float] | None      # per run: where an always-on flow starts
+    waiting: set[int]               # drives whose valve edges wait on the drives' timing
+    names: list[str]                # the effects to try
+    ctx: dict
+    supply_logged_off: bool         # the logs' supply pressure is off the file's
+    fold_masks: list
+    fold_kind: str
+    warnings: list[str]
+    aligned: _Aligned
+
+    @property
+    def plant_program(self):
+        """The program the plant runs against (None: it follows the recorded edges)."""
+        return self.aligned.program if self.aligned.compiled is not None else None
+
+
+def _ground(machine: Machine, request: _Request, aligned: _Aligned,
+            warnings: list[str]) -> _Ground:
+    """The nominal model of each aligned run, with the onset of an always-on flow where
+    the residual steps up, the folds, and the context every fit shares."""
+    mm, rds = aligned.mm, aligned.rds
+    bases: list = []
+    residuals: list = []
     for rd in rds:
         base = mm.nominal(rd.meter_tau_s)
         bases.append(base)
         residuals.append(rd.measured_l_min - rd.readings(base))
-    waiting: set[int] = set()      # drives whose valve edges wait on the drives' timing
-    if mm.drives and sequenced and set(CLOSED_LOOP_EFFECTS) & set(names):
-        reseq = Resequencer(mm, rds, horizons, windows_s, offsets, program, meter_tau)
-        reseq.compiled = compiled
-        waiting = reseq.waiting_drives()
-        if waiting:
-            mm.resequencer = reseq
+    waiting = _waiting_drives(aligned, request)
     base_score = score(rds, bases)
-    onsets = _leak_onsets(rds, residuals, period_s)
+    onsets = _leak_onsets(rds, residuals, aligned.period_s)
     if onsets is not None:
         bases = [dataclasses.replace(b, leak_onset_s=t) for b, t in zip(bases, onsets)]
-    noise = float(np.median([noise_level_l_min(r) for r in residuals]))
-    meter_noise, flat_pairs = _meter_noise(rds, bases, noise)
-
-    # which effect
-    fold_masks = folds(rds, period_s)
+    fold_masks = folds(rds, aligned.period_s)
     fold_kind = ("leave one run out" if len(rds) >= 2
                  else "alternate blocks of the run (fit on one half, scored on the other)")
     ctx = {"mean_l_min": max(base_score.measured_nl, 1e-9) * 60.0 / max(
         sum(float(rd.weight_s.sum()) for rd in rds), 1e-9),
-        "meter_tau_s": meter_tau,
+        "meter_tau_s": aligned.meter_tau,
         "fitted_tau_s": max(rd.fitted_tau_s for rd in rds),
         "logged_supply_bar_g": _logged_supply_all(rds)}
-    # the baseline's nuisances (clock, meter lag) are fitted as every effect's are: on
-    # all samples, then each fold from there
+    return _Ground(machine, mm, rds, bases, residuals, base_score, onsets, waiting,
+                   request.names, ctx, _supply_logged_off(ctx["logged_supply_bar_g"], machine),
+                   fold_masks, fold_kind, warnings, aligned)
+
+
+def _waiting_drives(aligned: _Aligned, request: _Request) -> set[int]:
+    """The drives whose valve edges wait on the drives' timing (a closed loop), where
+    a timing effect is to be tried on the sequencer's runs; where there are any, the
+    machine model gets the resequencer that runs the program again for them."""
+    mm = aligned.mm
+    if not (mm.drives and aligned.sequenced and set(CLOSED_LOOP_EFFECTS) & set(request.names)):
+        return set()
+    reseq = Resequencer(mm, aligned.rds, aligned.horizons, aligned.windows_s,
+                        request.offsets, aligned.program, aligned.meter_tau)
+    reseq.compiled = aligned.compiled
+    waiting = reseq.waiting_drives()
+    if waiting:
+        mm.resequencer = reseq
+    return waiting
+
+
+@dataclass
+class _Judge:
+    """Whether a held-out score beats another by more than the noise allows and by a
+    material share of the flow. The noise is the one known when asked: as the fits go,
+    it falls to what the best of them leaves."""
+    noise: float                    # NL/min
+    mean_l_min: float
+    meter_noise: float              # the meter's own, from flat stretches of the logs
+    flat_pairs: int                 # the flat neighbours it rests on (0: the noise's)
+
+    def finding(self, base: Score, new: Score) -> bool:
+        """Does ``new`` beat ``base`` as a verdict must (:func:`significant`,
+        :func:`material`)?"""
+        return significant(base, new, self.noise) and material(base, new, self.noise,
+                                                               self.mean_l_min)
+
+    def beyond_accuracy(self, base: Score, new: Score) -> bool:
+        """:meth:`finding` at the meter's own noise where the log's flat stretches tell
+        it (no fit lowers it: the misfit a fit leaves is what the model's accuracy may
+        leave too). A log without them has only the residual's differences, which carry
+        every stroke the model places off (at 1 Hz, a timer-driven rig's are several
+        times the meter's noise), and is judged at the noise the verdict was."""
+        at = self.meter_noise if self.flat_pairs else self.noise
+        return significant(base, new, at) and material(base, new, at, self.mean_l_min)
+
+
+def _judge(g: _Ground) -> _Judge:
+    """The judge at the noise of the residual's differences before any fit, and the
+    meter's own noise."""
+    noise = float(np.median([noise_level_l_min(r) for r in g.residuals]))
+    meter_noise, flat_pairs = _meter_noise(g.rds, g.bases, noise)
+    return _Judge(noise, g.ctx["mean_l_min"], meter_noise, flat_pairs)
+
+
+@dataclass
+class _Nominal:
+    """The nominal models an effect must beat on held-out samples."""
+    fit: FitResult                  # D1, its clock and meter lag fitted on all samples
+    heldout: Score                  # D1 on held-out samples
+    flexed: EffectResult | None     # D1 flexed within its own accuracy (diagnose.band)
+    band: tuple[float, float]       # that accuracy in total air (low, high error_pct)
+    reference: EffectResult | None  # the machine file through the physics plant
+    reference_cost: dict            # what the reference's plant runs cost
+
+
+def _fit_nominal(g: _Ground, dynamic: bool) -> _Nominal:
+    """D1 with its nuisances (clock, meter lag) fitted as every effect's are: on all
+    samples, then each fold from there; D1 flexed within its own accuracy, what a healthy
+    machine may do; and, where asked, the machine file through the physics plant."""
+    mm, rds, bases, ctx = g.mm, g.rds, g.bases, g.ctx
     base_all = fit_effects([], mm, rds, [np.ones(len(rd.end_s), bool) for rd in rds],
                            bases, ctx)
-    base_heldout = heldout([], mm, rds, bases, ctx, fold_masks, start=base_all.theta)
-    # the nominal model flexed within its own accuracy (diagnose.band): what a healthy
-    # machine may do, which a finding must beat too
+    base_heldout = heldout([], mm, rds, bases, ctx, g.fold_masks, start=base_all.theta)
     flexed = _evaluate([ModelForm(drive_factor_range(mm, bases[0]))], mm, rds, bases,
-                       ctx, fold_masks) if mm.models else None
+                       ctx, g.fold_masks) if mm.models else None
     band = _band(mm, rds, bases)
     reference_cost: dict = {}
-    reference = _dynamic_reference(machine, mm, rds, bases, ctx, fold_masks, warnings,
-                                   program if compiled is not None else None, compiled,
+    reference = _dynamic_reference(g.machine, mm, rds, bases, ctx, g.fold_masks,
+                                   g.warnings, g.plant_program, g.aligned.compiled,
                                    reference_cost) \
         if dynamic and mm.drives else None
-    cut_drives = _cut_drives(mm, rds)
+    return _Nominal(base_all, base_heldout, flexed, band, reference, reference_cost)
+
+
+def _effect_forms(g: _Ground) -> dict[str, list[Effect]]:
+    """Per effect name, the forms of it to fit: painted on the predicted edges, with the
+    program waiting on the drives (every later edge moved), with strokes cut short, and
+    a leak from its onset; whichever holds on held-out samples stands for the effect."""
+    mm = g.mm
+    cut_drives = _cut_drives(mm, g.rds)
     cut = bool(cut_drives)
     # a slower stroke on a drive whose strokes all complete may be cut short by an edge
     # that does not wait for it (a valve on a timer); where the program waits on the
     # drive (its edges move with the strokes) the edge comes after the slower stroke
     uncut = tuple(k for k, m in enumerate(mm.drive_models())
-                  if m.stroke_time_s and k not in cut_drives | waiting)
+                  if m.stroke_time_s and k not in cut_drives | g.waiting)
     slowed = {StrokeTime.name: StrokeTime(partial_drives=uncut)} if uncut else {}
-    # a timing effect painted on the predicted edges, or with the program waiting on the
-    # drives (every later edge moved): whichever holds on held-out samples
     forms = {name: [e for e in (EFFECTS[name], CLOSED_LOOP_EFFECTS.get(name),
                                 CUT_STROKE_EFFECTS.get(name) if cut else None,
                                 slowed.get(name))
-                    if e is not None and e.applies(mm)] for name in names}
-    if onsets is not None and "leak" in forms:
+                    if e is not None and e.applies(mm)] for name in g.names}
+    if g.onsets is not None and "leak" in forms:
         forms["leak"].append(LeakFrom([(rd.run.name, t if 0.0 < t < math.inf else None,
-                                        rd.offset_s) for rd, t in zip(rds, onsets)]))
-    tried: dict[str, list[EffectResult]] = {name: [] for name in names}
+                                        rd.offset_s) for rd, t in zip(g.rds, g.onsets)]))
+    return forms
 
-    def finding(base: Score, new: Score) -> bool:
-        # at the noise known when it is asked (the fits lower it later)
-        return significant(base, new, noise) and material(base, new, noise,
-                                                           ctx["mean_l_min"])
 
-    plant_bases = _plant_bases(bases)
+@dataclass
+class _Candidates:
+    """Each effect's forms, and the fits of them so far."""
+    g: _Ground
+    forms: dict[str, list[Effect]]
+    tried: dict[str, list[EffectResult]]
+    plant_bases: list               # the nominal models on top of the plant's reference
 
-    def paint(name: str, beyond: bool) -> None:
-        # on the plant, painted forms only (a resequenced run has no plant run of its own)
-        tried[name] += [_evaluate([e], mm, rds, plant_bases if beyond else bases,
-                                  ctx, fold_masks)
-                        for e in forms[name]
-                        if not beyond or e is not CLOSED_LOOP_EFFECTS.get(name)]
+    def paint(self, name: str, beyond: bool) -> None:
+        """Fit each form of effect ``name`` on D1, or ``beyond`` on top of the plant's
+        reference: painted forms only there (a resequenced run has no plant run of its
+        own)."""
+        g = self.g
+        bases = self.plant_bases if beyond else g.bases
+        self.tried[name] += [_evaluate([e], g.mm, g.rds, bases, g.ctx, g.fold_masks)
+                             for e in self.forms[name]
+                             if not beyond or e is not CLOSED_LOOP_EFFECTS.get(name)]
 
+    def best_heldout(self, nominal: Score, beyond: bool) -> Score:
+        """A nominal model's held-out score, or its best effect's so far."""
+        return min([nominal] + [e.heldout_score for t in self.tried.values() for e in t
+                                if e.beyond_plant == beyond], key=lambda x: x.rmse_l_min)
+
+    def best(self) -> list[EffectResult]:
+        """Each effect's best form on held-out samples, the best first."""
+        results = [min(t, key=lambda e: e.heldout_score.rmse_l_min)
+                   for t in self.tried.values() if t]
+        results.sort(key=lambda e: e.heldout_score.rmse_l_min)
+        return results
+
+
+def _fit_candidates(g: _Ground, nominal: _Nominal, judge: _Judge) -> list[EffectResult]:
+    """Every effect fitted on D1, and on top of the plant where the plant explains a
+    material part of the gap, and through the plant where that may pay; each effect's
+    best form on held-out samples, the best first."""
+    names, reference = g.names, nominal.reference
+    candidates = _Candidates(g, _effect_forms(g), {name: [] for name in names},
+                             _plant_bases(g.bases))
     # the effects of no drive (a leak, a nozzle's flow, the meter) first, each fitted on
     # D1 and on the plant's reference: which of the two is the better nominal model of
     # the drives is best seen with them fitted, since a fault that adds air (a stronger
     # nozzle) hides D1's own excess behind it
     for name in names:
         if name in NOT_OF_THE_DRIVES:
-            paint(name, False)
+            candidates.paint(name, False)
             if reference is not None:
-                paint(name, True)
-    def best_heldout(nominal: Score, beyond: bool) -> Score:
-        # a nominal model's held-out score, or its best effect's so far
-        return min([nominal] + [e.heldout_score for t in tried.values() for e in t
-                                if e.beyond_plant == beyond], key=lambda x: x.rmse_l_min)
-
-    if reference is not None:
-        d1_side = best_heldout(base_heldout, False)
-        plant_side = best_heldout(reference.heldout_score, True)
-
-    # where the plant explains a material part of the gap, the drives' effects are also
-    # fitted on top of it. The test is the verdict's, at the noise known before any fit
-    # (the fits lower it later)
-    on_reference = reference is not None and (
-        finding(base_heldout, reference.heldout_score) or finding(d1_side, plant_side))
-    if (reference is not None and machine.path is not None
-            and (reference.heldout_score.rmse_l_min < base_heldout.rmse_l_min
+                candidates.paint(name, True)
+    on_reference = _plant_explains_part(candidates, nominal, judge)
+    if (reference is not None and g.machine.path is not None
+            and (reference.heldout_score.rmse_l_min < nominal.heldout.rmse_l_min
                  or on_reference)):
-        # the plant is the better nominal model of this machine, if only by a little (a
-        # fault it misses as much as D1 does hides how much else it explains): the effects
-        # that change how its drives fill and move are also fitted through it,
-        # each value a plant run of the whole log (a variant's cycle is its own), so only
-        # where that costs few integration pieces: the reference's per machine second
-        pieces = variant_pieces(reference_cost, rds, replayed=compiled is None)
-        if pieces <= MAX_VARIANT_PIECES:
-            try:
-                mm.plant_variants = PlantVariants(machine, mm, rds, bases,
-                                                  program if compiled is not None else None,
-                                                  compiled)
-            except PlcpredError as e:
-                warnings.append(f"effects not fitted through the physics plant: {e}")
-        else:
-            warnings.append(
-                f"effects not fitted through the physics plant: each value would cost "
-                f"about {pieces:,.0f} integration pieces (the limit is "
-                f"{MAX_VARIANT_PIECES:,}); a shorter log, or fewer fast-cycling drives, "
-                f"fits them so")
+        _make_plant_variants(g, nominal)
     for name in names:
         if name not in NOT_OF_THE_DRIVES:
-            paint(name, False)
+            candidates.paint(name, False)
             if on_reference:
-                paint(name, True)
-    # an effect of no drive (a leak, a nozzle's flow, the meter) that, painted on D1,
-    # explains the log to its noise leaves the drives' physics nothing to explain. (Not
-    # so an effect of the drives: a lower supply or an exhaust painted on D1 fits the
-    # sorter's longer tubes to the noise, what its fills cut short do to them; nor one
-    # fitted beyond the plant: a leak on the plant fits a clamp station's slower valves
-    # to within 1.7x the noise, which the plant's variants then fit to it.) No noise
-    # exceeds what the best painted fit on D1 leaves: the differences of the residual
-    # that estimate it before any fit also carry a fault's own signal
+                candidates.paint(name, True)
+    if g.mm.plant_variants is not None and not _explained_on_d1(candidates.tried,
+                                                                judge.noise):
+        _fit_through_plant(candidates, reference)
+    return candidates.best()
+
+
+def _plant_explains_part(candidates: _Candidates, nominal: _Nominal, judge: _Judge
+                         ) -> bool:
+    """Does the plant explain a material part of the gap, alone or with each nominal
+    model's best effect of no drive? Then the drives' effects are also fitted on top
+    of it. The test is the verdict's, at the noise known before any fit (the fits lower
+    it later)."""
+    reference = nominal.reference
+    if reference is None:
+        return False
+    d1_side = candidates.best_heldout(nominal.heldout, False)
+    plant_side = candidates.best_heldout(reference.heldout_score, True)
+    return judge.finding(nominal.heldout, reference.heldout_score) or judge.finding(
+        d1_side, plant_side)
+
+
+def _make_plant_variants(g: _Ground, nominal: _Nominal) -> None:
+    """The plant is the better nominal model of this machine, if only by a little (a
+    fault it misses as much as D1 does hides how much else it explains): the effects
+    that change how its drives fill and move are also fitted through it, each value a
+    plant run of the whole log (a variant's cycle is its own), so only where that costs
+    few integration pieces: the reference's per machine second. Else a warning says
+    why not."""
+    compiled = g.aligned.compiled
+    pieces = variant_pieces(nominal.reference_cost, g.rds, replayed=compiled is None)
+    if pieces <= MAX_VARIANT_PIECES:
+        try:
+            g.mm.plant_variants = PlantVariants(g.machine, g.mm, g.rds, g.bases,
+                                                g.plant_program, compiled)
+        except PlcpredError as e:
+            g.warnings.append(f"effects not fitted through the physics plant: {e}")
+    else:
+        g.warnings.append(
+            f"effects not fitted through the physics plant: each value would cost "
+            f"about {pieces:,.0f} integration pieces (the limit is "
+            f"{MAX_VARIANT_PIECES:,}); a shorter log, or fewer fast-cycling drives, "
+            f"fits them so")
+
+
+def _explained_on_d1(tried: dict[str, list[EffectResult]], noise: float) -> bool:
+    """Does an effect of no drive (a leak, a nozzle's flow, the meter), painted on D1,
+    explain the log to its noise? Then the drives' physics (the plant) has nothing left
+    to explain. (Not so an effect of the drives: a lower supply or an exhaust painted on
+    D1 fits the sorter's longer tubes to the noise, what its fills cut short do to them;
+    nor one fitted beyond the plant: a leak on the plant comes near the noise on a clamp
+    station's slower valves, which the plant's variants then fit to it.) No noise
+    exceeds what the best painted fit on D1 leaves: the differences of the residual that
+    estimate it before any fit also carry a fault's own signal."""
     painted = [(name, e) for name, t in tried.items() for e in t if not e.beyond_plant]
     floor = min([noise] + [e.fit_score.rmse_l_min for _, e in painted])
-    explained = any(e.heldout_score.rmse_l_min <= DOWN_TO_NOISE * floor
-                    for name, e in painted if name in NOT_OF_THE_DRIVES)
-    if mm.plant_variants is not None and not explained:
-        # the effects through the plant, each value a plant run. A plant form is its
-        # painted form plus the drives' dynamics (a fill's pace moves the strokes, and
-        # with them the program): where it won, its painted forms had left at most 1.7x
-        # the best painted error on the physical benchmark, 2.3x on the clamp station's
-        # slower valves logged at 1 Hz. An effect whose painted forms all leave more than
-        # PLANT_FORM_REACH times it is not run through the plant
-        reach = PLANT_FORM_REACH * min((e.heldout_score.rmse_l_min
-                                        for t in tried.values() for e in t),
-                                       default=float("inf"))
-        for name in names:
-            if (name in PLANT_FORMS and PLANT_FORMS[name].applies(mm)
-                    and (not tried[name] or any(e.heldout_score.rmse_l_min <= reach
-                                                for e in tried[name]))):
-                try:
-                    # from the reference's clock and meter lag: a sweep of plant runs
-                    # holds them while it chooses, and the alignment's are D1's
-                    tried[name].append(_evaluate([PLANT_FORMS[name]], mm, rds,
-                                                 reference.fit.params, ctx, fold_masks))
-                except PlcpredError as e:
-                    warnings.append(f"{name} not fitted through the plant: {e}")
-    results = [min(t, key=lambda e: e.heldout_score.rmse_l_min) for t in tried.values() if t]
-    results.sort(key=lambda e: e.heldout_score.rmse_l_min)
-    better = _baseline_from_effects(base_all, results + [reference] * (reference is not None),
-                                    mm, rds, bases, ctx)
+    return any(e.heldout_score.rmse_l_min <= DOWN_TO_NOISE * floor
+               for name, e in painted if name in NOT_OF_THE_DRIVES)
+
+
+def _fit_through_plant(candidates: _Candidates, reference: EffectResult) -> None:
+    """The effects through the plant, each value a plant run. A plant form is its
+    painted form plus the drives' dynamics (a fill's pace moves the strokes, and with
+    them the program), so where it wins its painted forms come near the best painted
+    error: an effect whose painted forms all leave more than PLANT_FORM_REACH times it
+    is not run through the plant."""
+    g, tried = candidates.g, candidates.tried
+    reach = PLANT_FORM_REACH * min((e.heldout_score.rmse_l_min
+                                    for t in tried.values() for e in t),
+                                   default=float("inf"))
+    for name in g.names:
+        if (name in PLANT_FORMS and PLANT_FORMS[name].applies(g.mm)
+                and (not tried[name] or any(e.heldout_score.rmse_l_min <= reach
+                                            for e in tried[name]))):
+            try:
+                # from the reference's clock and meter lag: a sweep of plant runs
+                # holds them while it chooses, and the alignment's are D1's
+                tried[name].append(_evaluate([PLANT_FORMS[name]], g.mm, g.rds,
+                                             reference.fit.params, g.ctx, g.fold_masks))
+            except PlcpredError as e:
+                g.warnings.append(f"{name} not fitted through the plant: {e}")
+
+
+def _rank_candidates(results: list[EffectResult], g: _Ground, nominal: _Nominal,
+                     judge: _Judge) -> list[EffectResult]:
+    """The effects ranked for the verdict: the baseline fitted again from a better
+    clock and lag an effect found, the noise lowered to what the best fit leaves, ties
+    broken by parsimony and plausibility, and a supply the logs' pressure shows off
+    first among equals."""
+    better = _baseline_from_effects(nominal.fit, results + [nominal.reference] * (
+        nominal.reference is not None), g.mm, g.rds, g.bases, g.ctx)
     if better is not None:
-        base_all = better
-        base_heldout = heldout([], mm, rds, bases, ctx, fold_masks, start=base_all.theta)
+        nominal.fit = better
+        nominal.heldout = heldout([], g.mm, g.rds, g.bases, g.ctx, g.fold_masks,
+                                  start=better.theta)
     # differences of the residual overstate the noise when the log is too coarse for
     # the strokes (1 Hz against 0.2 s strokes); no noise can exceed what the best fit
     # leaves
     if results:
-        noise = min(noise, min(e.fit_score.rmse_l_min for e in results))
-    results = _tie_break(results, noise, mm)
-    supply_off = _supply_logged_off(ctx["logged_supply_bar_g"], machine)
-    results = _logged_supply_first(results, noise, supply_off)
+        judge.noise = min(judge.noise, min(e.fit_score.rmse_l_min for e in results))
+    results = _tie_break(results, judge.noise, g.mm)
+    return _logged_supply_first(results, judge.noise, g.supply_logged_off)
 
+
+class _Exhaust(NamedTuple):
+    """An incomplete exhaust among the effects, and each other effect fitted with it."""
+    exhaust: EffectResult | None
+    first_implausible: bool         # the first effect's values are no plant's
+    pairs: list[EffectResult]
+
+
+def _exhaust_pairs(results: list[EffectResult], g: _Ground, nominal: _Nominal,
+                   judge: _Judge) -> _Exhaust:
+    """Where an incomplete exhaust comes first, or explains part of the gap behind a
+    first whose values no plant has (a drive with most of its tube gone: what an
+    exhaust cut short does to a fill), every other effect fitted with it
+    (:func:`_with_exhaust`)."""
     exhaust = next((e for e in results if e.name == IncompleteExhaust.name), None)
-    # a first whose values no plant has (a drive with most of its tube gone: what an
-    # exhaust cut short does to a fill)
-    first_implausible = bool(results) and _implausible(results[0], mm) is not None
+    first_implausible = bool(results) and _implausible(results[0], g.mm) is not None
     pairs = []
     if exhaust is not None and (exhaust is results[0] or (
-            first_implausible and finding(base_heldout, exhaust.heldout_score))):
-        pairs = _with_exhaust(exhaust, results, mm, rds, _bases_of(exhaust, bases),
-                              ctx, fold_masks, warnings)
+            first_implausible and judge.finding(nominal.heldout, exhaust.heldout_score))):
+        pairs = _with_exhaust(exhaust, results, g.mm, g.rds, _bases_of(exhaust, g.bases),
+                              g.ctx, g.fold_masks, g.warnings)
         if pairs:
             # an exhaust's mismatch with D1 (a sorter's chatter) left in every single
             # fit inflates the noise; the pairs say how little is left
-            noise = min(noise, min(p.fit_score.rmse_l_min for p in pairs))
+            judge.noise = min(judge.noise, min(p.fit_score.rmse_l_min for p in pairs))
+    return _Exhaust(exhaust, first_implausible, pairs)
 
-    # where
-    labels = [sample_contexts(rd, p) for rd, p in zip(rds, bases)]
-    weights = [rd.weight_s for rd in rds]
-    ctx_list = contexts(labels, residuals, weights, noise)
+
+class _Where(NamedTuple):
+    """Where the residual lies: by context, by step, in time, by consumer."""
+    contexts: list
+    step_contexts: list
+    locations: list[dict]
+    attribution: list
+
+
+def _locate(g: _Ground, noise: float) -> _Where:
+    """The residual by context (named where it stands out of ``noise``), its windows
+    in those contexts, by consumer, and by the program's steps where every run has
+    them."""
+    labels = [sample_contexts(rd, p) for rd, p in zip(g.rds, g.bases)]
+    weights = [rd.weight_s for rd in g.rds]
+    ctx_list = contexts(labels, g.residuals, weights, noise)
     named = {c.context for c in ctx_list if c.stands_out}
     locations = []
-    for rd, lab, r in zip(rds, labels, residuals):
+    for rd, lab, r in zip(g.rds, labels, g.residuals):
         locations += windows(rd, lab, r, noise, named)
     locations.sort(key=lambda x: -abs(x["residual_nl"]))
-    by_consumer = attribution(rds, bases, residuals)
-    steps = [step_contexts(rd) for rd in rds]
-    step_list = contexts(steps, residuals, weights, noise) if all(
+    by_consumer = attribution(g.rds, g.bases, g.residuals)
+    steps = [step_contexts(rd) for rd in g.rds]
+    step_list = contexts(steps, g.residuals, weights, noise) if all(
         s is not None for s in steps) else []
+    return _Where(ctx_list, step_list, locations, by_consumer)
 
-    verdict = "none"
-    combination = None
-    alternatives = []
+
+@dataclass
+class _Verdict:
+    """The verdict, the combination of effects that starts with it, and why."""
+    verdict: str = "none"
+    combination: dict | None = None
+    alternatives: list[str] = field(default_factory=list)
+    on_plant: bool = False          # the plant explains a real part of the gap
+    within_band: bool = False       # the model's own accuracy explains it as well
+    dynamics_explain: bool = False  # the plant explains it as well as the effects
+
+    def no_fault(self) -> None:
+        """No fault after all: the effects stay ranked in the report."""
+        self.verdict, self.combination, self.alternatives = "none", None, []
+
+
+def _choose_verdict(results: list[EffectResult], exhaust: _Exhaust, g: _Ground,
+                    nominal: _Nominal, judge: _Judge, max_combination: int
+                    ) -> tuple[list[EffectResult], _Verdict]:
+    """(the effects, those at a bound of their range last; the verdict): the first
+    effect where it beats D1 by more than the noise allows and materially, with the
+    effects added to it one at a time while each still does."""
+    reference = nominal.reference
     # the plant explains a real part of the gap (D1's own limits): then no noise exceeds
     # what it leaves, and an effect must beat it too
-    on_plant = reference is not None and finding(base_heldout, reference.heldout_score)
+    on_plant = reference is not None and judge.finding(nominal.heldout,
+                                                       reference.heldout_score)
     if on_plant:
-        noise = min(noise, reference.fit_score.rmse_l_min)
+        judge.noise = min(judge.noise, reference.fit_score.rmse_l_min)
     # a value at its bound wanted more than is physical: it never wins, however well
     # it fits (ranked after those within their bounds)
     for e in results:
-        e.at_bound = _at_bound(e, mm, ctx, rds, bases)
+        e.at_bound = _at_bound(e, g.mm, g.ctx, g.rds, g.bases)
     results = [e for e in results if not e.at_bound] + [e for e in results if e.at_bound]
-    if results and finding(base_heldout, results[0].heldout_score) \
+    verdict = _Verdict(on_plant=on_plant)
+    if results and judge.finding(nominal.heldout, results[0].heldout_score) \
             and not results[0].at_bound:
-        verdict = results[0].name
-        # effects the held-out samples cannot tell from the verdict (a dead volume and an
-        # incomplete exhaust when every dwell is the same)
-        alternatives = [e.name for e in results[1:]
-                        if finding(base_heldout, e.heldout_score)
-                        and not significant(e.heldout_score, results[0].heldout_score,
-                                            noise)]
-        chosen = list(results[0].fit.effects)
-        best = results[0]
-        # the exhaust first, or an implausible first
-        past = bool(pairs) and (verdict == IncompleteExhaust.name or (
-            first_implausible and finding(base_heldout, exhaust.heldout_score)))
-        beyond = [p for p in pairs if finding(exhaust.heldout_score, p.heldout_score)
-                  and _implausible(p, mm) is None]
-        if past and beyond:
-            # the fault lies beyond the exhaust every fast machine shows (_with_exhaust):
-            # it is the verdict, and the combination starts from the pair
-            best = min(beyond, key=lambda p: p.heldout_score.rmse_l_min)
-            verdict = best.fit.effects[-1].name
-            chosen = list(best.fit.effects)
-            alternatives = []
-        elif past and verdict != IncompleteExhaust.name:
-            best, verdict = exhaust, exhaust.name
-            chosen = list(exhaust.fit.effects)
-            alternatives = []
-        candidates = [e for e in results
-                      if finding(base_heldout, e.heldout_score)
-                      and e.name not in {c.name for c in chosen}]
-        # nothing is left to explain once the held-out error is down to the noise
-        while (len(chosen) < max_combination and candidates
-               and best.heldout_score.rmse_l_min > DOWN_TO_NOISE * noise):
-            trials = [_evaluate_or_warn(chosen + list(c.fit.effects), mm, rds,
-                                        _bases_of(best, bases), ctx, fold_masks, warnings)
-                      for c in candidates]
-            trials = [t for t in trials if t is not None]
-            trial = min(trials, key=lambda e: e.heldout_score.rmse_l_min, default=None)
-            if trial is None or not finding(best.heldout_score, trial.heldout_score):
-                break
-            best = trial
-            chosen = list(trial.fit.effects)
-            candidates = [c for c in candidates
-                          if c.name not in {e.name for e in chosen}]
-        combination = {"effects": [e.name for e in chosen], "fit": best.fit,
-                       "heldout": best.heldout_score, "score": best.fit_score,
-                       "physical": best.physical, "beyond_plant": best.beyond_plant}
-    within_band = False
-    def beyond_accuracy(base: Score, new: Score) -> bool:
-        # at the meter's own noise where the log's flat stretches tell it (no fit lowers
-        # it: the misfit a fit leaves is what the model's accuracy may leave too); a log
-        # without them has only the residual's differences, which carry every stroke the
-        # model places off (a 1 Hz log of a timer-driven rig: 3.4 NL/min against 0.5),
-        # and is judged at the noise the verdict was
-        at = meter_noise if flat_pairs else noise
-        return significant(base, new, at) and material(base, new, at, ctx["mean_l_min"])
+        best = _first_verdict(verdict, results, exhaust, g, nominal, judge)
+        best = _combine(best, results, g, nominal, judge, max_combination)
+        verdict.combination = {"effects": [e.name for e in best.fit.effects],
+                               "fit": best.fit, "heldout": best.heldout_score,
+                               "score": best.fit_score, "physical": best.physical,
+                               "beyond_plant": best.beyond_plant}
+    return results, verdict
 
-    if combination is not None and not _beats_band(verdict, combination, flexed, band,
-                                                   base_score, beyond_accuracy,
-                                                   supply_off):
+
+def _first_verdict(verdict: _Verdict, results: list[EffectResult], exhaust: _Exhaust,
+                   g: _Ground, nominal: _Nominal, judge: _Judge) -> EffectResult:
+    """Name the first effect in ``verdict``, with the effects the held-out samples
+    cannot tell from it (a dead volume and an incomplete exhaust when every dwell is the
+    same); or, past the exhaust every fast machine shows, the fault beyond it, else the
+    exhaust. Returns the fit the combination starts from."""
+    first = results[0]
+    verdict.verdict = first.name
+    verdict.alternatives = [e.name for e in results[1:]
+                            if judge.finding(nominal.heldout, e.heldout_score)
+                            and not significant(e.heldout_score, first.heldout_score,
+                                                judge.noise)]
+    pairs = exhaust.pairs
+    # the exhaust first, or an implausible first
+    past = bool(pairs) and (verdict.verdict == IncompleteExhaust.name or (
+        exhaust.first_implausible and judge.finding(nominal.heldout,
+                                                    exhaust.exhaust.heldout_score)))
+    beyond = [p for p in pairs if judge.finding(exhaust.exhaust.heldout_score,
+                                                p.heldout_score)
+              and _implausible(p, g.mm) is None]
+    if past and beyond:
+        # the fault lies beyond the exhaust every fast machine shows (_with_exhaust):
+        # it is the verdict, and the combination starts from the pair
+        best = min(beyond, key=lambda p: p.heldout_score.rmse_l_min)
+        verdict.verdict, verdict.alternatives = best.fit.effects[-1].name, []
+        return best
+    if past and verdict.verdict != IncompleteExhaust.name:
+        verdict.verdict, verdict.alternatives = exhaust.exhaust.name, []
+        return exhaust.exhaust
+    return first
+
+
+def _combine(best: EffectResult, results: list[EffectResult], g: _Ground,
+             nominal: _Nominal, judge: _Judge, max_combination: int) -> EffectResult:
+    """``best`` with the other effects that beat D1 added one at a time, the one that
+    helps most each time, while each still improves the held-out error by more than
+    the noise allows, materially (up to ``max_combination`` effects)."""
+    chosen = list(best.fit.effects)
+    candidates = [e for e in results
+                  if judge.finding(nominal.heldout, e.heldout_score)
+                  and e.name not in {c.name for c in chosen}]
+    # nothing is left to explain once the held-out error is down to the noise
+    while (len(chosen) < max_combination and candidates
+           and best.heldout_score.rmse_l_min > DOWN_TO_NOISE * judge.noise):
+        trials = [_evaluate_or_warn(chosen + list(c.fit.effects), g.mm, g.rds,
+                                    _bases_of(best, g.bases), g.ctx, g.fold_masks,
+                                    g.warnings)
+                  for c in candidates]
+        trials = [t for t in trials if t is not None]
+        trial = min(trials, key=lambda e: e.heldout_score.rmse_l_min, default=None)
+        if trial is None or not judge.finding(best.heldout_score, trial.heldout_score):
+            break
+        best = trial
+        chosen = list(trial.fit.effects)
+        candidates = [c for c in candidates if c.name not in {e.name for e in chosen}]
+    return best
+
+
+def _judge_against_models(verdict: _Verdict, g: _Ground, nominal: _Nominal,
+                          judge: _Judge) -> float:
+    """The verdict held against what needs no fault: none where the nominal model
+    flexed within its own accuracy, or the machine file through the plant, explains the
+    gap as well; unexplained where a material residual is left that the effects do not
+    explain. Returns the held-out error beyond the meter's noise that is left."""
+    if verdict.combination is not None and not _beats_band(
+            verdict.verdict, verdict.combination, nominal.flexed, nominal.band,
+            g.base_score, judge.beyond_accuracy, g.supply_logged_off):
         # what the effects explain, the nominal model flexed within its own accuracy
         # explains as well (or the total lies within the band): no fault
-        within_band = True
-        verdict, combination, alternatives = "none", None, []
-    left = _left_over(combination, flexed, base_heldout, meter_noise)
-    unexplained = _unexplained_gap(left, combination, flexed, base_heldout, meter_noise,
-                                   ctx["mean_l_min"])
-    dynamics_explain = False
-    if (combination is not None and on_plant
-            and not finding(reference.heldout_score, combination["heldout"])):
+        verdict.within_band = True
+        verdict.no_fault()
+    left = _left_over(verdict.combination, nominal.flexed, nominal.heldout,
+                      judge.meter_noise)
+    unexplained = _unexplained_gap(left, verdict.combination, nominal.flexed,
+                                   nominal.heldout, judge.meter_noise, g.ctx["mean_l_min"])
+    if (verdict.combination is not None and verdict.on_plant
+            and not judge.finding(nominal.reference.heldout_score,
+                                  verdict.combination["heldout"])):
         # the machine file, modelled dynamically, explains the gap as well as the best
         # effects do: D1's own limits, no fault (the effects stay ranked in the report)
-        dynamics_explain = True
-        verdict, combination, alternatives = "none", None, []
-    if unexplained and not dynamics_explain:
-        verdict = "unexplained"
-    return Diagnosis(machine, rds, base_score, base_heldout, noise, ctx_list, step_list,
-                     locations, results, verdict, combination, fold_kind, warnings,
-                     bases=bases, machine_model=mm, alternatives=alternatives,
-                     reference=reference, on_plant=on_plant,
-                     dynamics_explain=dynamics_explain, flexed=flexed, band_pct=band,
-                     within_band=within_band, meter_noise_l_min=meter_noise,
-                     flat_pairs=flat_pairs, left_l_min=left, attribution=by_consumer)
+        verdict.dynamics_explain = True
+        verdict.no_fault()
+    if unexplained and not verdict.dynamics_explain:
+        verdict.verdict = "unexplained"
+    return left
 
 
 # a residual beyond the meter's noise of at least this share of the mean flow (RMS) is

@@ -18,10 +18,10 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 from types import SimpleNamespace
+from typing import NamedTuple
 
 import numpy as np
 
-from ..errors import PlcpredError
 from ..physics.meter import IntervalSampler, cumulative_nl, first_order_lag
 from .effects import NUISANCE_METER_TAU_S, Effect, Param
 from .errors import DiagnosisError
@@ -132,18 +132,34 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
     ``max_tau_s`` bounds the lags tried (a resequenced variant, aligned many times over,
     near what the nominal alignment found); ``near_s`` searches the offset only within a
     sampling interval or so of that one (another lag for an aligned run)."""
-    # scipy costs a third of a second to import: only the runs that need it pay
-    from scipy.optimize import minimize, minimize_scalar
-
     taus = [meter_tau_s] if meter_tau_s is not None else [
         t for t in ALIGN_TAUS_S if max_tau_s is None or t <= max_tau_s]
-    cells = rm.total_cells(params)
-    lagged: dict[float, np.ndarray] = {}       # metered cumulative NL per lag
+    correlations = _Correlations(run, rm, params)
+    if offset_s is None:
+        found = _search_offset(correlations, taus, window_s, quick, near_s)
+    else:
+        found = _lag_at_offset(correlations, taus, offset_s)
+    offset_s, fitted_tau = _refine_alignment(correlations, found, meter_tau_s, quick)
+    tau = fitted_tau if meter_tau_s is not None else min(fitted_tau, NUISANCE_METER_TAU_S)
+    return _aligned_run(correlations, offset_s, tau, fitted_tau, found.notes)
 
-    def correlations(tau, offsets, span=None):
+
+class _Correlations:
+    """The correlation of a run's readings with its prediction at clock offsets and a
+    meter lag; the prediction's metered cumulative NL is kept per lag."""
+
+    def __init__(self, run: MeasuredRun, rm: RunModel, params: ModelParams):
+        self.run = run
+        self.rm = rm
+        self.params = params
+        self.cells = rm.total_cells(params)
+        self.lagged: dict[float, np.ndarray] = {}       # metered cumulative NL per lag
+
+    def __call__(self, tau: float, offsets, span=None) -> np.ndarray | None:
         """Correlation of the readings with the log for each offset (over the samples
         valid for all offsets of ``span``, default ``offsets``: comparable values)."""
-        p = params.copy()
+        run, rm = self.run, self.rm
+        p = self.params.copy()
         p.meter_tau_s = tau
         lo_s, hi_s = span or (min(offsets), max(offsets))
         idx = _common_samples(run, lo_s, hi_s, rm.horizon_s)
@@ -152,9 +168,9 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
         starts = run.reading_starts_s()[idx]
         ends = run.time_s[idx]
         meas = run.flow_l_min[idx]
-        cum = lagged.get(tau)
+        cum = self.lagged.get(tau)
         if cum is None:
-            cum = lagged[tau] = rm.metered_cumulative_nl(p, cells)
+            cum = self.lagged[tau] = rm.metered_cumulative_nl(p, self.cells)
         # all offsets at once (in blocks of bounded size): one interpolation per block
         offs = np.asarray(offsets, dtype=float)
         b = meas - meas.mean()
@@ -171,98 +187,163 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
                                             0.0)
         return out
 
-    g = max(run.interval_s, rm.dt_s)
-    if offset_s is None:
-        candidates = [near_s] if near_s is not None else _coarse_offsets(run, rm, cells,
-                                                                          window_s)
-        best = (-2.0, candidates[0], taus[0])
-        # every candidate is scored on the same samples, when enough of them are common
-        common = (min(candidates) - 1.5 * g - max(taus), max(candidates) + 1.5 * g)
-        n_common = len(_common_samples(run, common[0], common[1], rm.horizon_s))
-        shared = common if n_common >= 0.75 * len(run.time_s) else None
-        # instantaneous readings of a fast meter have narrow valleys of (offset, lag):
-        # a pick-and-place station logged at 2 Hz behind 0.1 s correlates 0.99995 at
-        # its clock and lag, 0.99991 a grid step (0.02 s) off, 0.99992 with a 0.02 s
-        # lag 0.23 s later. So their offsets are searched on the prediction's grid, and
-        # at each coarse offset the best lag wins outright (a smooth valley of means is
-        # followed from the first lag by the refinement below)
-        instant = run.sampling == "instant"
-        scored = []             # (correlation, offset) of each candidate's best
-        for coarse in candidates:
-            here = (-2.0, coarse, taus[0]) if instant else best
-            own = (-2.0, coarse)        # this candidate's best, for the rivals below
-            for tau in taus:
-                # a coarse offset may be late by up to the lag
-                step = max(rm.dt_s, tau / 50.0,
-                           0.0 if instant else g / (5.0 if quick else 25.0))
-                fine = np.arange(coarse - 1.5 * g - tau, coarse + 1.5 * g + step / 2,
-                                 step)
-                corr = correlations(tau, list(fine), shared)
-                if corr is None:
-                    continue
-                k = int(np.argmax(corr))
-                own = max(own, (float(corr[k]), float(fine[k])))
-                if corr[k] > here[0] + (0.0 if instant else 2e-3):
-                    here = (float(corr[k]), float(fine[k]), tau)
-            scored.append(own)
-            # the first candidate (the smallest shift) wins near-ties
-            if not instant or here[0] > best[0] + 2e-3:
-                best = here
-        _, offset_s, tau = best
-        # a clock as good that would use more of the log: the one taken may have
-        # slipped by whole cycles (a cycling machine looks alike a cycle later), and
-        # the readings it leaves out are lost to the diagnosis. (Clocks whole cycles
-        # apart that use the whole log alike give the same diagnosis.)
-        used = len(_common_samples(run, offset_s, offset_s, rm.horizon_s))
-        rivals = [(c, o, n) for c, o in scored if abs(o - offset_s) > 2.0 * g + 1.0
-                  and c >= best[0] - RIVAL_MARGIN
-                  and (n := len(_common_samples(run, o, o, rm.horizon_s)))
-                  >= used + max(3, RIVAL_MORE_SHARE * len(run.time_s))]
-        if rivals:
-            c, o, n = max(rivals)
-            notes = [f"{run.name}: the log's clock fits as well {o - offset_s:+.1f} s from "
-                     f"the one taken (correlation {c:.4f} against {best[0]:.4f}), which "
-                     f"would use {n} of its readings instead of {used}: check it, or give "
-                     "--offset"]
-        else:
-            notes = []
-        lo_o, hi_o = offset_s - g, offset_s + g
-    else:
-        corr = [correlations(tau, [offset_s]) for tau in taus]
-        k = int(np.argmax([-2.0 if c is None else c[0] for c in corr]))
-        tau = taus[k]
-        lo_o = hi_o = offset_s
-        notes = []
+    def cost(self, tau: float, offset_s: float) -> float:
+        """Minus the correlation at one offset (2 where too few samples overlap)."""
+        c = self(tau, [offset_s])
+        return 2.0 if c is None else -float(c[0])
+
+    @property
+    def grid_s(self) -> float:
+        """The coarser of the log's sampling interval and the prediction's grid."""
+        return max(self.run.interval_s, self.rm.dt_s)
+
+
+class _Alignment(NamedTuple):
+    """A clock offset and meter lag found by the search, the range the refinement may
+    move the offset within, and what the report should say about it."""
+    offset_s: float
+    tau_s: float
+    lo_s: float
+    hi_s: float
+    notes: list
+
+
+def _search_offset(correlations: _Correlations, taus: list[float], window_s: float,
+                   quick: bool, near_s: float | None) -> _Alignment:
+    """The offset and lag that correlate best among the coarse candidates' fine offsets
+    (or near ``near_s`` alone), a rival clock that would use more of the log noted."""
+    run, rm = correlations.run, correlations.rm
+    g = correlations.grid_s
+    candidates = [near_s] if near_s is not None else _coarse_offsets(
+        run, rm, correlations.cells, window_s)
+    best, scored = _best_candidate(correlations, candidates, taus, quick)
+    offset_s = best[1]
+    return _Alignment(offset_s, best[2], offset_s - g, offset_s + g,
+                      _rival_notes(run, rm, scored, best, g))
+
+
+def _best_candidate(correlations: _Correlations, candidates: list[float],
+                    taus: list[float], quick: bool) -> tuple[tuple, list[tuple]]:
+    """(the best (correlation, offset, lag) over the candidates, each candidate's own
+    best (correlation, offset))."""
+    run, rm = correlations.run, correlations.rm
+    g = correlations.grid_s
+    best = (-2.0, candidates[0], taus[0])
+    # every candidate is scored on the same samples, when enough of them are common
+    common = (min(candidates) - 1.5 * g - max(taus), max(candidates) + 1.5 * g)
+    n_common = len(_common_samples(run, common[0], common[1], rm.horizon_s))
+    shared = common if n_common >= 0.75 * len(run.time_s) else None
+    # instantaneous readings of a fast meter have narrow valleys of (offset, lag): a
+    # grid step off, or a slightly longer lag a fraction of a second later, correlates
+    # within a ten-thousandth of the right pair. So their offsets are searched on the
+    # prediction's grid, and at each coarse offset the best lag wins outright (a smooth
+    # valley of means is followed from the first lag by the refinement)
+    instant = run.sampling == "instant"
+    scored = []             # (correlation, offset) of each candidate's best
+    for coarse in candidates:
+        here, own = _fine_offsets(correlations, coarse, taus, shared, quick,
+                                  (-2.0, coarse, taus[0]) if instant else best)
+        scored.append(own)
+        # the first candidate (the smallest shift) wins near-ties
+        if not instant or here[0] > best[0] + 2e-3:
+            best = here
+    return best, scored
+
+
+def _fine_offsets(correlations: _Correlations, coarse: float, taus: list[float],
+                  shared: tuple | None, quick: bool, here: tuple) -> tuple[tuple, tuple]:
+    """(``here`` (correlation, offset, lag) improved by the fine offsets around
+    ``coarse`` at each lag, the best (correlation, offset) among them alone)."""
+    run, rm = correlations.run, correlations.rm
+    g = correlations.grid_s
+    instant = run.sampling == "instant"
+    own = (-2.0, coarse)
+    for tau in taus:
+        # a coarse offset may be late by up to the lag
+        step = max(rm.dt_s, tau / 50.0, 0.0 if instant else g / (5.0 if quick else 25.0))
+        fine = np.arange(coarse - 1.5 * g - tau, coarse + 1.5 * g + step / 2, step)
+        corr = correlations(tau, list(fine), shared)
+        if corr is None:
+            continue
+        k = int(np.argmax(corr))
+        own = max(own, (float(corr[k]), float(fine[k])))
+        if corr[k] > here[0] + (0.0 if instant else 2e-3):
+            here = (float(corr[k]), float(fine[k]), tau)
+    return here, own
+
+
+def _rival_notes(run: MeasuredRun, rm: RunModel, scored: list[tuple], best: tuple,
+                 g: float) -> list[str]:
+    """A note where a clock as good as ``best``'s would use more of the log: the one
+    taken may have slipped by whole cycles (a cycling machine looks alike a cycle
+    later), and the readings it leaves out are lost to the diagnosis. (Clocks whole
+    cycles apart that use the whole log alike give the same diagnosis.)"""
+    offset_s = best[1]
+    used = len(_common_samples(run, offset_s, offset_s, rm.horizon_s))
+    rivals = [(c, o, n) for c, o in scored if abs(o - offset_s) > 2.0 * g + 1.0
+              and c >= best[0] - RIVAL_MARGIN
+              and (n := len(_common_samples(run, o, o, rm.horizon_s)))
+              >= used + max(3, RIVAL_MORE_SHARE * len(run.time_s))]
+    if not rivals:
+        return []
+    c, o, n = max(rivals)
+    note = (f"{run.name}: the log's clock fits as well {o - offset_s:+.1f} s from "
+            f"the one taken (correlation {c:.4f} against {best[0]:.4f}), which "
+            f"would use {n} of its readings instead of {used}: check it, or give "
+            "--offset")
+    return [note]
+
+
+def _lag_at_offset(correlations: _Correlations, taus: list[float], offset_s: float
+                   ) -> _Alignment:
+    """The lag that correlates best at the given offset, which stays where it is."""
+    corr = [correlations(tau, [offset_s]) for tau in taus]
+    k = int(np.argmax([-2.0 if c is None else c[0] for c in corr]))
+    return _Alignment(offset_s, taus[k], offset_s, offset_s, [])
+
+
+def _refine_alignment(correlations: _Correlations, found: _Alignment,
+                      meter_tau_s: float | None, quick: bool) -> tuple[float, float]:
+    """(offset, lag) refined from the search's: the offset alone where the lag is known
+    (or, ``quick``, kept at the best of the grid), else both together."""
+    # scipy costs a third of a second to import: only the runs that need it pay
+    from scipy.optimize import minimize, minimize_scalar
+
+    offset_s, tau, lo_o, hi_o = found.offset_s, found.tau_s, found.lo_s, found.hi_s
     fitted_tau = tau
     if (meter_tau_s is not None or quick) and lo_o < hi_o:
-        # the lag is known (or, quick, kept at the best of the grid): the offset alone,
-        # a one-dimensional search
         def offset_objective(o):
-            c = correlations(tau, [o])
-            return 2.0 if c is None else -float(c[0])
+            return correlations.cost(tau, o)
 
         res = minimize_scalar(offset_objective, bounds=(lo_o, hi_o), method="bounded",
-                              options={"xatol": rm.dt_s / 4, "maxiter": 40})
+                              options={"xatol": correlations.rm.dt_s / 4, "maxiter": 40})
         if res.fun <= offset_objective(offset_s):
             offset_s = float(res.x)
     elif meter_tau_s is None:
-        # continuous refinement of (offset, lag)
         def objective(x):
             o = min(max(x[0], lo_o), hi_o)
             t = min(max(x[1], 0.0), ALIGN_TAUS_S[-1])
-            c = correlations(t, [o])
-            return 2.0 if c is None else -float(c[0])
+            return correlations.cost(t, o)
 
+        dt_s = correlations.rm.dt_s
         x0 = [offset_s, tau]
-        simplex = [x0, [offset_s + max(rm.dt_s, g / 10.0), tau],
+        simplex = [x0, [offset_s + max(dt_s, correlations.grid_s / 10.0), tau],
                    [offset_s, tau + max(0.02, 0.1 * tau)]]
         res = minimize(objective, x0, method="Nelder-Mead",
-                       options={"initial_simplex": simplex, "xatol": rm.dt_s / 4,
+                       options={"initial_simplex": simplex, "xatol": dt_s / 4,
                                 "fatol": 1e-7, "maxfev": 120})
         if res.fun <= objective(x0):
             offset_s = min(max(float(res.x[0]), lo_o), hi_o)
             fitted_tau = min(max(float(res.x[1]), 0.0), ALIGN_TAUS_S[-1])
-    tau = fitted_tau if meter_tau_s is not None else min(fitted_tau, NUISANCE_METER_TAU_S)
+    return offset_s, fitted_tau
+
+
+def _aligned_run(correlations: _Correlations, offset_s: float, tau: float,
+                 fitted_tau: float, notes: list[str]) -> RunData:
+    """The run's samples within the prediction at ``offset_s``, once the meter has
+    settled, as a RunData with the meter lag ``tau``, and how well the log matches the
+    machine at all (its correlation with the lag the search found)."""
+    run, rm = correlations.run, correlations.rm
     idx, start, end = _intervals(run, offset_s, rm.horizon_s)
     # what the meter read before the machine started (air on or off, leaks settled or
     # not) is unknown: its first readings are left out until its lag has settled (a
@@ -276,13 +357,12 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
             f"{run.name}: only {len(idx)} samples overlap the prediction at the clock "
             f"offset {offset_s:g} s; give the right one with --offset (the logger's time "
             "at the machine's start)")
-    p_fit = params.copy()
+    p_fit = correlations.params.copy()
     p_fit.meter_tau_s = fitted_tau
     rd = RunData(run, rm, float(offset_s), float(tau), float(fitted_tau), 0.0,
                  start, end, run.flow_l_min[idx])
     rd.notes = notes
-    # how well the log matches the machine at all: with the lag the search found
-    rd.correlation = _pearson(rm.readings(p_fit, rd.read_start_s, end, cells),
+    rd.correlation = _pearson(rm.readings(p_fit, rd.read_start_s, end, correlations.cells),
                               rd.measured_l_min)
     return rd
 
@@ -427,9 +507,192 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
     replaces the initial values and the sweep; its discrete values are refined near
     where they are. ``hold_nuisances`` keeps the start's clock and meter lag (the
     alternate blocks of one run)."""
-    # scipy costs a third of a second to import: only the runs that need it pay
-    from scipy.optimize import least_squares
+    problem, u0 = _FitProblem.of(effects, mm, rds, masks, bases, ctx, start, hold_nuisances)
+    if start is None:
+        u0 = _sweep_timing(problem, u0)
+        u0 = _sweep_gridded(problem, u0)
+        res, u = _solve_from_best_clock(problem, u0)
+    else:
+        u0 = _refine_timing(problem, u0)
+        res, u = problem.solve(u0)
+        u = _blind_back_to_initial(problem, u)
+    return _fit_result(problem, res, u)
 
+
+@dataclass
+class _FitProblem:
+    """What a fit varies and what it matches: the effects' parameters, then the clock
+    adjustment (and the meter's lag where it is a nuisance), each in unit coordinates
+    (``lo + u * span``), and the weighted residuals of the masked samples."""
+    effects: list[Effect]
+    mm: MachineModel
+    rds: list[RunData]
+    masks: list[np.ndarray]
+    bases: list[ModelParams]
+    sizes: list[int]                # parameters per effect
+    flat: list[Param]               # every parameter, the clock (and lag) last
+    lo: np.ndarray
+    hi: np.ndarray
+    span: np.ndarray
+    lag_free: bool                  # the meter's lag is fitted (after the clock)
+    nuisances: list[int]            # the clock (and lag) where they are not held
+    held: np.ndarray                # neither swept nor fitted
+    u_init: np.ndarray              # the parameters' initial values
+    clock_grid_s: tuple             # the clock adjustments a sweep tries
+
+    @classmethod
+    def of(cls, effects: list[Effect], mm: MachineModel, rds: list[RunData],
+           masks: list[np.ndarray], bases: list[ModelParams], ctx: dict,
+           start: np.ndarray | None, hold_nuisances: bool
+           ) -> tuple[_FitProblem, np.ndarray]:
+        """(the problem, where the fit starts: ``start`` where given, else the initial
+        values)."""
+        sizes, flat, lag_free = _fit_parameters(effects, mm, ctx, bases)
+        lo = np.array([p.lower for p in flat], dtype=float)
+        hi = np.array([p.upper for p in flat], dtype=float)
+        clock = sum(sizes)
+        nuisances = [clock] + ([clock + 1] if lag_free else [])
+        # the blocks of one run share its logger and meter: a fold keeps the clock and
+        # lag that all its samples found (held: neither swept nor fitted). Half of a 20 s
+        # log at 1 Hz, mostly idle, pins no clock, and one that drifts half a second puts
+        # every held-out edge in the wrong sample
+        held = np.zeros(len(flat), bool)
+        if hold_nuisances and start is not None and len(start) == len(flat):
+            held[nuisances] = True
+            nuisances = []
+        hi = np.where(hi > lo, hi, lo + 1e-9)
+        x0 = np.clip(np.array([p.init for p in flat], dtype=float), lo, hi)
+        span = hi - lo
+        u_init = (x0 - lo) / span
+        clock_grid_s = CLOCK_GRID_S
+        if start is not None and len(start) == len(x0):
+            x0 = np.clip(np.asarray(start, dtype=float), lo, hi)
+            if hold_nuisances:
+                clock_grid_s = (float(x0[clock]),)
+        problem = cls(effects, mm, rds, masks, bases, sizes, flat, lo, hi, span, lag_free,
+                      nuisances, held, u_init, clock_grid_s)
+        return problem, (x0 - lo) / span
+
+    @property
+    def clock(self) -> int:
+        """The clock adjustment's index (the meter's lag, where fitted, follows it)."""
+        return sum(self.sizes)
+
+    @property
+    def discrete(self) -> np.ndarray:
+        """Per parameter: is it discrete (each value a sequencer or plant run)?"""
+        return np.array([p.discrete for p in self.flat])
+
+    @property
+    def free(self) -> np.ndarray:
+        """The indices least squares fits: neither discrete nor held."""
+        return np.flatnonzero(~self.discrete & ~self.held)
+
+    @property
+    def groups(self) -> list[list[int]]:
+        """The parameters' indices, one list per effect."""
+        return [list(range(k, k + n))
+                for k, n in zip(np.cumsum([0] + self.sizes[:-1]), self.sizes)]
+
+    @property
+    def n_samples(self) -> int:
+        """How many samples the fit sees."""
+        return int(sum(int(m.sum()) for m in self.masks))
+
+    def model_params(self, theta: np.ndarray) -> list[ModelParams]:
+        """Per run: the base parameters with the effects at ``theta`` and its nuisances."""
+        clock = self.clock
+        out = []
+        for base in self.bases:
+            p = base
+            for e, t in _by_effect(self.effects, self.sizes, theta):
+                p = e.apply(self.mm, p, t)
+            if p is base:           # effects return copies; the nuisances need one too
+                p = base.copy()
+            p.clock_adjust_s += float(theta[clock])
+            if self.lag_free:
+                p.meter_tau_s = float(theta[clock + 1])
+            out.append(p)
+        return out
+
+    def residuals(self, u: np.ndarray) -> np.ndarray:
+        """The masked samples' reading errors at ``u``, weighted by their seconds."""
+        theta = self.lo + u * self.span
+        out = []
+        for rd, m, p in zip(self.rds, self.masks, self.model_params(theta)):
+            if m.any():
+                out.append((rd.readings(p)[m] - rd.measured_l_min[m])
+                           * np.sqrt(rd.weight_s[m]))
+        return np.concatenate(out) if out else np.zeros(1)
+
+    def cost(self, u: np.ndarray) -> float:
+        """The sum of the squared weighted residuals at ``u``."""
+        r = self.residuals(u)
+        return float(r @ r)
+
+    def sweep(self, u_from: np.ndarray, ray: list[int], best: tuple,
+              at_own_clock: bool = False) -> tuple:
+        """``best`` (cost, u) improved by each grid value of ``ray``'s parameters, each
+        with every clock adjustment of the clock grid (or ``u_from``'s own), from
+        ``u_from``."""
+        lo, hi, span, clock = self.lo, self.hi, self.span, self.clock
+        clocks = [lo[clock] + u_from[clock] * span[clock]] if at_own_clock \
+            else self.clock_grid_s
+        for v in self.flat[ray[0]].grid:
+            if not lo[ray[0]] <= v <= hi[ray[0]]:
+                continue
+            for c in clocks:
+                u = u_from.copy()
+                u[ray] = (v - lo[ray]) / span[ray]
+                u[clock] = (c - lo[clock]) / span[clock]
+                trial = self.cost(u)
+                if trial < best[0]:
+                    best = (trial, u)
+        return best
+
+    def profiled(self, u: np.ndarray) -> tuple[float, np.ndarray]:
+        """(cost, u) with the clock and the meter's lag fitted for ``u``'s other
+        values: a plant run's edges are its own, and a value compared at another value's
+        clock loses to a worse one"""
+        # scipy costs a third of a second to import: only the runs that need it pay
+        from scipy.optimize import least_squares
+
+        lo, span, clock, nuisances = self.lo, self.span, self.clock, self.nuisances
+        best_c, best_u = min(((self.cost(v), v) for v in (
+            _with(u, clock, (c - lo[clock]) / span[clock]) for c in self.clock_grid_s)),
+            key=lambda x: x[0])
+        if not nuisances:
+            return best_c, best_u
+        r = least_squares(lambda v: self.residuals(_with(best_u, nuisances, v)),
+                          best_u[nuisances], bounds=(0.0, 1.0), diff_step=1e-4,
+                          max_nfev=10 * len(nuisances))
+        return (2.0 * r.cost, _with(best_u, nuisances, r.x)) if 2.0 * r.cost < best_c \
+            else (best_c, best_u)
+
+    def solve(self, u_from: np.ndarray):
+        """(least squares' result, u) fitting the free parameters from ``u_from``'s
+        values, the others held at them."""
+        # scipy costs a third of a second to import: only the runs that need it pay
+        from scipy.optimize import least_squares
+
+        free = self.free
+        if not len(free):       # a baseline fold with its nuisances held: nothing to fit
+            r0 = self.residuals(u_from)
+            return SimpleNamespace(x=np.zeros(0), cost=0.5 * float(r0 @ r0),
+                                   jac=np.zeros((len(r0), 0)), success=True,
+                                   message="nothing to fit"), u_from.copy()
+        r = least_squares(lambda v: self.residuals(_with(u_from, free, v)), u_from[free],
+                          bounds=(0.0, 1.0), diff_step=1e-4, x_scale=1.0,
+                          max_nfev=40 * (len(free) + 1))
+        u = u_from.copy()
+        u[free] = r.x
+        return r, u
+
+
+def _fit_parameters(effects: list[Effect], mm: MachineModel, ctx: dict,
+                    bases: list[ModelParams]) -> tuple[list[int], list[Param], bool]:
+    """(parameters per effect, every parameter with the clock adjustment (and the
+    meter's lag) last, whether the lag is fitted)."""
     specs = [e.params(mm, ctx) for e in effects]
     sizes = [len(s) for s in specs]
     flat = [p for s in specs for p in s]
@@ -444,211 +707,154 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
         flat.append(Param("meter_tau_s", "s", 0.0, NUISANCE_METER_TAU_S,
                           float(np.mean([b.meter_tau_s for b in bases])),
                           tuple(np.linspace(0.0, NUISANCE_METER_TAU_S, 5))))
-    lo = np.array([p.lower for p in flat], dtype=float)
-    hi = np.array([p.upper for p in flat], dtype=float)
-    clock = sum(sizes)
-    nuisances = [clock] + ([clock + 1] if lag_free else [])
-    # the blocks of one run share its logger and meter: a fold keeps the clock and lag
-    # that all its samples found (held: neither swept nor fitted). Half of a 20 s log at
-    # 1 Hz, mostly idle, pins no clock, and one that drifts half a second puts every
-    # held-out edge in the wrong sample
-    held = np.zeros(len(flat), bool)
-    if hold_nuisances and start is not None and len(start) == len(flat):
-        held[nuisances] = True
-        nuisances = []
-    hi = np.where(hi > lo, hi, lo + 1e-9)
-    x0 = np.clip(np.array([p.init for p in flat], dtype=float), lo, hi)
-    span = hi - lo
-    n = int(sum(int(m.sum()) for m in masks))
+    return sizes, flat, lag_free
 
-    def model_params(theta):
-        out = []
-        for base in bases:
-            p = base
-            for e, t in _by_effect(effects, sizes, theta):
-                p = e.apply(mm, p, t)
-            if p is base:           # effects return copies; the nuisances need one too
-                p = base.copy()
-            p.clock_adjust_s += float(theta[clock])
-            if lag_free:
-                p.meter_tau_s = float(theta[clock + 1])
-            out.append(p)
-        return out
 
-    def residuals(u):
-        theta = lo + u * span
-        out = []
-        for rd, m, p in zip(rds, masks, model_params(theta)):
-            if m.any():
-                out.append((rd.readings(p)[m] - rd.measured_l_min[m])
-                           * np.sqrt(rd.weight_s[m]))
-        return np.concatenate(out) if out else np.zeros(1)
+def _sweep_timing(problem: _FitProblem, u0: np.ndarray) -> np.ndarray:
+    """``u0`` with a closed loop's timing (the discrete parameters) swept: each drive
+    alone, then the effect's drives together, from the nominal timing (swept one after
+    the other, an early drive would take the whole gap just because it is swept
+    first); the best ray is then refined."""
+    flat, lo, span = problem.flat, problem.lo, problem.span
+    rays = _discrete_rays(problem.groups, problem.discrete, [p.joint for p in flat])
+    if not rays:
+        return u0
+    plant = flat[rays[0][0]].plant
+    best, best_ray = problem.profiled(u0) if plant else (problem.cost(u0), u0), None
+    for ray in rays:
+        if plant:
+            trial = _profiled_sweep(problem.profiled, u0, ray, flat[ray[0]], lo, span, best)
+        else:
+            trial = problem.sweep(u0, ray, best)
+        if trial[0] < best[0]:
+            best, best_ray = trial, ray
+    u0 = best[1]
+    if best_ray is not None:
+        u0 = _golden_refine(problem.cost, u0, best_ray, flat[best_ray[0]], lo, span,
+                            profiled=problem.profiled if plant else None)
+    return u0
 
-    def cost(u) -> float:
-        r = residuals(u)
-        return float(r @ r)
 
-    u_init = (x0 - lo) / span
-    clock_grid_s = CLOCK_GRID_S
-    if start is not None and len(start) == len(x0):
-        x0 = np.clip(np.asarray(start, dtype=float), lo, hi)
-        if hold_nuisances:
-            clock_grid_s = (float(x0[clock]),)
-    u0 = (x0 - lo) / span
-    discrete = np.array([p.discrete for p in flat])
-    groups = [list(range(k, k + n)) for k, n in zip(np.cumsum([0] + sizes[:-1]), sizes)]
-    rays = _discrete_rays(groups, discrete, [p.joint for p in flat])
-    def sweep(u_from, ray, best, clocks=clock_grid_s):
-        """``best`` (cost, u) improved by each grid value of ``ray``'s parameters, each
-        with every clock adjustment of ``clocks`` (None: ``u_from``'s), from
-        ``u_from``."""
-        for v in flat[ray[0]].grid:
-            if not lo[ray[0]] <= v <= hi[ray[0]]:
-                continue
-            for c in clocks or [lo[clock] + u_from[clock] * span[clock]]:
-                u = u_from.copy()
-                u[ray] = (v - lo[ray]) / span[ray]
-                u[clock] = (c - lo[clock]) / span[clock]
-                trial = cost(u)
-                if trial < best[0]:
-                    best = (trial, u)
-        return best
-
-    def profiled(u) -> tuple[float, np.ndarray]:
-        """(cost, u) with the clock and the meter's lag fitted for ``u``'s other
-        values: a plant run's edges are its own, and a value compared at another value's
-        clock loses to a worse one"""
-        best_c, best_u = min(((cost(v), v) for v in (
-            _with(u, clock, (c - lo[clock]) / span[clock]) for c in clock_grid_s)),
-            key=lambda x: x[0])
-        if not nuisances:
-            return best_c, best_u
-        r = least_squares(lambda v: residuals(_with(best_u, nuisances, v)), best_u[nuisances],
-                          bounds=(0.0, 1.0), diff_step=1e-4, max_nfev=10 * len(nuisances))
-        return (2.0 * r.cost, _with(best_u, nuisances, r.x)) if 2.0 * r.cost < best_c \
-            else (best_c, best_u)
-
-    if start is None and rays:
-        # a closed loop's timing: each drive alone, then the effect's drives together,
-        # from the nominal timing (swept one after the other, an early drive would take
-        # the whole gap just because it is swept first); the best ray is then refined
-        plant = flat[rays[0][0]].plant
-        best, best_ray = profiled(u0) if plant else (cost(u0), u0), None
-        for ray in rays:
-            if plant:
-                trial = _profiled_sweep(profiled, u0, ray, flat[ray[0]], lo, span, best)
+def _refine_timing(problem: _FitProblem, u0: np.ndarray) -> np.ndarray:
+    """``u0`` with a fold's own values of the discrete parameters, near the start's:
+    an effect's drives moved alike together, else each alone."""
+    flat, lo, span, discrete = problem.flat, problem.lo, problem.span, problem.discrete
+    if not _discrete_rays(problem.groups, discrete, [p.joint for p in flat]):
+        return u0
+    for g in problem.groups:
+        d = [j for j in g if discrete[j]]
+        moved = [j for j in d if abs(u0[j] - problem.u_init[j]) > 1e-12]
+        values = lo[moved] + u0[moved] * span[moved]
+        together = len(moved) == len(d) > 1 and np.ptp(values) < 1e-9
+        for ray in [moved] if together else [[j] for j in moved]:
+            if flat[ray[0]].plant:
+                # each value a plant run: the grid the fit on all samples ran, and
+                # the value it found
+                u0 = _profiled_sweep(problem.profiled, u0, ray, flat[ray[0]], lo, span,
+                                     problem.profiled(u0))[1]
             else:
-                trial = sweep(u0, ray, best)
-            if trial[0] < best[0]:
-                best, best_ray = trial, ray
-        u0 = best[1]
-        if best_ray is not None:
-            u0 = _golden_refine(cost, u0, best_ray, flat[best_ray[0]], lo, span,
-                                profiled=profiled if plant else None)
-    elif rays:
-        # a fold's fit: its own value, near the start's
-        for g in groups:
-            d = [j for j in g if discrete[j]]
-            moved = [j for j in d if abs(u0[j] - u_init[j]) > 1e-12]
-            values = lo[moved] + u0[moved] * span[moved]
-            together = len(moved) == len(d) > 1 and np.ptp(values) < 1e-9
-            for ray in [moved] if together else [[j] for j in moved]:
-                if flat[ray[0]].plant:
-                    # each value a plant run: the grid the fit on all samples ran, and
-                    # the value it found
-                    u0 = _profiled_sweep(profiled, u0, ray, flat[ray[0]], lo, span,
-                                         profiled(u0))[1]
-                else:
-                    u0 = _golden_refine(cost, u0, ray, flat[ray[0]], lo, span, narrow=True)
-    gridded = [j for j, p in enumerate(flat) if p.grid and not p.discrete]
-    if start is None and gridded:
-        # first the one parameter that alone explains most, with the clock (swept one
-        # after the other from the start, the first drive of a valve delay would take
-        # a gap that is another's), then the others one after the other from there at
-        # that clock (every drive later and the clock earlier look alike: noise would
-        # choose)
-        alone = {j: sweep(u0, [j], (cost(u0), u0)) for j in gridded}
-        first = min(gridded, key=lambda j: alone[j][0])
-        best = alone[first]
-        u0 = best[1]
-        same = next((g for g in groups if first in g), [first])
-        for j in gridded:
-            # the first one's siblings (the other drives of its effect) are left to
-            # least squares from their neutral values: swept, they take up noise
-            if j not in same:
-                best = sweep(u0, [j], best, clocks=None)
-                u0 = best[1]
-    free = np.flatnonzero(~discrete & ~held)
+                u0 = _golden_refine(problem.cost, u0, ray, flat[ray[0]], lo, span,
+                                    narrow=True)
+    return u0
 
-    def free_residuals(v):
-        u = u0.copy()
-        u[free] = v
-        return residuals(u)
 
-    def solve(u_from):
-        if not len(free):       # a baseline fold with its nuisances held: nothing to fit
-            r0 = residuals(u_from)
-            return SimpleNamespace(x=np.zeros(0), cost=0.5 * float(r0 @ r0),
-                                   jac=np.zeros((len(r0), 0)), success=True,
-                                   message="nothing to fit"), u_from.copy()
-        r = least_squares(free_residuals, u_from[free], bounds=(0.0, 1.0), diff_step=1e-4,
-                          x_scale=1.0, max_nfev=40 * (len(free) + 1))
-        u = u_from.copy()
-        u[free] = r.x
-        return r, u
+def _sweep_gridded(problem: _FitProblem, u0: np.ndarray) -> np.ndarray:
+    """``u0`` with the gridded parameters that are not discrete swept: first the one
+    that alone explains most, with the clock (swept one after the other from the start,
+    the first drive of a valve delay would take a gap that is another's), then the
+    others one after the other from there at that clock (every drive later and the
+    clock earlier look alike: noise would choose)."""
+    gridded = [j for j, p in enumerate(problem.flat) if p.grid and not p.discrete]
+    if not gridded:
+        return u0
+    alone = {j: problem.sweep(u0, [j], (problem.cost(u0), u0)) for j in gridded}
+    first = min(gridded, key=lambda j: alone[j][0])
+    best = alone[first]
+    u0 = best[1]
+    same = next((g for g in problem.groups if first in g), [first])
+    for j in gridded:
+        # the first one's siblings (the other drives of its effect) are left to
+        # least squares from their neutral values: swept, they take up noise
+        if j not in same:
+            best = problem.sweep(u0, [j], best, at_own_clock=True)
+            u0 = best[1]
+    return u0
 
-    res, u = solve(u0)
-    if start is None:
-        # the sweep chose the clock (and the meter's lag) with the other parameters at
-        # their initial values (a leak still far from its size, a knife's flow half what
-        # it is): once they are fitted, the clock grid again, and least squares from a
-        # better clock if there is one. A lag left at a bound of its range (none, or
-        # the slowest thermal meter) was most likely traded for the clock against a
-        # wrong amplitude: then with each lag of its grid too
-        c0 = 2.0 * res.cost
-        best = (c0, u)
-        at_bound = lag_free and (u[clock + 1] < 1e-6 or u[clock + 1] > 1.0 - 1e-6)
-        lags = [None] + ([v for v in flat[clock + 1].grid] if at_bound else [])
-        for c in CLOCK_GRID_S:
-            for lag in lags:
-                trial_u = u.copy()
-                trial_u[clock] = (c - lo[clock]) / span[clock]
-                if lag is not None:
-                    trial_u[clock + 1] = (lag - lo[clock + 1]) / span[clock + 1]
-                trial = cost(trial_u)
-                if trial < best[0]:
-                    best = (trial, trial_u)
-        if best[0] < c0 * (1.0 - 1e-6):
-            res2, u2 = solve(best[1])
-            if res2.cost < res.cost:
-                res, u = res2, u2
-    if start is not None:
-        # a parameter these samples say nothing about (a nozzle never on in them) must
-        # not keep what the start learnt from other samples: back to its initial value
-        # (an effect's parameters only: the nuisances start where the alignment put
-        # them). Blind means that moving it back changes none of these residuals; a
-        # small gradient is not enough (a valve delay between two grid cells has none)
-        r0 = residuals(u)
-        for j in free[free < clock]:
-            if u[j] == u_init[j]:
-                continue
-            trial = u.copy()
-            trial[j] = u_init[j]
-            if np.array_equal(residuals(trial), r0):
-                u = trial
-    theta = lo + u * span
+
+def _solve_from_best_clock(problem: _FitProblem, u0: np.ndarray):
+    """(least squares' result, u) from ``u0``, run again from a better clock where the
+    clock grid finds one once the other parameters are fitted.
+
+    The sweep chose the clock (and the meter's lag) with the other parameters at their
+    initial values (a leak still far from its size, a knife's flow half what it is).
+    A lag left at a bound of its range (none, or the slowest thermal meter) was most
+    likely traded for the clock against a wrong amplitude: then each lag of its grid is
+    tried with the clock too."""
+    res, u = problem.solve(u0)
+    c0 = 2.0 * res.cost
+    best = _best_clock(problem, u, c0)
+    if best[0] < c0 * (1.0 - 1e-6):
+        res2, u2 = problem.solve(best[1])
+        if res2.cost < res.cost:
+            res, u = res2, u2
+    return res, u
+
+
+def _best_clock(problem: _FitProblem, u: np.ndarray, cost: float) -> tuple:
+    """(cost, u) of the best clock adjustment of CLOCK_GRID_S for ``u`` (and lag, where
+    ``u``'s is at a bound of its range), or ``u`` itself at ``cost``."""
+    lo, span, clock, flat = problem.lo, problem.span, problem.clock, problem.flat
+    best = (cost, u)
+    at_bound = problem.lag_free and (u[clock + 1] < 1e-6 or u[clock + 1] > 1.0 - 1e-6)
+    lags = [None] + ([v for v in flat[clock + 1].grid] if at_bound else [])
+    for c in CLOCK_GRID_S:
+        for lag in lags:
+            trial_u = u.copy()
+            trial_u[clock] = (c - lo[clock]) / span[clock]
+            if lag is not None:
+                trial_u[clock + 1] = (lag - lo[clock + 1]) / span[clock + 1]
+            trial = problem.cost(trial_u)
+            if trial < best[0]:
+                best = (trial, trial_u)
+    return best
+
+
+def _blind_back_to_initial(problem: _FitProblem, u: np.ndarray) -> np.ndarray:
+    """``u`` with each effect parameter these samples say nothing about (a nozzle never
+    on in them) back at its initial value: it must not keep what the start learnt from
+    other samples. (The nuisances start where the alignment put them.) Blind means that
+    moving it back changes none of these residuals; a small gradient is not enough (a
+    valve delay between two grid cells has none)."""
+    r0 = problem.residuals(u)
+    free = problem.free
+    for j in free[free < problem.clock]:
+        if u[j] == problem.u_init[j]:
+            continue
+        trial = u.copy()
+        trial[j] = problem.u_init[j]
+        if np.array_equal(problem.residuals(trial), r0):
+            u = trial
+    return u
+
+
+def _fit_result(problem: _FitProblem, res, u: np.ndarray) -> FitResult:
+    """The fit at ``u``, standard errors of the free parameters from the Jacobian."""
+    theta = problem.lo + u * problem.span
+    n = problem.n_samples
+    free = problem.free
     stderr = np.full(len(theta), math.nan)
     try:
         J = res.jac
         dof = max(1, n - len(theta))
         s2 = 2.0 * res.cost / dof
         cov = np.linalg.pinv(J.T @ J) * s2
-        stderr[free] = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * span[free]
+        stderr[free] = np.sqrt(np.clip(np.diag(cov), 0.0, None)) * problem.span[free]
     except (ValueError, np.linalg.LinAlgError):
         pass
-    return FitResult(effects, theta, stderr, [p.name for p in flat], [p.unit for p in flat],
-                     model_params(theta), float(res.cost), n, bool(res.success),
-                     str(res.message), sizes)
+    flat = problem.flat
+    return FitResult(problem.effects, theta, stderr, [p.name for p in flat],
+                     [p.unit for p in flat], problem.model_params(theta), float(res.cost), n,
+                     bool(res.success), str(res.message), problem.sizes)
 
 
 GOLDEN_STEPS = 6

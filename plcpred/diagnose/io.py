@@ -33,11 +33,11 @@ from array import array
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
-from typing import Iterator
+from typing import Iterator, NamedTuple
 
 import numpy as np
 
-from ..datafile import MAX_LINE_BYTES, DataLines
+from ..datafile import DataLines
 from ..errors import PlcpredError
 from ..physics import meter
 from ..sequencer.timeline import (
@@ -373,6 +373,15 @@ def _csv_problem(e: csv.Error) -> str:
     return f"not CSV: {text}"
 
 
+class _LogRequest(NamedTuple):
+    """How the caller says to read a flow log (None: as its header says)."""
+    time_col: object
+    flow_col: object
+    supply_col: object
+    flow_unit: str | None
+    reference: str
+
+
 def read_measured(path, time_col=None, flow_col=None, flow_unit: str | None = None,
                   reference: str = "iso8778", supply_col=None) -> MeasuredRun:
     """Read a flow log (see the module docstring). Rows whose flow is empty or not a
@@ -385,38 +394,68 @@ def read_measured(path, time_col=None, flow_col=None, flow_unit: str | None = No
     path = Path(path)
     unit_k = flow_unit_factor(flow_unit or "l/min")
     ref_k = reference_factor(reference)
+    request = _LogRequest(time_col, flow_col, supply_col, flow_unit, reference)
     with DataLines(path, MeasuredDataError, MAX_ROWS, extra=MAX_PREAMBLE_LINES + 1) as lines:
-        return _read_measured(path, lines, time_col, flow_col, flow_unit, reference,
-                              supply_col, unit_k, ref_k)
+        return _read_measured(path, lines, request, unit_k, ref_k)
 
 
-def _read_measured(path: Path, lines: DataLines, time_col, flow_col, flow_unit, reference,
-                   supply_col, unit_k: float, ref_k: float) -> MeasuredRun:
+def _read_measured(path: Path, lines: DataLines, request: _LogRequest, unit_k: float,
+                   ref_k: float) -> MeasuredRun:
+    """The flow log ``lines`` of ``path``: its header found, its columns chosen, its rows
+    read and checked one at a time, and the samples in NL/min at the ISO 8778 reference."""
     file = str(path)
-    # the header is among the first MAX_PREAMBLE_LINES lines (or, after blank ones only,
-    # the first line with anything on it); the rows after it are read as they come
-    head = list(itertools.islice(lines, MAX_PREAMBLE_LINES))
-    if any(line.strip() for line in head):
-        try:
-            start = _header_line(head, time_col, flow_col)
-        except csv.Error as e:
-            raise MeasuredDataError(f"{file}: {_csv_problem(e)}") from None
-        top = head[start:]
-    else:
-        start = len(head)
-        for first in lines:
-            if first.strip():
-                break
-            start += 1
-        else:
-            raise MeasuredDataError(f"{file}: empty file (expected a header such as "
-                                    "time_s,flow_l_min and rows of samples)")
-        top = [first]
+    start, top = _header_lines(lines, file, request)
     delimiter = _delimiter(top[0])
     decimal_comma = delimiter != ","
     rows = _csv_rows(csv.reader(itertools.chain(top, lines), delimiter=delimiter), file,
                      start)
     _, header = next(rows)
+    cols = _log_columns(file, header, start, request, unit_k)
+    # a numeric time column's name may give its unit (t_ms, Zeit [ms])
+    clock = _LogClock(decimal_comma, _time_unit_s(header[cols.time]))
+    samples = _read_samples(rows, file, header, cols, clock)
+    return _measured_run(path, header, cols, samples, clock.fmt, request.reference, ref_k)
+
+
+def _header_lines(lines: DataLines, file: str, request: _LogRequest
+                  ) -> tuple[int, list[str]]:
+    """(index of a flow log's header line, the lines read from it on). The header is
+    among the first MAX_PREAMBLE_LINES lines (or, after blank ones only, the first line
+    with anything on it); the rows after it are left to be read as they come."""
+    head = list(itertools.islice(lines, MAX_PREAMBLE_LINES))
+    if any(line.strip() for line in head):
+        try:
+            start = _header_line(head, request.time_col, request.flow_col)
+        except csv.Error as e:
+            raise MeasuredDataError(f"{file}: {_csv_problem(e)}") from None
+        return start, head[start:]
+    start = len(head)
+    for first in lines:
+        if first.strip():
+            break
+        start += 1
+    else:
+        raise MeasuredDataError(f"{file}: empty file (expected a header such as "
+                                "time_s,flow_l_min and rows of samples)")
+    return start, [first]
+
+
+class _Columns(NamedTuple):
+    """Where a flow log's values stand, and the unit of its flows."""
+    time: int
+    flow: int
+    supply: int | None
+    flow_unit: str | None           # the caller's or the header's (None: l/min)
+    unit_k: float                   # l/min per unit of the log's flows
+    guessed: tuple | None           # (time, flow, unit) taken from the header's names
+
+
+def _log_columns(file: str, header: list[str], start: int, request: _LogRequest,
+                 unit_k: float) -> _Columns:
+    """The columns of a flow log: as the caller names them, else by their default
+    names, else as a logger's own names say (one column a time and one a flow); the
+    flow's unit as the caller gives it, else as the flow column's name gives it."""
+    time_col, flow_col, flow_unit = request.time_col, request.flow_col, request.flow_unit
     t_idx = _column(file, header, time_col, "time_s", "time", "--time-col")
     f_idx = _column(file, header, flow_col, "flow_l_min", "flow", "--flow-col")
     guessed = None
@@ -431,118 +470,172 @@ def _read_measured(path: Path, lines: DataLines, time_col, flow_col, flow_unit, 
                 unit_k = flow_unit_factor(header_unit)
                 flow_unit = header_unit
     if f_idx is not None and flow_unit is None and guessed is None:
-        # a column named by --flow-col keeps the unit its header gives (Volumenstrom
-        # [m3/h] read as l/min was a 16.7x error)
+        # a column named by --flow-col keeps the unit its header gives (read as l/min,
+        # a Volumenstrom [m3/h] would be 16.7 times too low)
         header_unit = _bare(header[f_idx])[1]
         if header_unit is not None and header_unit != "l/min":
             unit_k = flow_unit_factor(header_unit)
             flow_unit = header_unit
             guessed = (t_idx, f_idx, header_unit)
     if t_idx is None or f_idx is None:
-        missing = "time and flow columns" if t_idx is None and f_idx is None else (
-            "time column" if t_idx is None else "flow column")
-        raise MeasuredDataError(
-            f"{file}: line {start + 1}: no {missing} (expected the header "
-            f"time_s,flow_l_min, or one column named as a time and one as a flow; this "
-            f"file has {', '.join(h.strip() for h in header) or 'no columns'}); name "
-            "the columns with --time-col and --flow-col")
-    s_idx = _column(file, header, supply_col, "supply_bar_g", "supply", "--supply-col")
-    max_span_s = MAX_HORIZON_NS / NS
-    time_unit_s = _time_unit_s(header[t_idx])     # numeric times only: t_ms, Zeit [ms]
-    # the numbers only, 8 bytes each (a list of floats takes four times that)
-    times, flows, supplies = array("d"), array("d"), array("d")
-    skipped = 0
-    iso = None          # False: seconds; else the date-time format of the first row
-    repeated = None     # (line, time) of the first time equal to the one before
-    day_s = 0.0         # a time of day alone: the days passed midnight adds
+        raise _no_columns(file, header, start, t_idx, f_idx)
+    s_idx = _column(file, header, request.supply_col, "supply_bar_g", "supply",
+                    "--supply-col")
+    return _Columns(t_idx, f_idx, s_idx, flow_unit, unit_k, guessed)
+
+
+def _no_columns(file: str, header: list[str], start: int, t_idx: int | None,
+                f_idx: int | None) -> MeasuredDataError:
+    """The error for a flow log whose time or flow column (or both) is not found."""
+    missing = "time and flow columns" if t_idx is None and f_idx is None else (
+        "time column" if t_idx is None else "flow column")
+    return MeasuredDataError(
+        f"{file}: line {start + 1}: no {missing} (expected the header "
+        f"time_s,flow_l_min, or one column named as a time and one as a flow; this "
+        f"file has {', '.join(h.strip() for h in header) or 'no columns'}); name "
+        "the columns with --time-col and --flow-col")
+
+
+@dataclass
+class _LogClock:
+    """Reads a flow log's time cells: numbers (seconds, or the column's unit) or
+    date-times, each row in the way the first row was read."""
+    decimal_comma: bool
+    unit_s: float                   # seconds per unit of a numeric time
+    fmt: str | bool | None = None   # False: seconds; else the date-time format of row one
+    day_s: float = 0.0              # a time of day alone: the days passed midnight adds
+
+    def read(self, cell: str, file: str, lineno: int, col: int, times: array) -> float:
+        """The time of ``cell`` in seconds (``times``: the samples read before it)."""
+        try:
+            if self.fmt is None:
+                try:
+                    t = _number(cell, self.decimal_comma) * self.unit_s
+                    self.fmt = False
+                except ValueError:
+                    t, self.fmt = _timestamp(cell)
+            else:
+                t = _timestamp(cell, self.fmt)[0] if self.fmt else \
+                    _number(cell, self.decimal_comma) * self.unit_s
+        except (ValueError, OverflowError):
+            raise MeasuredDataError(
+                f"{file}: line {lineno}, column {col + 1}: cannot read the time "
+                f"{cell.strip()[:40]!r} (seconds, an ISO 8601 date-time or a logger's "
+                "date-time such as 24.11.2026 13:05:00,5"
+                + (f"; the rows before were read as {self.fmt}" if self.fmt else "")
+                + ")") from None
+        if self.fmt in TIME_OF_DAY_FORMATS:
+            t += self.day_s
+            if times and t < times[-1] - 43_200.0:      # past midnight
+                self.day_s += 86_400.0
+                t += 86_400.0
+        return t
+
+
+@dataclass
+class _Samples:
+    """A flow log's numbers as read, 8 bytes each (a list of floats takes four times
+    that)."""
+    times: array = field(default_factory=lambda: array("d"))
+    flows: array = field(default_factory=lambda: array("d"))
+    supplies: array = field(default_factory=lambda: array("d"))
+    skipped: int = 0                # rows without a number in the flow column
+    repeated: tuple | None = None   # (line, time) of the first time equal to the one before
+
+
+def _read_samples(rows, file: str, header: list[str], cols: _Columns, clock: _LogClock
+                  ) -> _Samples:
+    """The samples of a flow log's rows after its header, each row checked as it
+    comes; a row without a number in the flow column is counted and skipped."""
+    samples = _Samples()
     for lineno, row in rows:
         if not row or not "".join(row).strip():
             continue
-        if len(times) >= MAX_ROWS:
+        if len(samples.times) >= MAX_ROWS:
             raise MeasuredDataError(f"{file}: more than {MAX_ROWS:,} samples")
-        if max(t_idx, f_idx) >= len(row):
+        if max(cols.time, cols.flow) >= len(row):
             raise MeasuredDataError(f"{file}: line {lineno}: {len(row)} fields, the "
                                     f"header has {len(header)}")
-        cell = row[t_idx]
-        try:
-            if iso is None:
-                try:
-                    t = _number(cell, decimal_comma) * time_unit_s
-                    iso = False
-                except ValueError:
-                    t, iso = _timestamp(cell)
-            else:
-                t = _timestamp(cell, iso)[0] if iso else \
-                    _number(cell, decimal_comma) * time_unit_s
-        except (ValueError, OverflowError):
-            raise MeasuredDataError(
-                f"{file}: line {lineno}, column {t_idx + 1}: cannot read the time "
-                f"{cell.strip()[:40]!r} (seconds, an ISO 8601 date-time or a logger's "
-                "date-time such as 24.11.2026 13:05:00,5"
-                + (f"; the rows before were read as {iso}" if iso else "") + ")") from None
-        if iso in TIME_OF_DAY_FORMATS:
-            t += day_s
-            if times and t < times[-1] - 43_200.0:      # past midnight
-                day_s += 86_400.0
-                t += 86_400.0
-        try:
-            q = _number(row[f_idx], decimal_comma)
-        except ValueError:
-            q = math.nan
+        t = clock.read(row[cols.time], file, lineno, cols.time, samples.times)
+        q = _reading(row[cols.flow], clock.decimal_comma)
         if not math.isfinite(q):
-            skipped += 1
+            samples.skipped += 1
             continue
-        if not math.isfinite(t):
-            raise MeasuredDataError(f"{file}: line {lineno}, column {t_idx + 1}: the time "
-                                    "is not a finite number")
-        if abs(q) > MAX_FLOW:
-            raise MeasuredDataError(f"{file}: line {lineno}, column {f_idx + 1}: flow "
-                                    f"{row[f_idx].strip()[:40]} is beyond any meter's "
-                                    f"(at most {MAX_FLOW:g} in the log's unit)")
-        if times and t - times[0] > max_span_s:
-            raise MeasuredDataError(f"{file}: line {lineno}, column {t_idx + 1}: time "
-                                    f"{cell.strip()[:40]} is more than {MAX_HORIZON_TEXT} "
-                                    "after the first sample, longer than plcpred runs a "
-                                    "machine")
-        if times and t <= times[-1]:
-            if t < times[-1] or t != math.floor(t):
-                raise _not_increasing(file, lineno, t_idx, cell.strip())
-            repeated = repeated or (lineno, cell.strip())
-        times.append(t)
-        flows.append(q)
-        if s_idx is not None and s_idx < len(row):
-            try:
-                p = _number(row[s_idx], decimal_comma)
-            except ValueError:
-                p = math.nan
-            supplies.append(p if abs(p) <= MAX_SUPPLY_BAR else math.nan)   # nan: not read
-    if len(times) < 3:
+        _check_sample(file, lineno, row, cols, t, q, samples)
+        samples.times.append(t)
+        samples.flows.append(q)
+        if cols.supply is not None and cols.supply < len(row):
+            p = _reading(row[cols.supply], clock.decimal_comma)
+            samples.supplies.append(p if abs(p) <= MAX_SUPPLY_BAR else math.nan)  # not read
+    return samples
+
+
+def _reading(cell: str, decimal_comma: bool) -> float:
+    """A flow or pressure cell's number; NaN where it holds none (not read)."""
+    try:
+        return _number(cell, decimal_comma)
+    except ValueError:
+        return math.nan
+
+
+def _check_sample(file: str, lineno: int, row: list[str], cols: _Columns, t: float,
+                  q: float, samples: _Samples) -> None:
+    """Refuse a sample at a time that is not finite, beyond the longest run plcpred
+    models or before the sample's before it, or with a flow beyond any meter's; note the
+    first time equal to the one before (a logger stamping to the whole second)."""
+    times = samples.times
+    cell = row[cols.time]
+    if not math.isfinite(t):
+        raise MeasuredDataError(f"{file}: line {lineno}, column {cols.time + 1}: the time "
+                                "is not a finite number")
+    if abs(q) > MAX_FLOW:
+        raise MeasuredDataError(f"{file}: line {lineno}, column {cols.flow + 1}: flow "
+                                f"{row[cols.flow].strip()[:40]} is beyond any meter's "
+                                f"(at most {MAX_FLOW:g} in the log's unit)")
+    if times and t - times[0] > MAX_HORIZON_NS / NS:
+        raise MeasuredDataError(f"{file}: line {lineno}, column {cols.time + 1}: time "
+                                f"{cell.strip()[:40]} is more than {MAX_HORIZON_TEXT} "
+                                "after the first sample, longer than plcpred runs a "
+                                "machine")
+    if times and t <= times[-1]:
+        if t < times[-1] or t != math.floor(t):
+            raise _not_increasing(file, lineno, cols.time, cell.strip())
+        samples.repeated = samples.repeated or (lineno, cell.strip())
+
+
+def _measured_run(path: Path, header: list[str], cols: _Columns, samples: _Samples,
+                  time_format, reference: str, ref_k: float) -> MeasuredRun:
+    """The run of a flow log's samples: at least three, times increasing (whole seconds
+    repeated only where every time is one, then spread over their second), flows in
+    NL/min at the ISO 8778 reference."""
+    file = str(path)
+    if len(samples.times) < 3:
         raise MeasuredDataError(f"{file}: a flow log needs at least 3 samples with a "
-                                f"flow, found {len(times)}"
-                                + (f" ({skipped} rows without a number in the flow "
-                                   "column)" if skipped else ""))
+                                f"flow, found {len(samples.times)}"
+                                + (f" ({samples.skipped} rows without a number in the "
+                                   "flow column)" if samples.skipped else ""))
     # the arrays' own memory, not a copy (writable: an array.array's buffer is)
-    time_s = np.frombuffer(times, dtype=float)
-    if repeated and np.any(time_s != np.floor(time_s)):
-        raise _not_increasing(file, repeated[0], t_idx, repeated[1])
+    time_s = np.frombuffer(samples.times, dtype=float)
+    if samples.repeated and np.any(time_s != np.floor(time_s)):
+        raise _not_increasing(file, samples.repeated[0], cols.time, samples.repeated[1])
     time_s, spread = _spread_whole_seconds(time_s)
-    flow = np.frombuffer(flows, dtype=float)
-    flow *= unit_k * ref_k
-    supply = np.frombuffer(supplies, dtype=float) if s_idx is not None and len(
-        supplies) == len(times) else None
+    flow = np.frombuffer(samples.flows, dtype=float)
+    flow *= cols.unit_k * ref_k
+    supply = np.frombuffer(samples.supplies, dtype=float) if cols.supply is not None and \
+        len(samples.supplies) == len(samples.times) else None
     source = {}
-    if guessed is not None:
+    if cols.guessed is not None:
         source["columns_guessed"] = (
-            f"time from column '{header[t_idx].strip()}', flow from "
-            f"'{header[f_idx].strip()}' in {flow_unit or 'l/min'}")
+            f"time from column '{header[cols.time].strip()}', flow from "
+            f"'{header[cols.flow].strip()}' in {cols.flow_unit or 'l/min'}")
     return MeasuredRun(path.name, time_s, flow, supply,
-                       {**source, "path": file, "flow_unit": flow_unit or "l/min",
+                       {**source, "path": file, "flow_unit": cols.flow_unit or "l/min",
                         "reference": reference,
-                        "time_format": ("iso8601" if iso == "iso" else iso) if iso
-                        else "seconds",
-                        "time_column": header[t_idx].strip(),
-                        "flow_column": header[f_idx].strip(), "skipped_rows": skipped,
-                        "spread_rows": spread})
+                        "time_format": ("iso8601" if time_format == "iso" else time_format)
+                        if time_format else "seconds",
+                        "time_column": header[cols.time].strip(),
+                        "flow_column": header[cols.flow].strip(),
+                        "skipped_rows": samples.skipped, "spread_rows": spread})
 
 
 def _not_increasing(file: str, lineno: int, t_idx: int, text: str) -> MeasuredDataError:
@@ -579,14 +672,46 @@ def read_io_timeline(path, horizon_s: float | None = None, machine=None):
     is an error (the wrong file, or other names). Times beyond ten years (the longest
     horizon plcpred runs), more than MAX_ROWS rows or MAX_IO_SIGNALS signals, and lines
     longer than MAX_LINE_BYTES are errors naming the line."""
-
     path = Path(path)
     file = str(path)
-    max_t = MAX_HORIZON_NS / NS
-    index: dict[str, int] = {}
-    names: list[str] = []
-    # the numbers only (8 + 4 + 8 bytes a row: lists of Python numbers take four times it)
-    t_ns, sig, val = array("q"), array("i"), array("d")
+    trace = _read_io_trace(path, file)
+    warnings = _hold_missing_valves(file, machine, trace) if machine is not None else []
+    return _trace_timeline(trace, file, horizon_s, warnings)
+
+
+@dataclass
+class _IoTrace:
+    """A recorded I/O trace's changes as read: the numbers only (8 + 4 + 8 bytes a row:
+    lists of Python numbers take four times it), signals by their first spelling."""
+    index: dict = field(default_factory=dict)        # NAME (upper case) -> signal index
+    names: list = field(default_factory=list)
+    t_ns: array = field(default_factory=lambda: array("q"))
+    sig: array = field(default_factory=lambda: array("i"))
+    val: array = field(default_factory=lambda: array("d"))
+
+    def add(self, k: int, t_ns: int, value: float) -> None:
+        """Signal ``k`` changes to ``value`` at ``t_ns``."""
+        self.t_ns.append(t_ns)
+        self.sig.append(k)
+        self.val.append(value)
+
+    def signal(self, name: str, file: str, lineno: int) -> int:
+        """The index of signal ``name``, a new one where it is first seen."""
+        key = name.upper()
+        k = self.index.get(key)
+        if k is None:
+            if len(self.names) >= MAX_IO_SIGNALS:
+                raise MeasuredDataError(f"{file}: line {lineno}: more than "
+                                        f"{MAX_IO_SIGNALS:,} signals")
+            k = self.index[key] = len(self.names)
+            self.names.append(name)
+        return k
+
+
+def _read_io_trace(path: Path, file: str) -> _IoTrace:
+    """The changes of a ``time_s,signal,value`` trace, each row checked as it comes; a
+    signal first seen after time 0 is FALSE (0) from time 0 until then."""
+    trace = _IoTrace()
     with DataLines(path, MeasuredDataError, MAX_ROWS, extra=1) as lines:
         rows = _csv_rows(csv.reader(lines), file, 0)
         header = [h.strip().lower() for h in next(rows, (0, []))[1]]
@@ -596,73 +721,74 @@ def read_io_timeline(path, horizon_s: float | None = None, machine=None):
         for lineno, row in rows:
             if not row or not "".join(row).strip():
                 continue
-            if len(row) < 3:
-                raise MeasuredDataError(f"{file}: line {lineno}: expected "
-                                        "time_s,signal,value")
-            try:
-                t = float(row[0])
-                v = float(row[2])
-            except ValueError:
-                raise MeasuredDataError(f"{file}: line {lineno}: time and value must be "
-                                        "numbers") from None
-            if not (math.isfinite(t) and math.isfinite(v)) or t < 0:
-                raise MeasuredDataError(f"{file}: line {lineno}: time must be >= 0 and "
-                                        "values finite")
-            if t > max_t:
-                raise MeasuredDataError(
-                    f"{file}: line {lineno}: time {row[0].strip()[:40]} s is beyond "
-                    f"{MAX_HORIZON_TEXT}, the longest run plcpred models (times are "
-                    "seconds from the run's start)")
-            name = row[1].strip()
-            if not name:
-                raise MeasuredDataError(f"{file}: line {lineno}: empty signal name")
-            key = name.upper()
-            k = index.get(key)
-            if k is None:
-                if len(names) >= MAX_IO_SIGNALS:
-                    raise MeasuredDataError(f"{file}: line {lineno}: more than "
-                                            f"{MAX_IO_SIGNALS:,} signals")
-                k = index[key] = len(names)
-                names.append(name)
-                if t > 0:   # first seen later: it was FALSE before
-                    t_ns.append(0)
-                    sig.append(k)
-                    val.append(0.0)
-            t_ns.append(round(t * NS))
-            sig.append(k)
-            val.append(v)
-    if not names:
+            t, name, v = _io_change(row, file, lineno)
+            new = name.upper() not in trace.index
+            k = trace.signal(name, file, lineno)
+            if new and t > 0:
+                trace.add(k, 0, 0.0)
+            trace.add(k, round(t * NS), v)
+    if not trace.names:
         raise MeasuredDataError(f"{file}: no rows")
-    warnings = _hold_missing_valves(file, machine, index, names, t_ns, sig, val) \
-        if machine is not None else []
-    t_arr = np.frombuffer(t_ns, dtype=np.int64)
-    s_arr = np.frombuffer(sig, dtype=np.int32)
-    v_arr = np.frombuffer(val, dtype=float)
+    return trace
+
+
+def _io_change(row: list[str], file: str, lineno: int) -> tuple[float, str, float]:
+    """(time s, signal name, value) of a trace's row, refused where a field is missing
+    or not a number, the time negative or beyond the longest run, or the name empty."""
+    if len(row) < 3:
+        raise MeasuredDataError(f"{file}: line {lineno}: expected time_s,signal,value")
+    try:
+        t = float(row[0])
+        v = float(row[2])
+    except ValueError:
+        raise MeasuredDataError(f"{file}: line {lineno}: time and value must be "
+                                "numbers") from None
+    if not (math.isfinite(t) and math.isfinite(v)) or t < 0:
+        raise MeasuredDataError(f"{file}: line {lineno}: time must be >= 0 and "
+                                "values finite")
+    if t > MAX_HORIZON_NS / NS:
+        raise MeasuredDataError(
+            f"{file}: line {lineno}: time {row[0].strip()[:40]} s is beyond "
+            f"{MAX_HORIZON_TEXT}, the longest run plcpred models (times are "
+            "seconds from the run's start)")
+    name = row[1].strip()
+    if not name:
+        raise MeasuredDataError(f"{file}: line {lineno}: empty signal name")
+    return t, name, v
+
+
+def _trace_timeline(trace: _IoTrace, file: str, horizon_s: float | None,
+                    warnings: list[str]) -> Timeline:
+    """The trace's changes sorted by time as a recorded Timeline, its horizon the last
+    change or ``horizon_s`` where that is longer."""
+    t_arr = np.frombuffer(trace.t_ns, dtype=np.int64)
+    s_arr = np.frombuffer(trace.sig, dtype=np.int32)
+    v_arr = np.frombuffer(trace.val, dtype=float)
     if np.any(t_arr[1:] < t_arr[:-1]):
         order = np.argsort(t_arr, kind="stable")
         t_arr, s_arr, v_arr = t_arr[order], s_arr[order], v_arr[order]
     horizon_ns = int(t_arr[-1])
     if horizon_s is not None and horizon_s > 0:
         horizon_ns = max(horizon_ns, parse_horizon(float(horizon_s)))
-    signals = [Signal(n, "output", "bool") for n in names]
+    signals = [Signal(n, "output", "bool") for n in trace.names]
     return Timeline(signals, t_arr, s_arr, v_arr, max(horizon_ns, 1),
                     info={"mode": "recorded", "source": file, "warnings": warnings})
 
 
-def _hold_missing_valves(file: str, machine, index: dict, names: list, t_ns, sig, val
-                         ) -> list[str]:
+def _hold_missing_valves(file: str, machine, trace: _IoTrace) -> list[str]:
     """Add the machine's valves a trace lacks, each held at its initial value from time
     0 (see :func:`read_io_timeline`); the warning that says so, if any."""
     held: dict[str, tuple[str, float, list[str]]] = {}   # KEY -> (name, value, consumers)
     for c in machine.consumers:
         for v in c.valve:
-            if v.upper() in index:
+            if v.upper() in trace.index:
                 continue
             value = 1.0 if (c.is_cylinder and len(c.valve) == 1
                             and c.initial == "extended") else 0.0
             held.setdefault(v.upper(), (v, value, []))[2].append(c.name)
     if not held:
         return []
+    names = trace.names
     if len(held) == len({v.upper() for c in machine.consumers for v in c.valve}):
         raise MeasuredDataError(
             f"{file}: records none of the valves of {machine.name} "
@@ -670,11 +796,9 @@ def _hold_missing_valves(file: str, machine, index: dict, names: list, t_ns, sig
             f"{', '.join(names[:12])}" + (" ..." if len(names) > 12 else "")
             + " (the wrong trace, or the valves under other names?)")
     for key, (v, value, _) in held.items():
-        index[key] = len(names)
+        trace.index[key] = len(names)
         names.append(v)
-        t_ns.append(0)
-        sig.append(index[key])
-        val.append(value)
+        trace.add(trace.index[key], 0, value)
     listed = "; ".join(f"{v} ({', '.join(who)})" for v, _, who in held.values())
     warning = (f"{file}: no rows for the valve(s) {listed}: held at their initial value "
                "(off, or on for a cylinder that starts extended) for the whole run; record "
