@@ -1036,7 +1036,7 @@ def test_the_verdict_prefers_a_plausible_effect_the_data_cannot_tell_apart(rig_m
     assert _tie_break([longer_tube, exhaust], 0.5, mm)[0].name == "dead_volume"
 
 
-# ---------------------------------------------------------------------- nuisances
+# ---------------------------------------------------------------------- timing_params
 
 def test_the_first_readings_wait_for_the_meter_to_settle():
     # the meter's state before the machine started is unknown: readings within three

@@ -552,7 +552,7 @@ def test_the_runs_of_one_meter_share_its_lag(tmp_path):
 
 def test_a_healthy_machine_in_the_plant_is_none_beyond_what_d1_leaves_out(tmp_path):
     """The sorter's pusher chatters (its valve reverses mid-stroke): with nothing wrong,
-    the plant draws far less than D1 books. Each effect painted on D1 takes that gap for
+    the plant draws far less than D1 books. Each effect applied to D1 takes that gap for
     a fault; the nominal machine through the physics plant explains it without a
     parameter, so the verdict is none."""
     from plcpred.diagnose import diagnose
@@ -807,9 +807,9 @@ def test_a_stronger_nozzle_on_a_machine_d1_overbooks_is_found_beyond_the_plant(t
 
 
 def test_a_leak_far_better_than_any_drive_effect_runs_no_variant(tmp_path):
-    """A leak of C 1e-9 on the clamp station, logged at 2 Hz: painted on the plant it
+    """A leak of C 1e-9 on the clamp station, logged at 2 Hz: applied to the plant's reference it
     leaves about the noise, every effect of the drives painted leaves ten times more. A
-    plant form moves its painted form's error by less than PLANT_FORM_REACH, so none is
+    plant form moves its open-loop form's error by less than PLANT_FORM_ERROR_RATIO, so none is
     run through the plant (each value a plant run): the leak is named, and no variant
     was made."""
     from plcpred.diagnose import core, diagnose
@@ -820,9 +820,9 @@ def test_a_leak_far_better_than_any_drive_effect_runs_no_variant(tmp_path):
                        (14.8, 3.9))
     d = diagnose(load_machine(CLAMP), runs)
     assert d.verdict == "leak", d.report()
-    painted = {e.name: e.heldout_score.rmse_l_min for e in d.effects}
-    assert min(painted[n] for n in ("supply_pressure", "dead_volume", "valve_delay",
-                                    "stroke_time")) > core.PLANT_FORM_REACH * painted["leak"]
+    open_loop = {e.name: e.heldout_score.rmse_l_min for e in d.effects}
+    drives = ("supply_pressure", "dead_volume", "valve_delay", "stroke_time")
+    assert min(open_loop[n] for n in drives) > core.PLANT_FORM_ERROR_RATIO * open_loop["leak"]
     assert d.machine_model.plant_variants is not None        # the plant was ready
     assert d.machine_model.plant_variants.made == 0, d.report()
     assert all("through the plant" not in e.title for e in d.effects)

@@ -22,7 +22,7 @@ plant first. Where the plant explains a material part of the gap (what D1 leaves
 design), alone or with each model's best effect of no drive, the drives' effects are
 also fitted beyond it; a verdict that does not beat the reference is ``none``. Where
 the plant beats D1 at all on held-out samples (or materially with those effects), its
-runs are cheap enough, and no effect of no drive painted on D1 explains the log to the
+runs are cheap enough, and no effect of no drive applied to D1 explains the log to the
 noise, the effects that change how drives fill and move are also fitted through it:
 the machine file changed by the effect, run through the plant
 (:mod:`~plcpred.diagnose.through_plant`).
@@ -48,7 +48,7 @@ from .effects import (
     CLOSED_LOOP_EFFECTS,
     CUT_STROKE_EFFECTS,
     EFFECTS,
-    NUISANCE_METER_TAU_S,
+    METER_LAG_FIT_MAX_S,
     Effect,
     IncompleteExhaust,
     LeakFrom,
@@ -65,12 +65,12 @@ from .through_plant import MAX_VARIANT_PIECES, PLANT_FORMS, PlantVariants, varia
 from .timing import Resequencer
 
 MAX_COMBINATION = 3
-# how much more error than the best painted effect an effect's painted forms may leave
+# how much more error than the best open-loop effect an effect's open-loop forms may leave
 # and still be fitted through the plant
-PLANT_FORM_REACH = 3.0
+PLANT_FORM_ERROR_RATIO = 3.0
 # a held-out RMSE within this factor of the noise leaves nothing to explain
 DOWN_TO_NOISE = 1.1
-# effects that change no drive: where one of them, painted on D1, explains a log to its
+# effects that change no drive: where one of them, applied to D1, explains a log to its
 # noise, the drives' physics (the plant) has nothing left to explain
 NOT_OF_THE_DRIVES = ("leak", "passive_flow", "sensor_lag", "meter_gain")
 MAX_CELLS_PER_RUN = 200_000
@@ -144,7 +144,7 @@ class Diagnosis:
     bases: list = field(default_factory=list)       # per run: the aligned nominal model
     alternatives: list[str] = field(default_factory=list)   # as good as the verdict
     machine_model: MachineModel | None = None
-    # the nominal machine through the physics plant (no parameter; its nuisances
+    # the nominal machine through the physics plant (no parameter; its timing_params
     # fitted), None where it was not made; whether it explains a real part of the gap
     # (then an effect must beat it too), and whether it explains the gap as well as the
     # best effects (then the verdict is none)
@@ -711,7 +711,7 @@ class _Nominal:
 
 
 def _fit_nominal(g: _Ground, dynamic: bool) -> _Nominal:
-    """D1 with its nuisances (clock, meter lag) fitted as every effect's are: on all
+    """D1 with its timing_params (clock, meter lag) fitted as every effect's are: on all
     samples, then each fold from there; D1 flexed within its own accuracy, what a healthy
     machine may do; and, where asked, the machine file through the physics plant."""
     mm, rds, bases, ctx = g.mm, g.rds, g.bases, g.ctx
@@ -730,7 +730,7 @@ def _fit_nominal(g: _Ground, dynamic: bool) -> _Nominal:
 
 
 def _effect_forms(g: _Ground) -> dict[str, list[Effect]]:
-    """Per effect name, the forms of it to fit: painted on the predicted edges, with the
+    """Per effect name, the forms of it to fit: applied to the predicted edges, with the
     program waiting on the drives (every later edge moved), with strokes cut short, and
     a leak from its onset; whichever holds on held-out samples stands for the effect."""
     mm = g.mm
@@ -760,9 +760,9 @@ class _Candidates:
     tried: dict[str, list[EffectResult]]
     plant_bases: list               # the nominal models on top of the plant's reference
 
-    def paint(self, name: str, beyond: bool) -> None:
+    def fit_forms(self, name: str, beyond: bool) -> None:
         """Fit each form of effect ``name`` on D1, or ``beyond`` on top of the plant's
-        reference: painted forms only there (a resequenced run has no plant run of its
+        reference: open-loop forms only there (a resequenced run has no plant run of its
         own)."""
         g = self.g
         bases = self.plant_bases if beyond else g.bases
@@ -796,9 +796,9 @@ def _fit_candidates(g: _Ground, nominal: _Nominal, judge: _Judge) -> list[Effect
     # nozzle) hides D1's own excess behind it
     for name in names:
         if name in NOT_OF_THE_DRIVES:
-            candidates.paint(name, False)
+            candidates.fit_forms(name, False)
             if reference is not None:
-                candidates.paint(name, True)
+                candidates.fit_forms(name, True)
     on_reference = _plant_explains_part(candidates, nominal, judge)
     if (reference is not None and g.machine.path is not None
             and (reference.heldout_score.rmse_l_min < nominal.heldout.rmse_l_min
@@ -806,9 +806,9 @@ def _fit_candidates(g: _Ground, nominal: _Nominal, judge: _Judge) -> list[Effect
         _make_plant_variants(g, nominal)
     for name in names:
         if name not in NOT_OF_THE_DRIVES:
-            candidates.paint(name, False)
+            candidates.fit_forms(name, False)
             if on_reference:
-                candidates.paint(name, True)
+                candidates.fit_forms(name, True)
     if g.mm.plant_variants is not None and not _explained_on_d1(candidates.tried,
                                                                 judge.noise):
         _fit_through_plant(candidates, reference)
@@ -854,28 +854,28 @@ def _make_plant_variants(g: _Ground, nominal: _Nominal) -> None:
 
 
 def _explained_on_d1(tried: dict[str, list[EffectResult]], noise: float) -> bool:
-    """Does an effect of no drive (a leak, a nozzle's flow, the meter), painted on D1,
+    """Does an effect of no drive (a leak, a nozzle's flow, the meter), applied to D1,
     explain the log to its noise? Then the drives' physics (the plant) has nothing left
-    to explain. (Not so an effect of the drives: a lower supply or an exhaust painted on
+    to explain. (Not so an effect of the drives: a lower supply or an exhaust applied to
     D1 fits the sorter's longer tubes to the noise, what its fills cut short do to them;
     nor one fitted beyond the plant: a leak on the plant comes near the noise on a clamp
     station's slower valves, which the plant's variants then fit to it.) No noise
-    exceeds what the best painted fit on D1 leaves: the differences of the residual that
+    exceeds what the best open-loop fit on D1 leaves: the differences of the residual that
     estimate it before any fit also carry a fault's own signal."""
-    painted = [(name, e) for name, t in tried.items() for e in t if not e.beyond_plant]
-    floor = min([noise] + [e.fit_score.rmse_l_min for _, e in painted])
+    open_loop = [(name, e) for name, t in tried.items() for e in t if not e.beyond_plant]
+    floor = min([noise] + [e.fit_score.rmse_l_min for _, e in open_loop])
     return any(e.heldout_score.rmse_l_min <= DOWN_TO_NOISE * floor
-               for name, e in painted if name in NOT_OF_THE_DRIVES)
+               for name, e in open_loop if name in NOT_OF_THE_DRIVES)
 
 
 def _fit_through_plant(candidates: _Candidates, reference: EffectResult) -> None:
     """The effects through the plant, each value a plant run. A plant form is its
-    painted form plus the drives' dynamics (a fill's pace moves the strokes, and with
-    them the program), so where it wins its painted forms come near the best painted
-    error: an effect whose painted forms all leave more than PLANT_FORM_REACH times it
+    open-loop form plus the drives' dynamics (a fill's pace moves the strokes, and with
+    them the program), so where it wins its open-loop forms come near the best open-loop
+    error: an effect whose open-loop forms all leave more than PLANT_FORM_ERROR_RATIO times it
     is not run through the plant."""
     g, tried = candidates.g, candidates.tried
-    reach = PLANT_FORM_REACH * min((e.heldout_score.rmse_l_min
+    reach = PLANT_FORM_ERROR_RATIO * min((e.heldout_score.rmse_l_min
                                     for t in tried.values() for e in t),
                                    default=float("inf"))
     for name in g.names:
@@ -1491,7 +1491,7 @@ def _common_lag(rds: list[RunData], mm, windows_s: list[float], offsets: list) -
     the lags' difference), and the lag that leaves the least of the logs' variance
     unexplained over all runs is every run's."""
     taus = sorted({round(rd.meter_tau_s, 2) for rd in rds})
-    if len(taus) < 2 or max(rd.fitted_tau_s for rd in rds) > NUISANCE_METER_TAU_S:
+    if len(taus) < 2 or max(rd.fitted_tau_s for rd in rds) > METER_LAG_FIT_MAX_S:
         return rds
     best = None
     for tau in taus:

@@ -41,8 +41,8 @@ MAX_SUPPLY_CHANGE = 0.5
 MAX_TUBE_OVERSTATEMENT = 0.5
 # a supply the log records may be fitted this far from the log's mean (a gauge's
 # accuracy and a regulator's swing with the flow)
-LOGGED_SUPPLY_REACH_BAR = 0.15
-NUISANCE_METER_TAU_S = 0.6   # thermal-mass meters respond in 0.1-0.6 s (docs/reference/physics.md: figures)
+LOGGED_SUPPLY_TOLERANCE_BAR = 0.15
+METER_LAG_FIT_MAX_S = 0.6   # thermal-mass meters respond in 0.1-0.6 s (docs/reference/physics.md: figures)
 
 
 @dataclass
@@ -242,8 +242,8 @@ class SupplyPressure(Effect):
             # regulator's swing around its mean leave open, so that a verdict cannot
             # contradict the log (3.6 bar fitted where it read 5.0)
             lo, hi = self._range(mm)
-            return [Param("supply_bar_g", "bar(g)", max(lo, logged - LOGGED_SUPPLY_REACH_BAR),
-                          min(hi, logged + LOGGED_SUPPLY_REACH_BAR), logged)]
+            return [Param("supply_bar_g", "bar(g)", max(lo, logged - LOGGED_SUPPLY_TOLERANCE_BAR),
+                          min(hi, logged + LOGGED_SUPPLY_TOLERANCE_BAR), logged)]
         return [Param("supply_bar_g", "bar(g)", *self._range(mm), mm.machine.supply_bar_g)]
 
     def apply(self, mm, p, theta):
@@ -493,7 +493,7 @@ class SharedSupply(Effect):
 
 
 class _Timing(Effect):
-    """A timing effect painted on the predicted edges, or (``closed_loop``) with the
+    """A timing effect applied to the predicted edges, or (``closed_loop``) with the
     program run again so that every later edge moves too (diagnose.timing)."""
 
     def __init__(self, closed_loop: bool = False):

@@ -23,7 +23,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..physics.meter import IntervalSampler, cumulative_nl, first_order_lag
-from .effects import NUISANCE_METER_TAU_S, Effect, Param
+from .effects import METER_LAG_FIT_MAX_S, Effect, Param
 from .errors import DiagnosisError
 from .io import MeasuredRun, reading_starts
 from .model import MachineModel, ModelParams, RunModel
@@ -69,7 +69,7 @@ class RunData:
         else:
             rm, shift_s, lag_s = self.variants[params.timing]
             # the samples stay this run's; the variant's own alignment moves its clock and
-            # its meter lag (the fit's nuisances move both further)
+            # its meter lag (the fit's timing_params move both further)
             if lag_s:
                 params = dataclasses.replace(params, meter_tau_s=max(
                     0.0, params.meter_tau_s + lag_s))
@@ -140,7 +140,7 @@ def align(run: MeasuredRun, rm: RunModel, params: ModelParams, window_s: float,
     else:
         found = _lag_at_offset(correlations, taus, offset_s)
     offset_s, fitted_tau = _refine_alignment(correlations, found, meter_tau_s, quick)
-    tau = fitted_tau if meter_tau_s is not None else min(fitted_tau, NUISANCE_METER_TAU_S)
+    tau = fitted_tau if meter_tau_s is not None else min(fitted_tau, METER_LAG_FIT_MAX_S)
     return _aligned_run(correlations, offset_s, tau, fitted_tau, found.notes)
 
 
@@ -349,7 +349,7 @@ def _aligned_run(correlations: _Correlations, offset_s: float, tau: float,
     # not) is unknown: its first readings are left out until its lag has settled (a
     # thermal meter's longest lag when the one found is shorter: a coarse log cannot
     # tell)
-    settled = start >= SETTLE_LAGS * max(fitted_tau, NUISANCE_METER_TAU_S)
+    settled = start >= SETTLE_LAGS * max(fitted_tau, METER_LAG_FIT_MAX_S)
     if settled.sum() >= 5:
         idx, start, end = idx[settled], start[settled], end[settled]
     if len(idx) < 5:
@@ -481,8 +481,8 @@ def _by_effect(effects, counts, theta):
 
 # the clock nuisance every fit may move: as far as a thermal meter's lag, which the
 # alignment may have taken for a later clock (at 1 Hz the two look alike)
-CLOCK_REACH_S = NUISANCE_METER_TAU_S
-CLOCK_GRID_S = tuple(np.round(np.arange(-CLOCK_REACH_S, CLOCK_REACH_S + 1e-9, 0.15), 3))
+CLOCK_ADJUST_MAX_S = METER_LAG_FIT_MAX_S
+CLOCK_GRID_S = tuple(np.round(np.arange(-CLOCK_ADJUST_MAX_S, CLOCK_ADJUST_MAX_S + 1e-9, 0.15), 3))
 
 
 def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
@@ -493,7 +493,7 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
     squares on the meter readings; each run keeps its own aligned base parameters).
 
     Every fit, the baseline's too (no effects), also refits a clock adjustment within
-    CLOCK_REACH_S: the alignment found the offset with the nominal model, and an effect
+    CLOCK_ADJUST_MAX_S: the alignment found the offset with the nominal model, and an effect
     that moves air in time (a late valve on the largest drive) pulls it. Parameters with
     a grid (the meter's lag among them when it is fitted) are first swept one at a time,
     each value with every clock adjustment of CLOCK_GRID_S, so that a shift cannot lock
@@ -535,7 +535,7 @@ class _FitProblem:
     hi: np.ndarray
     span: np.ndarray
     lag_free: bool                  # the meter's lag is fitted (after the clock)
-    nuisances: list[int]            # the clock (and lag) where they are not held
+    timing_params: list[int]            # the clock (and lag) where they are not held
     held: np.ndarray                # neither swept nor fitted
     u_init: np.ndarray              # the parameters' initial values
     clock_grid_s: tuple             # the clock adjustments a sweep tries
@@ -551,15 +551,15 @@ class _FitProblem:
         lo = np.array([p.lower for p in flat], dtype=float)
         hi = np.array([p.upper for p in flat], dtype=float)
         clock = sum(sizes)
-        nuisances = [clock] + ([clock + 1] if lag_free else [])
+        timing_params = [clock] + ([clock + 1] if lag_free else [])
         # the blocks of one run share its logger and meter: a fold keeps the clock and
         # lag that all its samples found (held: neither swept nor fitted). Half of a 20 s
         # log at 1 Hz, mostly idle, pins no clock, and one that drifts half a second puts
         # every held-out edge in the wrong sample
         held = np.zeros(len(flat), bool)
         if hold_nuisances and start is not None and len(start) == len(flat):
-            held[nuisances] = True
-            nuisances = []
+            held[timing_params] = True
+            timing_params = []
         hi = np.where(hi > lo, hi, lo + 1e-9)
         x0 = np.clip(np.array([p.init for p in flat], dtype=float), lo, hi)
         span = hi - lo
@@ -570,7 +570,7 @@ class _FitProblem:
             if hold_nuisances:
                 clock_grid_s = (float(x0[clock]),)
         problem = cls(effects, mm, rds, masks, bases, sizes, flat, lo, hi, span, lag_free,
-                      nuisances, held, u_init, clock_grid_s)
+                      timing_params, held, u_init, clock_grid_s)
         return problem, (x0 - lo) / span
 
     @property
@@ -600,14 +600,14 @@ class _FitProblem:
         return int(sum(int(m.sum()) for m in self.masks))
 
     def model_params(self, theta: np.ndarray) -> list[ModelParams]:
-        """Per run: the base parameters with the effects at ``theta`` and its nuisances."""
+        """Per run: the base parameters with the effects at ``theta`` and its timing_params."""
         clock = self.clock
         out = []
         for base in self.bases:
             p = base
             for e, t in _by_effect(self.effects, self.sizes, theta):
                 p = e.apply(self.mm, p, t)
-            if p is base:           # effects return copies; the nuisances need one too
+            if p is base:           # effects return copies; the timing_params need one too
                 p = base.copy()
             p.clock_adjust_s += float(theta[clock])
             if self.lag_free:
@@ -657,16 +657,16 @@ class _FitProblem:
         # scipy costs a third of a second to import: only the runs that need it pay
         from scipy.optimize import least_squares
 
-        lo, span, clock, nuisances = self.lo, self.span, self.clock, self.nuisances
+        lo, span, clock, timing_params = self.lo, self.span, self.clock, self.timing_params
         best_c, best_u = min(((self.cost(v), v) for v in (
             _with(u, clock, (c - lo[clock]) / span[clock]) for c in self.clock_grid_s)),
             key=lambda x: x[0])
-        if not nuisances:
+        if not timing_params:
             return best_c, best_u
-        r = least_squares(lambda v: self.residuals(_with(best_u, nuisances, v)),
-                          best_u[nuisances], bounds=(0.0, 1.0), diff_step=1e-4,
-                          max_nfev=10 * len(nuisances))
-        return (2.0 * r.cost, _with(best_u, nuisances, r.x)) if 2.0 * r.cost < best_c \
+        r = least_squares(lambda v: self.residuals(_with(best_u, timing_params, v)),
+                          best_u[timing_params], bounds=(0.0, 1.0), diff_step=1e-4,
+                          max_nfev=10 * len(timing_params))
+        return (2.0 * r.cost, _with(best_u, timing_params, r.x)) if 2.0 * r.cost < best_c \
             else (best_c, best_u)
 
     def solve(self, u_from: np.ndarray):
@@ -676,7 +676,7 @@ class _FitProblem:
         from scipy.optimize import least_squares
 
         free = self.free
-        if not len(free):       # a baseline fold with its nuisances held: nothing to fit
+        if not len(free):       # a baseline fold with its timing_params held: nothing to fit
             r0 = self.residuals(u_from)
             return SimpleNamespace(x=np.zeros(0), cost=0.5 * float(r0 @ r0),
                                    jac=np.zeros((len(r0), 0)), success=True,
@@ -696,7 +696,7 @@ def _fit_parameters(effects: list[Effect], mm: MachineModel, ctx: dict,
     specs = [e.params(mm, ctx) for e in effects]
     sizes = [len(s) for s in specs]
     flat = [p for s in specs for p in s]
-    flat.append(Param("clock_adjust_s", "s", -CLOCK_REACH_S, CLOCK_REACH_S, 0.0))
+    flat.append(Param("clock_adjust_s", "s", -CLOCK_ADJUST_MAX_S, CLOCK_ADJUST_MAX_S, 0.0))
     # the meter's lag, when the machine file does not give it, is a nuisance within a
     # thermal meter's range too (the alignment's estimate is pulled by the effect)
     lag_free = ctx.get("meter_tau_s") is None and not any(
@@ -704,9 +704,9 @@ def _fit_parameters(effects: list[Effect], mm: MachineModel, ctx: dict,
     if lag_free:
         # swept with the clock: a log at 1 Hz barely tells a lag from a later clock,
         # and least squares from the alignment's pair stays in its valley
-        flat.append(Param("meter_tau_s", "s", 0.0, NUISANCE_METER_TAU_S,
+        flat.append(Param("meter_tau_s", "s", 0.0, METER_LAG_FIT_MAX_S,
                           float(np.mean([b.meter_tau_s for b in bases])),
-                          tuple(np.linspace(0.0, NUISANCE_METER_TAU_S, 5))))
+                          tuple(np.linspace(0.0, METER_LAG_FIT_MAX_S, 5))))
     return sizes, flat, lag_free
 
 
@@ -822,7 +822,7 @@ def _best_clock(problem: _FitProblem, u: np.ndarray, cost: float) -> tuple:
 def _blind_back_to_initial(problem: _FitProblem, u: np.ndarray) -> np.ndarray:
     """``u`` with each effect parameter these samples say nothing about (a nozzle never
     on in them) back at its initial value: it must not keep what the start learnt from
-    other samples. (The nuisances start where the alignment put them.) Blind means that
+    other samples. (The timing_params start where the alignment put them.) Blind means that
     moving it back changes none of these residuals; a small gradient is not enough (a
     valve delay between two grid cells has none)."""
     r0 = problem.residuals(u)
@@ -884,7 +884,7 @@ def _with(u: np.ndarray, idx, values) -> np.ndarray:
 def _profiled_sweep(profiled, u0: np.ndarray, ray: list[int], param: Param, lo: np.ndarray,
                     span: np.ndarray, best: tuple) -> tuple:
     """``best`` (cost, u) improved by each grid value of the parameters ``ray`` (set
-    to one value together) from ``u0``, each with its nuisances fitted (``profiled``)."""
+    to one value together) from ``u0``, each with its timing_params fitted (``profiled``)."""
     for v in param.grid:
         if param.lower <= v <= param.upper:
             trial = profiled(_with(u0, ray, np.clip((v - lo[ray]) / span[ray], 0.0, 1.0)))
@@ -1021,12 +1021,12 @@ def heldout(effects: list[Effect], mm: MachineModel, rds: list[RunData],
 # how far a left-out run's clock may differ from the fitted runs': what two alignments
 # disagree by, not a lag (at 1 Hz a wider reach lets the baseline take a slow meter's
 # lag for a clock, and the sensor_lag effect goes unseen)
-OWN_CLOCK_REACH_S = 0.1
+OWN_CLOCK_ADJUST_MAX_S = 0.1
 
 
 def _own_clock(rd: RunData, params: ModelParams) -> ModelParams:
     """``params`` with the clock adjustment that fits run ``rd`` best (within
-    OWN_CLOCK_REACH_S of the fitted one), the model itself unchanged: a run left out of a
+    OWN_CLOCK_ADJUST_MAX_S of the fitted one), the model itself unchanged: a run left out of a
     fit still has its own logger clock, which the alignment found with the nominal model
     (the same for every effect and the baseline)."""
     # scipy costs a third of a second to import: only the runs that need it pay
@@ -1039,7 +1039,7 @@ def _own_clock(rd: RunData, params: ModelParams) -> ModelParams:
         return float((r * r) @ rd.weight_s)
 
     a0 = params.clock_adjust_s
-    res = minimize_scalar(sq, bounds=(a0 - OWN_CLOCK_REACH_S, a0 + OWN_CLOCK_REACH_S),
+    res = minimize_scalar(sq, bounds=(a0 - OWN_CLOCK_ADJUST_MAX_S, a0 + OWN_CLOCK_ADJUST_MAX_S),
                           method="bounded", options={"xatol": 1e-3})
     out = params.copy()
     out.clock_adjust_s = float(res.x) if res.fun < sq(a0) else a0

@@ -1,7 +1,7 @@
 """Effects fitted through the physics plant: the machine file changed as the effect says
 (a supply pressure, a tube, a valve's delay, a stroke time) and run through the plant.
 
-An effect's painted form (:mod:`~plcpred.diagnose.effects`) changes D1's numbers: a
+An effect's open-loop form (:mod:`~plcpred.diagnose.effects`) changes D1's numbers: a
 longer tube adds its volume to every stroke. On a real machine a longer tube also fills
 more slowly, so the stroke arrives later, the program's next step starts later, and an
 exhaust at speed keeps more of the tube's air; a lower supply slows every stroke. Where

@@ -1,8 +1,8 @@
 """Timing effects in a closed loop: the sequencer run again with other drive timing.
 
 When end switches start the program's next step, a slower stroke or a later valve
-moves every later edge and the cycle itself grows, so a timing effect cannot be painted
-onto the predicted edges (a 2.4x slower feed stroke on a 5 s cycle puts the prediction a
+moves every later edge and the cycle itself grows, so a timing effect cannot be applied
+to the predicted edges (a 2.4x slower feed stroke on a 5 s cycle puts the prediction a
 whole cycle out within a minute of log). :class:`Resequencer` runs the machine's program
 again with the drives' stroke times scaled and switching delays added, ties each run's log
 to the new prediction (its own clock alignment: the nominal one was found against the
@@ -21,7 +21,7 @@ from collections import OrderedDict
 import numpy as np
 
 from ..sequencer import compile_program, observed_names, unfold
-from .effects import NUISANCE_METER_TAU_S
+from .effects import METER_LAG_FIT_MAX_S
 from .fit import DiagnosisError, align
 from .io import MeasuredRun
 from .model import MachineModel, RunModel
@@ -117,7 +117,7 @@ class Resequencer:
                     other = align(_head(rd.run, ALIGN_SPAN_WINDOWS * window), rm,
                                   mm.nominal(rd.fitted_tau_s), window,
                                   self.meter_tau_s, None, quick=True,
-                                  max_tau_s=max(NUISANCE_METER_TAU_S, rd.fitted_tau_s))
+                                  max_tau_s=max(METER_LAG_FIT_MAX_S, rd.fitted_tau_s))
                     shift = other.offset_s - rd.offset_s
                     lag = other.meter_tau_s - rd.meter_tau_s
                 except DiagnosisError:
