@@ -14,15 +14,21 @@ import pytest
 import plcpred
 from plcpred.air.demand import residual_fill_nl, stroke_cells
 from plcpred.cli import main
-from plcpred.diagnose import (EFFECTS, MeasuredDataError, MeasuredRun, diagnose,
-                              read_io_timeline, read_measured)
+from plcpred.diagnose import (
+    EFFECTS,
+    MeasuredDataError,
+    MeasuredRun,
+    diagnose,
+    read_io_timeline,
+    read_measured,
+)
 from plcpred.diagnose.core import write_fixed_machine
 from plcpred.diagnose.effects import CUT_STROKE_EFFECTS, StrokeTime
 from plcpred.diagnose.fit import DiagnosisError
+from plcpred.diagnose.fit_model import MachineModel, RunModel
 from plcpred.diagnose.noise import noise_level_l_min
-from plcpred.physics.meter import first_order_lag
-from plcpred.diagnose.model import MachineModel, RunModel
 from plcpred.machine import machine_from_data, read_machine_data
+from plcpred.physics.meter import first_order_lag
 
 ROOT = Path(__file__).resolve().parent.parent
 RIG = ROOT / "samples" / "prototype_rig" / "rig.toml"
@@ -754,8 +760,7 @@ def test_indistinguishable_effects_are_named():
 @pytest.mark.parametrize("machine_file", [RIG, PICK, ROOT / "samples" / "cleaning.toml",
                                           ROOT / "samples" / "press.toml"])
 def test_every_effect_writes_a_machine_file_that_loads_and_carries_it(tmp_path, machine_file):
-    from plcpred.machine import dump_machine_toml
-    from plcpred.machine import machine_from_data, read_machine_data
+    from plcpred.machine import dump_machine_toml, machine_from_data, read_machine_data
 
     m = plcpred.load_machine(machine_file)
     mm = MachineModel.of(m)

@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from .effects import Effect, Param
-from .model import MachineModel, ModelParams
+from .fit_model import MachineModel, ModelParams
 
 # a stroke may take this share of D1 more than a settled stroke (bore, stroke and tube
 # lengths as built, a supply a little above the regulator's setting)

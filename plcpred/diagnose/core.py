@@ -56,9 +56,9 @@ from .effects import (
 )
 from .errors import DiagnosisError
 from .fit import FitResult, RunData, Score, align, fit_effects, folds, heldout, score
+from .fit_model import MachineModel, RunModel
 from .io import TIME_OF_DAY_FORMATS, MeasuredRun
 from .locate import attribution, contexts, sample_contexts, step_contexts, windows
-from .model import MachineModel, RunModel
 from .noise import flat_noise_l_min, noise_level_l_min
 from .onset import step_onset
 from .through_plant import MAX_VARIANT_PIECES, PLANT_FORMS, PlantVariants, variant_pieces

@@ -2,7 +2,7 @@
 activation model's numbers (shaped after lmfit: a function plus parameter specs).
 
 Each :class:`Effect` has parameters with a unit and bounds, ``apply`` (fitted values to a
-changed :class:`~plcpred.diagnose.model.ModelParams`), ``physical`` (the values as a user
+changed :class:`~plcpred.diagnose.fit_model.ModelParams`), ``physical`` (the values as a user
 reads them: a leak as NL/min and its sonic conductance C, a tube as metres, ...) and
 ``to_machine`` (the change written into a machine file in the model's own keys, so that
 ``plcpred predict`` on the fixed file carries it).
@@ -22,7 +22,7 @@ from ..physics.flow import flow_nl_min
 from ..physics.meter import REFERENCES, reference_factor
 from ..physics.units import P0_PA, T0_K, bar_g_to_pa, celsius_to_k
 from ..physics.volumes import held_air_nl, inner_dead_volumes_cm3
-from .model import MachineModel, ModelParams
+from .fit_model import MachineModel, ModelParams
 
 # a diagnosed leak is written as an orifice-like restriction: ISO 6358 with b and m of a
 # sharp-edged hole (choked at any supply above 0.9 bar gauge, so its flow is C-linear)

@@ -25,8 +25,8 @@ import numpy as np
 from ..physics.meter import IntervalSampler, cumulative_nl, first_order_lag
 from .effects import METER_LAG_FIT_MAX_S, Effect, Param
 from .errors import DiagnosisError
+from .fit_model import MachineModel, ModelParams, RunModel
 from .io import MeasuredRun, reading_starts
-from .model import MachineModel, ModelParams, RunModel
 
 # samplers kept per run (a grid sweep's clocks, a fit's current and perturbed clock)
 MAX_SAMPLERS = 64

@@ -83,7 +83,7 @@ class PlantVariants:
     """The plant's air per run for machine files changed by effects. A variant is a
     tuple of (effect name, quantised values) pairs, applied in order with the effects'
     ``to_machine`` to the nominal file's data; :meth:`ensure` sets each run's
-    :attr:`~plcpred.diagnose.model.RunModel.variant_cells` (the plant's cells less the
+    :attr:`~plcpred.diagnose.fit_model.RunModel.variant_cells` (the plant's cells less the
     nominal D1 cells, as the reference's are) for it."""
 
     def __init__(self, machine, mm, rds, bases, program=None, compiled=None):

@@ -9,7 +9,7 @@ to the new prediction (its own clock alignment: the nominal one was found agains
 wrong cycle) and keeps the result as a variant of the run
 (:attr:`~plcpred.diagnose.fit.RunData.variants`, with its offset and meter lag relative
 to the run's), which the fit selects through
-:attr:`~plcpred.diagnose.model.ModelParams.timing`. Variants are keyed by quantised
+:attr:`~plcpred.diagnose.fit_model.ModelParams.timing`. Variants are keyed by quantised
 timing (1 % of a stroke time, 1 ms of delay) so that a fit's evaluations share them.
 """
 from __future__ import annotations
@@ -23,8 +23,8 @@ import numpy as np
 from ..sequencer import compile_program, observed_names, unfold
 from .effects import METER_LAG_FIT_MAX_S
 from .fit import DiagnosisError, align
+from .fit_model import MachineModel, RunModel
 from .io import MeasuredRun
-from .model import MachineModel, RunModel
 
 FACTOR_QUANTUM = 0.01          # in ln(factor): 1 % steps of a stroke time
 DELAY_QUANTUM_S = 0.001
