@@ -26,6 +26,7 @@ import pickle
 import re
 import time as _time
 from array import array
+from dataclasses import dataclass, field
 from heapq import heappop, heappush
 
 import numpy as np
@@ -716,6 +717,175 @@ class Cylinder:
         return self._until if self._until < NEVER else None
 
 
+# ---------------------------------------------------------------------- a run's state
+
+class _InputImage:
+    """The inputs a run drives, written at the start of every scan: each schedule's
+    signal, then each cylinder's switches, at fixed places of one list that one
+    generated setter writes; and the cylinders' valve outputs, which command them."""
+
+    def __init__(self, schedules, cylinders, written):
+        self.schedules = schedules
+        self.cylinders = cylinders
+        slots = [(obj, attr) for _, obj, attr in schedules]
+        self.switch_at = []         # per cylinder: (retracted, extended) place or -1
+        for cyl in cylinders:
+            at = []
+            for role in ("retracted", "extended"):
+                at.append(len(slots) if role in cyl.switches else -1)
+                if role in cyl.switches:
+                    slots.append(cyl.switches[role])
+            self.switch_at.append(tuple(at))
+        self.drive = [False] * len(slots)
+        self.write = _value_setter(slots)
+        # inputs the program never writes keep what was written: the image is written
+        # again only when it changed (else every scan, as a PLC does)
+        self.rewrite = written is None or any(_root_slot(obj, attr)[1].upper() in written
+                                              for obj, attr in slots)
+        self.stale = True
+        # when each cylinder's switches change next (a heap of (time, cylinder), stale
+        # entries left in it until they surface: ``due`` holds the live time of each),
+        # and the cylinders whose switches must be read again at the next input update
+        self.switch_queue: list = []
+        self.due = [NEVER] * len(cylinders)
+        self.unread = set(range(len(cylinders)))
+        # every cylinder's valve outputs read in one go after a scan: only cylinders
+        # whose outputs changed are commanded (all of them after the first scan)
+        valve_slots, self.valve_owner = [], []
+        for k, cyl in enumerate(cylinders):
+            valve_slots += cyl.valves
+            self.valve_owner += [k] * len(cyl.valves)
+        self.valves_now = _value_getter(valve_slots)
+
+    def update(self, t) -> int:
+        """Input values at ``t`` and the first time any of them can change: only the
+        cylinders whose switches are due (or were commanded) are read again."""
+        drive, switch_queue, due, unread = self.drive, self.switch_queue, self.due, self.unread
+        nxt = NEVER
+        self.stale = True
+        for j, (sch, _, _) in enumerate(self.schedules):
+            drive[j] = sch.advance(t)
+            e = sch.next_ns()
+            if e is not None and e < nxt:
+                nxt = e
+        while switch_queue and switch_queue[0][0] <= t:
+            u, k = heappop(switch_queue)
+            if u == due[k]:
+                unread.add(k)
+        for k in unread:
+            cyl = self.cylinders[k]
+            r, e = cyl.driven = cyl.read(t)
+            i_r, i_e = self.switch_at[k]
+            if i_r >= 0:
+                drive[i_r] = r
+            if i_e >= 0:
+                drive[i_e] = e
+            due[k] = cyl._until
+            if cyl._until < NEVER:
+                heappush(switch_queue, (cyl._until, k))
+        unread.clear()
+        while switch_queue and switch_queue[0][0] != due[switch_queue[0][1]]:
+            heappop(switch_queue)
+        if switch_queue and switch_queue[0][0] < nxt:
+            nxt = switch_queue[0][0]
+        return nxt
+
+    def command(self, t, valves, before, next_input) -> int:
+        """The cylinders whose valve outputs changed since ``before`` (all of them after
+        the first scan) follow them; the time the inputs must be driven again."""
+        if before is None:
+            commanded = range(len(self.cylinders))
+        else:
+            commanded = sorted({self.valve_owner[i] for i in _changed(valves, before)})
+        for k in commanded:
+            cyl = self.cylinders[k]
+            if cyl.command(t):
+                # the switches change now (no switching delay) or at their next edge;
+                # until then the inputs driven now stay valid
+                self.unread.add(k)
+                if cyl.read(t) != cyl.driven:
+                    next_input = t
+                elif cyl._until < next_input:
+                    next_input = cyl._until
+        return next_input
+
+
+class _Recorder:
+    """The changes of the recorded signals, in typed arrays (8 bytes a change instead of
+    a Python object, up to ``max_events`` of them)."""
+
+    def __init__(self, signals, max_events: int, scan: int):
+        self.signals = signals
+        self.max_events = max_events
+        self.scan = scan
+        self.tt, self.ss, self.vv = array("q"), array("i"), array("d")
+
+    def record(self, t, values, before):
+        """The signals that changed since ``before`` (all of them at the first scan)."""
+        if before is None:
+            changed = range(len(values))
+        else:
+            changed = _changed(values, before)
+        tt = self.tt
+        tt.extend([t] * len(changed))
+        self.ss.extend(changed)
+        self.vv.extend([float(values[k]) for k in changed])
+        if len(tt) > self.max_events:
+            raise self.too_many(t)
+
+    def too_many(self, t) -> SequencerError:
+        """The error of a run that holds more than ``max_events`` changes at ``t``."""
+        return SequencerError(_too_many_changes(self.signals, self.ss, t, self.scan,
+                                                self.max_events))
+
+
+@dataclass
+class _Repeats:
+    """What a run remembers at fixed points to find a repeating state (tiling) or a
+    part it can replay."""
+    seen: dict = field(default_factory=dict)        # state digest -> its time
+    seen_values: set = field(default_factory=set)   # hashes of the recorded values
+    parts: dict = field(default_factory=dict)  # rest key -> [(edges ahead, duration, ...)]
+    opened: dict = field(default_factory=dict)  # rest key -> (first scan, first change, ...)
+    timeless: set = field(default_factory=set)  # rest keys that hold no time
+
+
+@dataclass(eq=False, slots=True)
+class _Run:
+    """One run's state, handed from step to step of :meth:`Sequencer.run`."""
+    inst: ProgramInstance
+    horizon_ns: int
+    scan: int
+    image: _InputImage
+    rec: _Recorder
+    values_now: object          # gives the recorded signals' values, as one tuple
+    left: _LeftOut
+    always_step: bool           # every scan executed (scan stepping, or TIME() read)
+    can_tile: bool
+    can_replay: bool
+    scan_loop: tuple = field(init=False, default=())
+    repeats: _Repeats = field(default_factory=_Repeats)
+    t: int = 0
+    scans: int = 0
+    next_input: int = 0         # the first time a driven input can change
+    k_change: int = 0           # the scan at which the state last changed
+    prev_snap: tuple | None = None
+    prev_values: tuple | None = None
+    prev_valves: tuple | None = None
+    values: tuple | None = None     # the recorded signals' values at the last scan
+    tiled_from: tuple | None = None
+    drift: dict | None = None
+
+    def __post_init__(self):
+        # what the per-scan loop (Sequencer._scan_to_rest) reads, bound once a run: the
+        # loop starts again after every fixed point
+        image, inst = self.image, self.inst
+        self.scan_loop = (image, self.scan, self.horizon_ns, self.always_step, image.update,
+                          image.write, image.drive, image.rewrite, image.valves_now,
+                          self.values_now, self.rec.record, inst.scan, inst.snap,
+                          inst.all_ran_since)
+
+
 # ---------------------------------------------------------------------- the executor
 
 class Sequencer:
@@ -926,33 +1096,23 @@ class Sequencer:
         first as they did then, the recorded response up to the return to that state is
         copied instead of executed (``replay=False``: always execute)."""
         wall0 = _time.perf_counter()
+        r = self._start(horizon_ns, scan_stepping, tiling, max_events, replay)
+        scan_to_rest, after_rest = self._scan_to_rest, self._after_rest
+        try:
+            while scan_to_rest(r) and after_rest(r):
+                pass
+        except PlcpredError:    # ours, with its own message (the plant's among them)
+            raise
+        except Exception as e:  # a fault inside the compiled program
+            raise r.inst.positioned(e) from None
+        return self._timeline(r, wall0, scan_stepping)
+
+    def _start(self, horizon_ns, scan_stepping, tiling, max_events, replay) -> _Run:
+        """The program instantiated, the machine's inputs and cylinders wired to it, the
+        recorded signals chosen, and what this run may skip (tiling, replay)."""
         inst = ProgramInstance(self.program, self.compiled)
         ins, outs = self._signals(inst)
-        machine = self.machine
-        scan = self.scan_ns
-        schedules, cylinders = [], []
-        if machine is not None:
-            for spec in machine.inputs:
-                obj, attr, t = self._locate(inst, spec.signal)
-                sch = Schedule(spec, horizon_ns)
-                schedules.append((sch, obj, attr))
-            for cons in machine.consumers:
-                if self.plant_model is not None:
-                    if cons.valve:
-                        cylinders.append(Cylinder(
-                            cons, [self._locate(inst, v)[:2] for v in cons.valve],
-                            {role: self._locate(inst, s)[:2] for role, s in
-                             cons.switches.items()}, self.plant_model.adapter(cons)))
-                    continue
-                if not cons.is_cylinder or not cons.switches:
-                    continue
-                if cons.stroke_times() is None:
-                    raise SequencerError(
-                        f"{machine.path}: consumer \"{cons.name}\": its switches need "
-                        "stroke_time_s = [extend, retract]")
-                valves = [self._locate(inst, v)[:2] for v in cons.valve]
-                sw = {role: self._locate(inst, s)[:2] for role, s in cons.switches.items()}
-                cylinders.append(Cylinder(cons, valves, sw))
+        schedules, cylinders = self._machine_io(inst, horizon_ns)
         steps = []
         multi = len(inst.programs) > 1
         for name, prog in zip(inst.names, inst.programs):
@@ -960,77 +1120,10 @@ class Sequencer:
             if sfc is not None:
                 for i, sname in enumerate(sfc.spec.steps):
                     steps.append((f"{name}.{sname}.X" if multi else f"{sname}.X", sfc, i))
-
         # initial inputs: schedules and switches (others keep their declared values)
         for sch, obj, attr in schedules:
             setattr(obj, attr, sch.initial)
-        # the input image written at the start of every scan: schedules first, then each
-        # cylinder's switches, at fixed places of one list written by one generated setter
-        drive_slots = [(obj, attr) for _, obj, attr in schedules]
-        switch_at = []              # per cylinder: (retracted, extended) place or -1
-        for cyl in cylinders:
-            at = []
-            for role in ("retracted", "extended"):
-                at.append(len(drive_slots) if role in cyl.switches else -1)
-                if role in cyl.switches:
-                    drive_slots.append(cyl.switches[role])
-            switch_at.append(tuple(at))
-        drive = [False] * len(drive_slots)
-        write_inputs = _value_setter(drive_slots)
-        # inputs the program never writes keep what was written: the image is written
-        # again only when it changed (else every scan, as a PLC does)
-        written = self.compiled.written
-        rewrite = written is None or any(_root_slot(obj, attr)[1].upper() in written
-                                         for obj, attr in drive_slots)
-        image = {"stale": True}
-        # when each cylinder's switches change next (a heap of (time, cylinder), stale
-        # entries left in it until they surface: ``due`` holds the live time of each),
-        # and the cylinders whose switches must be read again at the next input update
-        switch_queue: list = []
-        due = [NEVER] * len(cylinders)
-        stale = set(range(len(cylinders)))
-
-        def drive_inputs(t):
-            """Input values at ``t`` and the first time any of them can change: only the
-            cylinders whose switches are due (or were commanded) are read again."""
-            nxt = NEVER
-            image["stale"] = True
-            for j, (sch, _, _) in enumerate(schedules):
-                drive[j] = sch.advance(t)
-                e = sch.next_ns()
-                if e is not None and e < nxt:
-                    nxt = e
-            while switch_queue and switch_queue[0][0] <= t:
-                u, k = heappop(switch_queue)
-                if u == due[k]:
-                    stale.add(k)
-            for k in stale:
-                cyl = cylinders[k]
-                r, e = cyl.driven = cyl.read(t)
-                i_r, i_e = switch_at[k]
-                if i_r >= 0:
-                    drive[i_r] = r
-                if i_e >= 0:
-                    drive[i_e] = e
-                due[k] = cyl._until
-                if cyl._until < NEVER:
-                    heappush(switch_queue, (cyl._until, k))
-            stale.clear()
-            while switch_queue and switch_queue[0][0] != due[switch_queue[0][1]]:
-                heappop(switch_queue)
-            if switch_queue and switch_queue[0][0] < nxt:
-                nxt = switch_queue[0][0]
-            return nxt
-
-        # every cylinder's valve outputs read in one go after a scan: only cylinders
-        # whose outputs changed are commanded (all of them after the first scan)
-        valve_slots, valve_owner = [], []
-        for k, cyl in enumerate(cylinders):
-            valve_slots += cyl.valves
-            valve_owner += [k] * len(cyl.valves)
-        valves_now = _value_getter(valve_slots)
-        prev_valves = None
-
+        image = _InputImage(schedules, cylinders, self.compiled.written)
         signals = ([Signal(n, "input", t.cat) for n, _, _, t in ins]
                    + [Signal(n, "step", "bool") for n, _, _ in steps]
                    + [Signal(n, "output", t.cat) for n, _, _, t in outs])
@@ -1039,213 +1132,246 @@ class Sequencer:
                                    + [(o, a) for _, o, a, _ in outs])
         left = _LeftOut([(o, a) for _, o, a, _ in ins] + [None] * len(steps)
                         + [(o, a) for _, o, a, _ in outs], self.compiled.left_out)
-        drift = None
-        # typed arrays: 8 bytes a change instead of a Python object (--max-events of them)
-        tt, ss, vv = array("q"), array("i"), array("d")
-
-        def record(t, values, before):
-            """The signals that changed since ``before`` (all of them at the first scan)."""
-            if before is None:
-                changed = range(len(values))
-            else:
-                changed = _changed(values, before)
-            tt.extend([t] * len(changed))
-            ss.extend(changed)
-            vv.extend([float(values[k]) for k in changed])
-            if len(tt) > max_events:
-                raise SequencerError(_too_many_changes(signals, ss, t, scan, max_events))
-
-        timers = inst.timers
-        sfcs = inst.sfcs
-        reads_et = self.compiled.reads_et
-        et_thresholds = self.compiled.et_thresholds or ()
         always_step = scan_stepping or self.compiled.reads_clock
         can_tile = tiling and not scan_stepping and not self.compiled.reads_clock \
             and self.plant_model is None \
             and not any(s.random for s, _, _ in schedules)
-        seen: dict = {}
-        seen_values: set = set()  # hashes of the recorded signals' values at fixed points
-        parts: dict = {}      # rest key -> [(edges ahead, duration, changes)]
-        opened: dict = {}     # rest key -> (first scan, first change, log positions)
-        timeless: set = set()  # rest keys that hold no time
-        prev_snap = None
-        prev_values = None
-        t = 0
-        scans = 0
-        tiled_from = None
-        next_input = 0
-        inst.set_scan(scan)
+        inst.set_scan(self.scan_ns)
         can_replay = replay and not can_tile and not always_step \
             and self.plant_model is None and inst.every is None and bool(schedules)
         if can_replay:
             for sch, _, _ in schedules:
                 sch.log = []          # the edges consumed while a part is recorded
-        k_change = 0
-        scan_fn = inst.scan
-        try:
-            while t <= horizon_ns:
-                if t >= next_input:
-                    next_input = drive_inputs(t)
-                if rewrite or image["stale"]:
-                    write_inputs(drive)
-                    image["stale"] = False
-                scan_fn(t)
-                scans += 1
-                valves = valves_now()
-                if valves != prev_valves:
-                    if prev_valves is None:
-                        commanded = range(len(cylinders))
-                    else:
-                        commanded = sorted({valve_owner[i] for i in
-                                            _changed(valves, prev_valves)})
-                    prev_valves = valves
-                    for k in commanded:
-                        cyl = cylinders[k]
-                        if cyl.command(t):
-                            # the switches change now (no switching delay) or at their
-                            # next edge; until then the inputs driven now stay valid
-                            stale.add(k)
-                            if cyl.read(t) != cyl.driven:
-                                next_input = t
-                            elif cyl._until < next_input:
-                                next_input = cyl._until
-                values = values_now()
-                moved = values != prev_values
-                if moved:
-                    record(t, values, prev_values)
-                    prev_values = values
-                if always_step:
-                    t += scan
-                    continue
-                snap = inst.snap()
-                # a fixed point needs the recorded signals still too: a shown count the
-                # compared state leaves out may move while everything else rests
-                if moved or snap != prev_snap or not inst.all_ran_since(k_change):
-                    if snap != prev_snap or moved:
-                        k_change = t // scan
-                    prev_snap = snap
-                    t += scan
-                    continue
-                # a fixed point: find the next thing that can change anything: an input
-                # edge (schedules, switches), a timer, a step time threshold
-                if next_input <= t:
-                    next_input = drive_inputs(t)
-                nxt = next_input if next_input < NEVER else None
-                # a timer whose PT lies in the past was not called since: it cannot
-                # change until some other event makes the program call it again
-                running = False
-                for tm in timers:
-                    e = tm.next_event_ns()
-                    if e is not None and e > t:
-                        running = True
-                        if nxt is None or e < nxt:
+        return _Run(inst, horizon_ns, self.scan_ns, image,
+                    _Recorder(signals, max_events, self.scan_ns), values_now, left,
+                    always_step, can_tile, can_replay)
+
+    def _machine_io(self, inst, horizon_ns) -> tuple[list, list]:
+        """(the machine's input schedules as (schedule, obj, attr), its cylinders)."""
+        machine = self.machine
+        schedules, cylinders = [], []
+        if machine is None:
+            return schedules, cylinders
+        for spec in machine.inputs:
+            obj, attr, _ = self._locate(inst, spec.signal)
+            sch = Schedule(spec, horizon_ns)
+            schedules.append((sch, obj, attr))
+        for cons in machine.consumers:
+            if self.plant_model is not None:
+                if cons.valve:
+                    cylinders.append(Cylinder(
+                        cons, [self._locate(inst, v)[:2] for v in cons.valve],
+                        {role: self._locate(inst, s)[:2] for role, s in
+                         cons.switches.items()}, self.plant_model.adapter(cons)))
+                continue
+            if not cons.is_cylinder or not cons.switches:
+                continue
+            if cons.stroke_times() is None:
+                raise SequencerError(
+                    f"{machine.path}: consumer \"{cons.name}\": its switches need "
+                    "stroke_time_s = [extend, retract]")
+            valves = [self._locate(inst, v)[:2] for v in cons.valve]
+            sw = {role: self._locate(inst, s)[:2] for role, s in cons.switches.items()}
+            cylinders.append(Cylinder(cons, valves, sw))
+        return schedules, cylinders
+
+    @staticmethod
+    def _scan_to_rest(r: _Run) -> bool:
+        """Execute scans from ``r.t`` on: each drives the inputs, runs the programs,
+        commands the cylinders whose valves changed and records the signals that did.
+        True at a fixed point (the state at ``r.t`` is the one before: nothing changes
+        until something time-driven does), False past the horizon."""
+        # this loop runs once a scan: all it touches is a local
+        (image, scan, horizon_ns, always_step, update, write, drive, rewrite, valves_now,
+         values_now, record, scan_fn, snap_fn, all_ran_since) = r.scan_loop
+        t, next_input, k_change, scans = r.t, r.next_input, r.k_change, r.scans
+        prev_snap, prev_values, prev_valves = r.prev_snap, r.prev_values, r.prev_valves
+        values, rests = r.values, False
+        while t <= horizon_ns:
+            if t >= next_input:
+                next_input = update(t)
+            if rewrite or image.stale:
+                write(drive)
+                image.stale = False
+            scan_fn(t)
+            scans += 1
+            valves = valves_now()
+            if valves != prev_valves:
+                next_input = image.command(t, valves, prev_valves, next_input)
+                prev_valves = valves
+            values = values_now()
+            moved = values != prev_values
+            if moved:
+                record(t, values, prev_values)
+                prev_values = values
+            if always_step:
+                t += scan
+                continue
+            snap = snap_fn()
+            # a fixed point needs the recorded signals still too: a shown count the
+            # compared state leaves out may move while everything else rests
+            if moved or snap != prev_snap or not all_ran_since(k_change):
+                if snap != prev_snap or moved:
+                    k_change = t // scan
+                prev_snap = snap
+                t += scan
+                continue
+            rests = True
+            break
+        r.t, r.next_input, r.k_change, r.scans = t, next_input, k_change, scans
+        r.prev_snap, r.prev_values, r.prev_valves = prev_snap, prev_values, prev_valves
+        r.values = values
+        return rests
+
+    def _after_rest(self, r: _Run) -> bool:
+        """At a fixed point: replay a recorded part, or tile a repetition, or jump to the
+        first scan at which anything can change. False when the run ends here."""
+        t, scan = r.t, r.scan
+        if r.next_input <= t:
+            r.next_input = r.image.update(t)
+        nxt, running = self._next_event(r)
+        if r.can_replay and nxt is not None and nxt == r.next_input and not running \
+                and not any(c._until < NEVER for c in r.image.cylinders) \
+                and not any(sfc.next_event_ns(t) is not None for sfc in r.inst.sfcs):
+            # at rest: only a scheduled input can change anything
+            done = self._replay_at_rest(r, max(t + scan, -(-nxt // scan) * scan))
+            if done is not None:
+                r.t = done            # back at rest in the same state
+                r.next_input = 0
+                return True
+        if r.can_tile and self._repeated(r):
+            return False
+        if nxt is None:
+            return False  # nothing will ever change again
+        r.t = max(t + scan, -(-nxt // scan) * scan)
+        if r.inst.every is not None:
+            # a task that does not run at this scan sees the event (a timer's PT, a
+            # step's time) only at its next run: no fixed point until every program has
+            # run from here on
+            r.k_change = r.t // scan - 1
+        return True
+
+    def _next_event(self, r: _Run) -> tuple[int | None, bool]:
+        """(the next time anything can change: an input edge (schedules, switches), a
+        timer, a step time threshold; None for never, whether a timer runs)."""
+        t = r.t
+        nxt = r.next_input if r.next_input < NEVER else None
+        et_thresholds = self.compiled.et_thresholds or ()
+        # a timer whose PT lies in the past was not called since: it cannot change
+        # until some other event makes the program call it again
+        running = False
+        for tm in r.inst.timers:
+            e = tm.next_event_ns()
+            if e is not None and e > t:
+                running = True
+                if nxt is None or e < nxt:
+                    nxt = e
+            if et_thresholds:
+                # ET compared with constants: the comparisons flip at (or just after,
+                # for strict ones) origin + constant
+                o = tm.et_origin()
+                if o is not None:
+                    for c in et_thresholds:
+                        e = o + c if o + c > t else o + c + 1
+                        if e > t and (nxt is None or e < nxt):
                             nxt = e
-                    if et_thresholds:
-                        # ET compared with constants: the comparisons flip at (or just
-                        # after, for strict ones) origin + constant
-                        o = tm.et_origin()
-                        if o is not None:
-                            for c in et_thresholds:
-                                e = o + c if o + c > t else o + c + 1
-                                if e > t and (nxt is None or e < nxt):
-                                    nxt = e
-                for sfc in sfcs:
-                    e = sfc.next_event_ns(t)
-                    if e is not None and (e > t or e == t and sfc.spec.t_read) and (
-                            nxt is None or e < nxt):
-                        nxt = e
-                if reads_et and running:
-                    nxt = t + scan
-                if can_replay and nxt is not None and nxt == next_input and not running \
-                        and not any(c._until < NEVER for c in cylinders) \
-                        and not any(sfc.next_event_ns(t) is not None for sfc in sfcs):
-                    # at rest: only a scheduled input can change anything
-                    t_next = max(t + scan, -(-nxt // scan) * scan)
-                    key = self._rest_key(inst, t, cylinders, timeless)
-                    if key is not None:
-                        start = opened.pop(key, None)
-                        if start is not None:         # back in a state a part began in
-                            t_s, i0, at, shown_at = start
-                            parts.setdefault(key, []).append((
-                                self._edges_seen([sch.log[k:] for (sch, _, _), k in
-                                                  zip(schedules, at)], t_s, scan),
-                                t - t_s, np.frombuffer(tt, dtype=np.int64)[i0:] - t_s,
-                                np.frombuffer(ss, dtype=np.int32)[i0:].tobytes(),
-                                np.frombuffer(vv, dtype=np.float64)[i0:].tobytes(),
-                                shown_at, left.values(values)))
-                        done = self._replay(parts.get(key, ()), schedules, t_next, scan,
-                                            horizon_ns, tt, ss, vv, left, values)
-                        if done is not None:
-                            if left:
-                                prev_values = values_now()   # counts the part advanced
-                            if len(tt) > max_events:
-                                raise SequencerError(_too_many_changes(
-                                    signals, ss, done, scan, max_events))
-                            t = done          # back at rest in the same state
-                            next_input = 0
-                            continue
-                        if len(parts.get(key, ())) < MAX_PART_VARIANTS \
-                                and len(parts) < MAX_KEYS and len(opened) < MAX_OPEN_PARTS:
-                            opened[key] = (t_next, len(tt), [len(sch.log) for sch, _, _ in
-                                                              schedules], left.values(values))
-                    for k in [k for k, v in opened.items()
-                              if len(tt) - v[1] > MAX_PART_CHANGES]:
-                        del opened[k]         # not a part that ends: stop recording it
-                    if not opened:
-                        for sch, _, _ in schedules:
-                            sch.log.clear()
-                if can_tile:
-                    # the whole state can only repeat where the recorded signals do: its
-                    # key (costly on a wide machine) is made only at fixed points whose
-                    # signal values an earlier one had (a count shown on an output then
-                    # costs nothing; a repeating machine is found a period later)
-                    # (a count the compared state leaves out changes from one cycle to
-                    # the next: the values shown without it)
-                    shown = hash(values if not left else left.kept(values))
-                    key = None
-                    if shown in seen_values:
-                        key = _digest(self._state_key(inst, t, schedules, cylinders))
-                    elif len(seen_values) < MAX_KEYS:
-                        seen_values.add(shown)
-                    else:
-                        seen_values.clear()
-                    if key is not None:
-                        t1 = seen.get(key)
-                        if t1 is not None:
-                            drift = left.period_drift(values, t1, tt, ss, vv)
-                            if drift is not None:
-                                tiled_from = (t1, t)
-                                break
-                        if len(seen) >= MAX_KEYS:
-                            # start over: a machine that repeats only later (a counter
-                            # past its threshold) is still found if its period holds
-                            # fewer than MAX_KEYS fixed points
-                            seen.clear()
-                        seen[key] = t
-                if nxt is None:
-                    break  # nothing will ever change again
-                t = max(t + scan, -(-nxt // scan) * scan)
-                if inst.every is not None:
-                    # a task that does not run at this scan sees the event (a timer's
-                    # PT, a step's time) only at its next run: no fixed point until
-                    # every program has run from here on
-                    k_change = t // scan - 1
-        except PlcpredError:    # ours, with its own message (the plant's among them)
-            raise
-        except Exception as e:  # a fault inside the compiled program
-            raise inst.positioned(e) from None
+        for sfc in r.inst.sfcs:
+            e = sfc.next_event_ns(t)
+            if e is not None and (e > t or e == t and sfc.spec.t_read) and (
+                    nxt is None or e < nxt):
+                nxt = e
+        if self.compiled.reads_et and running:
+            nxt = t + r.scan
+        return nxt, running
+
+    # ------------------------------------------------------------------ replay, tiling
+    def _replay_at_rest(self, r: _Run, t_next: int):
+        """At rest at ``r.t`` (the next scan that can change anything: ``t_next``): close
+        the part recorded since this state was last left, replay one that matches the
+        edges ahead (the time it ends, at rest in the same state), else start recording
+        one. None when nothing was replayed."""
+        t, rec, left, rep = r.t, r.rec, r.left, r.repeats
+        schedules = r.image.schedules
+        key = self._rest_key(r.inst, t, r.image.cylinders, rep.timeless)
+        if key is not None:
+            start = rep.opened.pop(key, None)
+            if start is not None:         # back in a state a part began in
+                t_s, i0, at, shown_at = start
+                rep.parts.setdefault(key, []).append((
+                    self._edges_seen([sch.log[k:] for (sch, _, _), k in
+                                      zip(schedules, at)], t_s, r.scan),
+                    t - t_s, np.frombuffer(rec.tt, dtype=np.int64)[i0:] - t_s,
+                    np.frombuffer(rec.ss, dtype=np.int32)[i0:].tobytes(),
+                    np.frombuffer(rec.vv, dtype=np.float64)[i0:].tobytes(),
+                    shown_at, left.values(r.values)))
+            done = self._replay(rep.parts.get(key, ()), schedules, t_next, r.scan,
+                                r.horizon_ns, rec.tt, rec.ss, rec.vv, left, r.values)
+            if done is not None:
+                if left:
+                    r.prev_values = r.values_now()   # counts the part advanced
+                if len(rec.tt) > rec.max_events:
+                    raise rec.too_many(done)
+                return done
+            if len(rep.parts.get(key, ())) < MAX_PART_VARIANTS \
+                    and len(rep.parts) < MAX_KEYS and len(rep.opened) < MAX_OPEN_PARTS:
+                rep.opened[key] = (t_next, len(rec.tt), [len(sch.log) for sch, _, _ in
+                                                         schedules], left.values(r.values))
+        for k in [k for k, v in rep.opened.items() if len(rec.tt) - v[1] > MAX_PART_CHANGES]:
+            del rep.opened[k]         # not a part that ends: stop recording it
+        if not rep.opened:
+            for sch, _, _ in schedules:
+                sch.log.clear()
+        return None
+
+    def _repeated(self, r: _Run) -> bool:
+        """Is the whole state at this fixed point one an earlier fixed point had (the
+        run then tiles from that one, ``r.tiled_from``)?"""
+        t, left, rep, values = r.t, r.left, r.repeats, r.values
+        # the whole state can only repeat where the recorded signals do: its key
+        # (costly on a wide machine) is made only at fixed points whose signal values
+        # an earlier one had (a count shown on an output then costs nothing; a
+        # repeating machine is found a period later) (a count the compared state leaves
+        # out changes from one cycle to the next: the values shown without it)
+        shown = hash(values if not left else left.kept(values))
+        key = None
+        if shown in rep.seen_values:
+            key = _digest(self._state_key(r.inst, t, r.image.schedules, r.image.cylinders))
+        elif len(rep.seen_values) < MAX_KEYS:
+            rep.seen_values.add(shown)
+        else:
+            rep.seen_values.clear()
+        if key is None:
+            return False
+        t1 = rep.seen.get(key)
+        if t1 is not None:
+            drift = left.period_drift(values, t1, r.rec.tt, r.rec.ss, r.rec.vv)
+            if drift is not None:
+                r.tiled_from, r.drift = (t1, t), drift
+                return True
+        if len(rep.seen) >= MAX_KEYS:
+            # start over: a machine that repeats only later (a counter past its
+            # threshold) is still found if its period holds fewer than MAX_KEYS fixed
+            # points
+            rep.seen.clear()
+        rep.seen[key] = t
+        return False
+
+    def _timeline(self, r: _Run, wall0: float, scan_stepping: bool) -> Timeline:
+        """The recorded changes as a timeline, with what the run did (``info``)."""
+        rec, tiled_from, scan = r.rec, r.tiled_from, r.scan
         # views of the typed arrays, not copies: nothing is added to them any more, and a
         # copy would double the peak memory of a long untiled run at its very end
-        time_ns = np.frombuffer(tt, dtype=np.int64)
-        sig = np.frombuffer(ss, dtype=np.int32)
-        val = np.frombuffer(vv, dtype=np.float64)
-        info = {"scans": scans, "scan_ms": scan / 1e6, "wall_s": _time.perf_counter() - wall0,
+        time_ns = np.frombuffer(rec.tt, dtype=np.int64)
+        sig = np.frombuffer(rec.ss, dtype=np.int32)
+        val = np.frombuffer(rec.vv, dtype=np.float64)
+        info = {"scans": r.scans, "scan_ms": scan / 1e6,
+                "wall_s": _time.perf_counter() - wall0,
                 "mode": "scan-stepping" if scan_stepping else "event-driven",
                 "period_s": (tiled_from[1] - tiled_from[0]) / NS if tiled_from else None,
                 "tiled_from_s": tiled_from[1] / NS if tiled_from else None,
                 "machine_signals": dict(self.signal_names)}
-        return Timeline(signals, time_ns, sig, val, horizon_ns, info, tiled=tiled_from,
-                        max_changes=max_events, drift=drift)
+        return Timeline(rec.signals, time_ns, sig, val, r.horizon_ns, info, tiled=tiled_from,
+                        max_changes=rec.max_events, drift=r.drift)
 
     @staticmethod
     def _rest_key(inst, t, cylinders, timeless: set):
