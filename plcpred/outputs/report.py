@@ -229,8 +229,9 @@ def plot_sizing(profile, sizing, path, title="Sizing") -> None:
     # trend bins of whole cycles where there is one: a bin then never cuts a cycle in a
     # different place from its neighbour (the moire a long horizon otherwise shows)
     k = whole_periods(_bin_width(len(total)), sizing.cycle_s, profile.dt_s, len(total))
-    bins = _SizingBins(k, np.arange(len(_bins(total, k))) * profile.dt_s * k,
-                       _bins(total, k, np.min), _bins(total, k), _bins(total, k, np.max),
+    mean_b = _bins(total, k)
+    bins = _SizingBins(k, np.arange(len(mean_b)) * profile.dt_s * k,
+                       _bins(total, k, np.min), mean_b, _bins(total, k, np.max),
                        _bins(deficit, k, np.max))
     fig, axes = plt.subplots(2, 2, figsize=(12, 8), dpi=100,
                              gridspec_kw={"width_ratios": [3, 2], "height_ratios": [1, 1]})
