@@ -53,7 +53,7 @@ def test_init_prints_without_out_and_refuses_to_overwrite(samples_dir, tmp_path,
     assert main(["init", str(program), "-o", str(tmp_path / "m.txt")]) == 2
     bad = tmp_path / "bad.st"
     bad.write_text("PROGRAM P\nVAR x : INT; END_VAR\nx := ;\nEND_PROGRAM\n")
-    assert main(["init", str(bad)]) == 1
+    assert main(["init", str(bad)]) == 2
     assert f"{bad}:3:6:" in capsys.readouterr().err
 
 

@@ -87,7 +87,7 @@ def test_a_signal_changing_every_scan_stops_with_its_name(tmp_path):
     with pytest.raises(SequencerError, match=r"'q' changes .* \(every scan\)"):
         unfold(m, "1h", max_events=10_000)
     assert cli.main(["timeline", str(m), "--horizon", "1h", "--max-events", "5000",
-                     "--out", str(tmp_path / "o")]) == 1
+                     "--out", str(tmp_path / "o")]) == 2
     assert not (tmp_path / "o").exists()
 
 

@@ -94,15 +94,15 @@ def test_unknown_signal_is_an_error_naming_table_and_key(tmp_path):
     m = load_machine(write(tmp_path, GOOD.replace('valve = "blow"', 'valve = "blower"')))
     with pytest.raises(MachineError) as ei:
         check_against_program(m, parse_st(PROGRAM))
-    assert str(ei.value) == (f"{tmp_path / 'station.toml'}: consumer \"blow-off\": valve "
-                             "'blower' is not a variable of station.st")
+    assert str(ei.value) == (f"{tmp_path / 'station.toml'}:33: consumer \"blow-off\": valve "
+                             "'blower' is not a variable of station.st; did you mean 'blow'?")
 
 
 @pytest.mark.parametrize("edit, message", [
     (("stroke_mm = 25", "stroke_mm = -25"), 'consumer "clamp": stroke_mm must be > 0'),
     (("stroke_mm = 25", "stroke_mm = 25\ncolour = 'red'"), 'consumer "clamp": unknown key \'colour\''),
-    (("bore_mm = 32", "bor_mm = 32"), "unknown key 'bor_mm' (did you mean 'bore_mm'?"),
-    (("[[input]]", "[[inputs]]"), "unknown table [inputs] (did you mean [input]?"),
+    (("bore_mm = 32", "bor_mm = 32"), "unknown key 'bor_mm'; did you mean 'bore_mm'?"),
+    (("[[input]]", "[[inputs]]"), "unknown table 'inputs'; did you mean 'input'?"),
     (("rod_mm = 12", "rod_mm = 40"), 'consumer "clamp": rod_mm (40) must be smaller than bore_mm'),
     (("bore_mm = 32\n", ""), "consumer \"clamp\": missing required key 'bore_mm'"),
     (('kind = "nozzle"', 'kind = "fan"'), 'kind must be one of'),
@@ -236,7 +236,7 @@ def test_the_reader_reads_every_key_of_the_schema_and_no_other():
     every = set().union(*(schema.keys(t) for t in schema.TABLES))
     unread = every - read - set(schema.PLANT_DRIVE_KEYS)
     assert not unread, f"schema keys the loader never reads: {sorted(unread)}"
-    tables = {"machine", "input", "consumer", "line", "meter", "calendar", "signals",
+    tables = {"machine", "input", "consumer", "line", "meter", "calendar", "live", "signals",
               "retracted", "extended"}
     names = {k for k in read if k.isidentifier() and k not in tables}
     unknown = {k for k in names - every if k.islower() or k in ("C", "Cd")}
@@ -348,3 +348,153 @@ def test_lint_a_first_scan_command_is_movement(tmp_path):
 END_PROGRAM""", '[[consumer]]\nname = "c"\nkind = "double_acting"\nbore_mm = 20\n'
                 'rod_mm = 8\nstroke_mm = 50\nvalve = "y"\n')
     assert not any("nothing moved" in x for x in w)
+
+
+# ------------------------------------------------- errors and warnings at their line
+
+def _line(text: str, needle: str, nth: int = 1) -> int:
+    """The line of the ``nth`` line of ``text`` that holds ``needle``."""
+    return [i for i, ln in enumerate(text.split("\n"), 1) if needle in ln][nth - 1]
+
+
+@pytest.mark.parametrize("edit, at", [
+    (("bore_mm = 32", "bor_mm = 32"), "bor_mm"),                   # unknown key
+    (("stroke_mm = 25", "stroke_mm = 'long'"), "stroke_mm"),        # wrong type
+    (("scan_ms = 5", "scan_ms = 1e9"), "scan_ms"),                  # outside its range
+    (("rod_mm = 12", "rod_mm = 40"), "rod_mm"),                     # against another key
+    (('kind = "nozzle"', 'kind = "nozle"'), "nozle"),               # a choice mistyped
+    (('period_s = 2.5', 'period_s = 0.05'), "pulse_ms"),            # in [[input]]
+    (("bore_mm = 32\n", ""), '[[consumer]]'),                       # missing: the table
+    (('[[input]]', '[[inputs]]'), "[[inputs]]"),                    # unknown table
+    (('name = "blow-off"', 'name = "clamp"'), ('name = "clamp"', 2)),  # the second one
+])
+def test_a_semantic_error_names_its_line_table_and_key(tmp_path, edit, at):
+    text = GOOD.replace(*edit, 1)
+    line = _line(text, *at) if isinstance(at, tuple) else _line(text, at)
+    f = write(tmp_path, text)
+    with pytest.raises(MachineError) as ei:
+        load_machine(f)
+    assert str(ei.value).startswith(f"{f}:{line}: "), (str(ei.value), line)
+
+
+def test_the_line_is_found_past_multi_line_values_and_comments(tmp_path):
+    text = GOOD.replace("tube_length_m = [0.5, 0.7]",
+                        'tube_length_m = [\n  0.5,  # [[consumer]]\n  0.7,\n]\n'
+                        'initial = """\nbore_mm = 1\n"""').replace("bore_mm = 32",
+                                                                  "# bore_mm = 1\nbore_mm = 32")
+    text = text.replace("switch_delay_s = 0.015", "switch_delay_s = 'x'")
+    f = write(tmp_path, text)
+    with pytest.raises(MachineError) as ei:
+        load_machine(f)
+    assert str(ei.value).startswith(f"{f}:{_line(text, 'switch_delay_s')}: consumer "
+                                    '"clamp": switch_delay_s must be a number')
+
+
+def test_a_toml_syntax_error_names_line_and_column(tmp_path):
+    f = write(tmp_path, GOOD.replace("scan_ms = 5", "scan_ms = = 5"))
+    with pytest.raises(MachineError) as ei:
+        load_machine(f)
+    assert str(ei.value).startswith(f"{f}:{_line(GOOD, 'scan_ms')}:11: not valid TOML")
+    f.write_bytes(GOOD.replace('"station"', '"st\xe4tion"').encode("latin-1"))
+    with pytest.raises(MachineError, match=r"station\.toml:3:11: not UTF-8"):
+        load_machine(f)
+
+
+def test_an_unknown_key_names_the_one_meant_or_else_lists_them(tmp_path):
+    with pytest.raises(MachineError) as ei:
+        load_machine(write(tmp_path, GOOD.replace("bore_mm = 32", "bor_mm = 32")))
+    assert str(ei.value).endswith("unknown key 'bor_mm'; did you mean 'bore_mm'?")
+    with pytest.raises(MachineError) as ei:
+        load_machine(write(tmp_path, GOOD.replace("bore_mm = 32", "Bore_mm = 32")))
+    assert str(ei.value).endswith("did you mean 'bore_mm'?")
+    with pytest.raises(MachineError) as ei:
+        load_machine(write(tmp_path, GOOD.replace("Cd = 0.8", "Cd = 0.8\ncolour = 1")))
+    assert "unknown key 'colour' (known: C, Cd, a, b, bore_mm," in str(ei.value)
+
+
+@pytest.mark.parametrize("key, value, expected", [
+    ("supply_bar_g", 87, ("supply_bar_g = 87 bar(g) is outside the plausible 1-16 bar(g); "
+                         "psi typed as bar? 87 psi is 6.00 bar(g)")),
+    ("stroke_time_s", "[150, 0.2]", ("stroke_time_s = 150 s is outside the plausible "
+                                    "0.005-30 s; ms typed as s? 150 ms is 0.15 s")),
+    ("stroke_mm", 0.5, ("stroke_mm = 0.5 mm is outside the plausible 1-6000 mm; cm typed as "
+                       "mm? 0.5 cm is 5 mm")),
+    ("tube_length_m", 700, "mm typed as m? 700 mm is 0.7 m"),
+    ("ambient_c", 68, "°F typed as °C? 68 °F is 20 °C"),
+])
+def test_a_value_outside_the_plausible_range_is_a_warning_at_its_line(tmp_path, key, value,
+                                                                      expected):
+    old = next(ln for ln in GOOD.split("\n") if ln.startswith(f"{key} =")) if key != \
+        "ambient_c" else "scan_ms = 5"
+    new = f"{key} = {value}" if key != "ambient_c" else f"scan_ms = 5\nambient_c = {value}"
+    text = GOOD.replace(old, new, 1)
+    f = write(tmp_path, text)
+    warnings = [w for w in load_machine(f).warnings if expected in w]
+    assert len(warnings) == 1, load_machine(f).warnings
+    assert warnings[0].startswith(f"{f}:{_line(text, f'{key} = {value}')}: ")
+
+
+def test_plausible_values_give_no_warning(tmp_path):
+    assert load_machine(write(tmp_path, GOOD)).warnings == []
+
+
+def test_the_plausible_ranges_lie_inside_the_physical_ones():
+    from plcpred.machine import schema
+    for key, p in schema.PLAUSIBLE.items():
+        low, high = schema.RANGES[key]
+        assert low <= p.low < p.high <= high, key
+
+
+def test_a_warning_from_a_sweep_or_a_merged_truth_has_no_line_it_cannot_know(tmp_path):
+    """Data that is not the file's (a sweep's setting) is warned about without the file's
+    line, which holds another value."""
+    import tomllib
+
+    from plcpred.machine import machine_from_data
+    f = write(tmp_path, GOOD)
+    data = tomllib.loads(GOOD)
+    data["machine"]["supply_bar_g"] = 90
+    warnings = machine_from_data(data, f).warnings
+    assert warnings and warnings[0].startswith(f"{f}: [machine]: supply_bar_g = 90")
+
+
+def test_a_machine_error_keeps_its_place_through_pickling():
+    import pickle
+    e = MachineError("m.toml", '[machine]', "x", table="machine", key="scan_ms", line=4,
+                     column=2)
+    back = pickle.loads(pickle.dumps(e))
+    assert str(back) == str(e) == "m.toml:4:2: [machine]: x" and back.key == "scan_ms"
+
+
+def test_the_errors_and_the_warning_the_docs_show_are_what_plcpred_says(tmp_path):
+    """docs/reference/machine-file.md's error lines, made from its small example."""
+    import re
+    from pathlib import Path
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "reference"
+           / "machine-file.md").read_text()
+    example = doc.split("## A small example", 1)[1].split("```toml\n", 1)[1].split("```")[0]
+    shown = doc.split("## Errors and warnings", 1)[1].split("```\n")
+    errors, warning = shown[1].strip().split("\n"), shown[3].strip()
+    (tmp_path / "station.st").write_text(ONE_OUTPUT)
+    f = tmp_path / "station.toml"
+    edits = [("stroke_mm = 25", "stroke_mm = 0"), ("bore_mm = 32", "bor_mm = 32"),
+             ("scan_ms = 10", "scan_ms = = 10")]
+    for (old, new), expected in zip(edits, errors, strict=True):
+        f.write_text(example.replace(old, new, 1))
+        with pytest.raises(MachineError) as ei:
+            load_machine(f)
+        assert str(ei.value).replace(str(f), "station.toml") == expected
+    f.write_text(example.replace("supply_bar_g = 6.0", "supply_bar_g = 87"))
+    got = [w.replace(str(f), "station.toml") for w in load_machine(f).warnings]
+    assert re.sub("^warning: ", "", warning) in got
+
+
+def test_a_signal_changed_after_loading_is_named_without_the_files_line(tmp_path):
+    """The file's line holds another signal (a truth file's, a machine changed in
+    memory): the error names the table and key, not a line that would mislead."""
+    m = load_machine(write(tmp_path, GOOD))
+    m.consumer("blow-off").valve = ["blower"]
+    with pytest.raises(MachineError) as ei:
+        check_against_program(m, parse_st(PROGRAM))
+    assert str(ei.value).startswith(f"{tmp_path / 'station.toml'}: consumer \"blow-off\": "
+                                    "valve 'blower'")

@@ -5,9 +5,8 @@ from __future__ import annotations
 import sys
 
 from ..air.sizing import CompressorSheet
-from ..errors import PlcpredError
-from ..machine import MachineError
-from ..output import OutputError, check_out_dir
+from ..errors import EXIT_BAD_INPUT, PlcpredError
+from ..output import check_out_dir
 from ..sequencer import parse_horizon
 
 
@@ -45,15 +44,16 @@ def command_line(args) -> str:
 
 
 def exit_code(e: PlcpredError) -> int:
-    """2 for an error in what the user gave (a machine file, a path, a horizon), 1 for a
-    finding about the program (it is invalid, or it cannot run): CI reads 1 as "the gate
-    failed", and a typo in a machine file must never look like that."""
-    return 2 if isinstance(e, (MachineError, OutputError, UsageError, ValueError)) else 1
+    """The exit code of a command stopped by ``e``: 2, whatever was wrong with what the
+    user gave (a machine file, a program that does not compile or cannot run, a path, a
+    horizon). CI reads 1 as "the gate failed", which only ``compare`` and ``check`` say
+    (plcpred.errors.EXIT_CODES)."""
+    return EXIT_BAD_INPUT
 
 
 def fail(message: str) -> int:
     print(f"plcpred: error: {message}", file=sys.stderr)
-    return 2
+    return EXIT_BAD_INPUT
 
 
 def too_many_rows(rows: int, limit: int) -> str:

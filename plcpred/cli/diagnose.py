@@ -16,11 +16,11 @@ from ..output import (
     write_json,
 )
 from ..outputs.report import diagnosis_html, plot_diagnosis
+from ..progress import Progress
 from .common import command_line, fail
 
 
 def cmd_diagnose(args) -> int:
-
     try:
         out = check_out_dir(args.out) if args.out else None
         check_out_file(args.json, "--json")
@@ -38,7 +38,8 @@ def cmd_diagnose(args) -> int:
     reference = args.reference or (machine.meter.reference if machine.meter else "iso8778")
     runs = [read_measured(p, time_col=args.time_col, flow_col=args.flow_col,
                           flow_unit=args.flow_unit, reference=reference,
-                          supply_col=args.supply_col)
+                          supply_col=args.supply_col, supply_unit=args.supply_unit,
+                          date_col=args.date_col)
             for p in args.measured]
     if args.sampling:
         for r in runs:
@@ -47,10 +48,14 @@ def cmd_diagnose(args) -> int:
         if "columns_guessed" in r.source:
             print(f"note: {r.name}: {r.source['columns_guessed']} (name them with "
                   "--time-col, --flow-col and --flow-unit if not)", file=sys.stderr)
+        for w in r.source.get("warnings", ()):
+            print(f"warning: {r.name}: {w}", file=sys.stderr)
     io = [read_io_timeline(p, horizon_s=r.span_s, machine=machine)
           for p, r in zip(args.io, runs)] if args.io else None
-    d = diagnose(machine, runs, io=io, offsets=args.offset, max_offset_s=args.max_offset,
-                 effects=effects, program=args.program, dynamic=not args.no_plant)
+    with Progress.on_terminal(args.quiet) as progress:
+        d = diagnose(machine, runs, io=io, offsets=args.offset, max_offset_s=args.max_offset,
+                     effects=effects, program=args.program, dynamic=not args.no_plant,
+                     progress=progress)
     for w in d.warnings:
         print(f"warning: {w}", file=sys.stderr)
     # the report first: a file that cannot be written must not lose it

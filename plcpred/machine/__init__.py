@@ -9,7 +9,16 @@ and declared once in :mod:`.schema`.
 * :func:`save_machine` writes one (:mod:`.save`)
 """
 from .bind import check_against_program, program_addresses
-from .load import as_machine, load_machine, machine_from_data, machine_roots, read_machine_data
+from .load import (
+    as_machine,
+    error_place,
+    load_machine,
+    locate_error,
+    machine_from_data,
+    machine_roots,
+    read_machine_data,
+    unknown_name,
+)
 from .model import (
                     CYLINDER_KINDS,
                     HOURS_PER_YEAR,
@@ -25,7 +34,8 @@ from .model import (
 )
 from .save import dump_machine_toml, save_machine
 
-__all__ = ["as_machine", "CYLINDER_KINDS", "HOURS_PER_YEAR", "KINDS", "PASSIVE_KINDS", "Calendar",
-           "Consumer", "InputSchedule", "Line", "Machine", "MachineError", "Meter",
-           "check_against_program", "dump_machine_toml", "load_machine", "machine_from_data",
-           "machine_roots", "program_addresses", "read_machine_data", "save_machine"]
+__all__ = ["CYLINDER_KINDS", "HOURS_PER_YEAR", "KINDS", "PASSIVE_KINDS", "Calendar", "Consumer",
+           "InputSchedule", "Line", "Machine", "MachineError", "Meter", "as_machine",
+           "check_against_program", "dump_machine_toml", "error_place", "load_machine",
+           "locate_error", "machine_from_data", "machine_roots", "program_addresses",
+           "read_machine_data", "save_machine", "unknown_name"]

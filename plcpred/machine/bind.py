@@ -3,11 +3,13 @@ of the program; what the program reads that nothing drives, and outputs that dri
 nothing, are warnings."""
 from __future__ import annotations
 
+import difflib
 import re
 from pathlib import Path
 
 from ..parser import ir
 from ..parser.check import Checker
+from .load import locate_error
 from .model import Machine, MachineError
 
 
@@ -28,9 +30,9 @@ def program_addresses(program) -> dict[str, str]:
 
 def _program_io(program):
     """(all variable names, output names, names read anywhere: upper case; inputs: upper
-    case -> as declared) of a program."""
+    case -> as declared; every name as declared) of a program."""
 
-    names, outputs, inputs = set(), set(), {}
+    names, outputs, inputs, spelled = set(), set(), {}, []
     blocks = [g.block for g in program.globals]
     blocks += [b for c in program.configurations for b in c.var_blocks]
     blocks += [b for c in program.configurations for r in c.resources for b in r.var_blocks]
@@ -41,12 +43,13 @@ def _program_io(program):
         for d in b.decls:
             key = d.name.upper()
             names.add(key)
+            spelled.append(d.name)
             if b.kind == "VAR_OUTPUT" or (d.address or "").upper().startswith("%Q"):
                 outputs.add(key)
             elif b.kind == "VAR_INPUT" or (d.address or "").upper().startswith("%I"):
                 inputs[key] = d.name
     usage = Checker(program).run().program_usage
-    return names, outputs, usage.read, inputs
+    return names, outputs, usage.read, inputs, spelled
 
 
 def check_against_program(machine: Machine, program) -> list[str]:
@@ -54,7 +57,7 @@ def check_against_program(machine: Machine, program) -> list[str]:
     errors (raised); outputs that drive no consumer, switches the program never reads and
     inputs it reads that nothing drives are returned (and added to ``machine.warnings``)."""
     file = str(machine.path)
-    names, outputs, read, inputs = _program_io(program)
+    names, outputs, read, inputs, spelled = _program_io(program)
     by_address = program_addresses(program)
     by_address.update({addr.upper(): name for addr, name in machine.signals.items()})
     # the program checked (a --program given instead of the file's is named as itself)
@@ -83,8 +86,12 @@ def check_against_program(machine: Machine, program) -> list[str]:
                     return first
                 if first in programs and second in names:
                     return second
-            raise MachineError(file, where, f"{key} '{signal}' is not a variable of "
-                                            f"{program_file}")
+            near = difflib.get_close_matches(signal, sorted(set(spelled)), n=1, cutoff=0.6)
+            hint = f"; did you mean '{near[0]}'?" if near else ""
+            raise locate_error(MachineError(file, where, f"{key} '{signal}' is not a variable "
+                                                         f"of {program_file}{hint}",
+                                            key=key.partition(".")[0]), machine.path,
+                               holding=signal)
         return name.upper()
 
     programs = {p.name.upper() for p in program.pous if p.kind == "PROGRAM"}

@@ -20,15 +20,31 @@ FLOW_MODELS = ("iso6358", "choked")
 
 
 class MachineError(PlcpredError):
-    def __init__(self, file: str, where: str, message: str):
+    """A problem in a machine (or truth) file: the file, ``where`` in it as the user reads
+    it (``consumer "clamp"``, ``[machine]``) and the message. ``table``, ``index`` (of an
+    array of tables) and ``key`` say where for a program: the loader finds the ``line``
+    (and a TOML syntax error its ``column``) from them."""
+
+    def __init__(self, file: str, where: str, message: str, *, table: str | None = None,
+                 index: int | None = None, key: str | None = None, line: int | None = None,
+                 column: int | None = None):
         super().__init__(message)
         self.file, self.where, self.message = file, where, message
+        self.table, self.index, self.key = table, index, key
+        self.line, self.column = line, column
 
     def __str__(self) -> str:
-        return f"{self.file}: {self.where + ': ' if self.where else ''}{self.message}"
+        at = "".join(f":{n}" for n in (self.line, self.column) if n is not None)
+        return f"{self.file}{at}: {self.where + ': ' if self.where else ''}{self.message}"
 
     def __reduce__(self):  # survives the trip back from a sweep's worker process
-        return (type(self), (self.file, self.where, self.message))
+        return (_machine_error, (self.file, self.where, self.message, self.table,
+                                 self.index, self.key, self.line, self.column))
+
+
+def _machine_error(file, where, message, table, index, key, line, column) -> MachineError:
+    return MachineError(file, where, message, table=table, index=index, key=key, line=line,
+                        column=column)
 
 
 @dataclass

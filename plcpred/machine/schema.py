@@ -10,8 +10,9 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..physics.meter import REFERENCES
+from ..physics.units import BAR_PER_PSI
 
-TABLES = ("machine", "input", "consumer", "line", "meter", "calendar")
+TABLES = ("machine", "input", "consumer", "line", "meter", "calendar", "live")
 # the kinds of value: a number, a number or [extend, retract] (or [cap, rod]), true/false,
 # text, a whole number, a list of numbers, a program variable or address, one or two of
 # them, a path (or a list of paths) relative to the file, an inline table
@@ -234,12 +235,69 @@ SECTIONS = (
              ' use air) or `"program"` (as the program leaves it when nothing moves: '
              "leaks and blowers left on, at their rate over the run's idle time)")),
     )),
+    Section('live', '## `[live]`: watching the running machine over OPC UA', (
+        Row(('endpoint',), 'string', 'none',
+            ('the OPC UA server of the PLC or gateway, `"opc.tcp://host:4840"` '
+             "(`plcpred watch --endpoint` overrides it)")),
+        Row(('node_template',), 'string', '`"ns=2;s={signal}"`',
+            ('the node id of each signal, `{signal}` standing for its name in this '
+             'file: `"ns=4;s=MAIN.{signal}"` on TwinCAT and CODESYS servers; '
+             '`plcpred serve` uses the default')),
+        Row(('nodes',), 'table', '`{}`',
+            'node ids of single signals where the template does not fit: '
+            '`{ qZ = "ns=4;s=GVL.qZ" }`'),
+        Row(('meter_node',), 'string', 'the template with `flow_l_min`',
+            "the flow meter's node (a number)"),
+        Row(('meter_unit',), 'string', '`"l/min"`',
+            'its unit: `"l/min"`, `"m3/h"`, `"l/s"`, `"m3/min"` or `"scfm"`'),
+        Row(('meter_reference',), 'string', "`[meter]`'s, else `\"iso8778\"`",
+            'its reference condition: `"iso8778"`, `"din1343"` or `"iso2533"`'),
+        Row(('meter_tau_s',), 'number', "`[meter]`'s, else 0.2",
+            "its response time: the prediction goes through it before it is compared"),
+        Row(('pressure_node',), 'string', 'the template with `supply_bar_g`',
+            'the supply pressure (bar gauge), recorded when the server has it'),
+        Row(('cycle_signal',), 'signal', "`[machine]`'s",
+            ('compared per cycle between its rising edges; without one, per window of '
+             '`window_s`')),
+        Row(('window_s',), 'number', '60',
+            'the comparison window of a machine without a cycle signal (1-86,400)'),
+        Row(('sampling_ms',), 'number', '0',
+            "how often the server samples each node (0: as fast as it can)"),
+        Row(('publishing_ms',), 'number', '100',
+            'how often it sends what changed (10-60,000)'),
+        Row(('rotate_s',), 'number', '3600',
+            'a new pair of recorded files every so many seconds of machine time '
+            '(60-86,400: hourly by default, 86400 daily)'),
+        Row(('gap_alarm_percent',), 'number', '10',
+            'alarm when measured differs from predicted by more than this ...'),
+        Row(('gap_alarm_cycles',), 'integer', '3',
+            '... for this many cycles (or windows) in a row'),
+        Row(('idle_limit_l_min',), 'number', 'none',
+            'alarm when the flow while the machine rests exceeds this (NL/min)'),
+        Row(('security_policy',), 'string', '`"None"`',
+            ('`"Basic256Sha256"`, `"Aes128_Sha256_RsaOaep"` or `"Aes256_Sha256_RsaPss"` '
+             '(with `certificate` and `private_key`)')),
+        Row(('security_mode',), 'string', '`"SignAndEncrypt"`',
+            'or `"Sign"`'),
+        Row(('certificate', 'private_key'), 'path', 'none',
+            "the client's certificate and key (PEM or DER), relative to this file; "
+            'never logged'),
+        Row(('user',), 'string', 'none',
+            'a user name to log in with ...'),
+        Row(('password_env',), 'string', '`"PLCPRED_OPCUA_PASSWORD"`',
+            '... and the environment variable that holds the password (never written '
+            'in this file, never logged)'),
+    )),
 
 )
 
 METER_REFERENCES = tuple(REFERENCES)
 METER_SAMPLINGS = ("mean", "instant")
 CALENDAR_IDLE_STATES = ("off", "program")
+LIVE_METER_UNITS = ("l/min", "m3/h", "l/s", "m3/min", "scfm")
+LIVE_SECURITY_POLICIES = ("None", "Basic256Sha256", "Aes128_Sha256_RsaOaep",
+                          "Aes256_Sha256_RsaPss")
+LIVE_SECURITY_MODES = ("Sign", "SignAndEncrypt")
 
 # Physical ranges of every number in a machine file: (lowest, highest). Wider than any real
 # machine, so they only catch typos, unit mix-ups and values that would overflow the
@@ -269,6 +327,78 @@ RANGES = {
     "droop_bar": (1e-3, 50.0), "shifts_per_day": (0.0, 24.0), "hours_per_shift": (0.0, 24.0),
     "days_per_week": (0.0, 7.0), "weeks_per_year": (0.0, 53.0), "production_share": (0.0, 1.0),
 }
+
+# [live]'s numbers (plcpred watch)
+RANGES.update({"window_s": (1.0, 86_400.0), "sampling_ms": (0.0, 60_000.0),
+               "publishing_ms": (10.0, 60_000.0), "rotate_s": (60.0, 86_400.0),
+               "meter_tau_s": (0.0, 600.0), "gap_alarm_percent": (0.1, 1_000.0),
+               "gap_alarm_cycles": (1.0, 10_000.0), "idle_limit_l_min": (0.0, 1e8)})
+
+
+@dataclass(frozen=True)
+class Plausible:
+    """Where the numbers of real machines lie. Outside it (but inside :data:`RANGES`) a
+    value is more likely a unit mixed up than a machine: a warning, with the likely mix-up
+    (``low_hint``, ``high_hint``: format strings of the value ``v`` and its readings in
+    other units)."""
+    low: float
+    high: float
+    unit: str
+    high_hint: str = ""
+    low_hint: str = ""
+
+    def holds(self, v: float) -> bool:
+        return self.low <= v <= self.high
+
+    @property
+    def span(self) -> str:
+        return f"{self.low:g}{' to ' if self.low < 0 else '-'}{self.high:g} {self.unit}"
+
+    def warning(self, key: str, v: float) -> str:
+        hint = self.high_hint if v > self.high else self.low_hint
+        text = f"{key} = {v:g} {self.unit} is outside the plausible {self.span}"
+        if hint:
+            text += "; " + hint.format(v=v, psi_as_bar=v * BAR_PER_PSI, per_1000=v / 1000,
+                                       times_10=v * 10, times_1000=v * 1000,
+                                       fahrenheit_as_c=(v - 32) / 1.8)
+        return text
+
+
+_PSI = "psi typed as bar? {v:g} psi is {psi_as_bar:.2f} bar(g)"
+_MS_AS_S = "ms typed as s? {v:g} ms is {per_1000:g} s"
+
+# the plausible values of the keys most often typed in a wrong unit
+PLAUSIBLE = {
+    "supply_bar_g": Plausible(1.0, 16.0, "bar(g)", _PSI),
+    "pressure_bar_g": Plausible(0.0, 16.0, "bar(g)", _PSI),
+    "network_bar_g": Plausible(0.0, 16.0, "bar(g)", _PSI),
+    "ambient_c": Plausible(-30.0, 60.0, "°C", "°F typed as °C? {v:g} °F is "
+                                               "{fahrenheit_as_c:.0f} °C"),
+    "scan_ms": Plausible(0.25, 1000.0, "ms", low_hint="s typed as ms? {v:g} s is "
+                                                      "{times_1000:g} ms"),
+    "bore_mm": Plausible(2.5, 320.0, "mm", low_hint="cm typed as mm? {v:g} cm is "
+                                                    "{times_10:g} mm"),
+    "stroke_mm": Plausible(1.0, 6000.0, "mm", low_hint="cm typed as mm? {v:g} cm is "
+                                                       "{times_10:g} mm"),
+    "tube_id_mm": Plausible(1.0, 25.0, "mm", low_hint="cm typed as mm? {v:g} cm is "
+                                                      "{times_10:g} mm"),
+    "tube_length_m": Plausible(0.0, 30.0, "m", "mm typed as m? {v:g} mm is {per_1000:g} m"),
+    "stroke_time_s": Plausible(0.005, 30.0, "s", _MS_AS_S),
+    "switch_delay_s": Plausible(0.0, 0.5, "s", _MS_AS_S),
+    "exhaust_tau_s": Plausible(0.001, 5.0, "s", _MS_AS_S),
+    "orifice_mm": Plausible(0.05, 25.0, "mm"),
+    "tau_s": Plausible(0.0, 30.0, "s", _MS_AS_S),
+}
+
+
+def plausible_markdown() -> str:
+    """The table of :data:`PLAUSIBLE` as the docs show it."""
+    lines = ["| key | plausible | outside it, likely |", "|---|---|---|"]
+    for key, p in PLAUSIBLE.items():
+        hints = [h.split("?")[0] + "?" for h in (p.low_hint, p.high_hint) if h]
+        lines.append(f"| `{key}` | {p.span} | "
+                     f"{'; '.join(hints) or 'a typo'} |")
+    return "\n".join(lines)
 
 
 def keys(table: str) -> set[str]:
@@ -311,18 +441,24 @@ def markdown(section: Section) -> str:
     return "\n".join(lines)
 
 
+PLAUSIBLE_HEADING = "### Values that draw a warning"
+
+
 def with_tables(doc: str) -> str:
-    """``doc`` (the machine-file reference) with each section's key table written anew
-    after its heading (the first table that follows it)."""
+    """``doc`` (the machine-file reference) with each section's key table, and the table
+    of plausible values, written anew after its heading (the first table that follows
+    it)."""
     lines = doc.split("\n")
-    for section in SECTIONS:
-        start = lines.index(section.heading)
-        first = next(i for i in range(start, len(lines))
-                     if lines[i].strip() == "| key | default | meaning |")
+    tables = [(s.heading, markdown(s)) for s in SECTIONS]
+    tables.append((PLAUSIBLE_HEADING, plausible_markdown()))
+    for heading, table in tables:
+        start = lines.index(heading)
+        head = table.split("\n")[0]
+        first = next(i for i in range(start, len(lines)) if lines[i].strip() == head)
         end = first
         while end < len(lines) and lines[end].startswith("|"):
             end += 1
-        lines[first:end] = markdown(section).split("\n")
+        lines[first:end] = table.split("\n")
     return "\n".join(lines)
 
 
