@@ -32,10 +32,12 @@ import csv
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 
-from .datafile import DataLines
+from .datafile import FLOW_UNIT_SPELLINGS, PRESSURE_UNIT_SPELLINGS, DataLines
+from .diagnose.io import FLOW_UNITS, PRESSURE_UNITS, column_unit
 from .errors import PlcpredError
 from .outputs.report import pyplot, save_fig
 from .physics.flow import phi
@@ -124,73 +126,162 @@ def _column_range(name: str) -> tuple[float, float] | None:
     return None
 
 
-def read_flow_data(path, atmosphere_kpa: float = P_ATM_KPA, temperature_c: float = 20.0):
-    """Steady-flow or tank data from a CSV (see the module note). Errors name the file,
-    line and column. The file is read a line at a time: at most MAX_POINTS rows, each
-    value of a known column within COLUMN_RANGES."""
+class DataColumns(NamedTuple):
+    """Where test data hold their values when not under the default names: a header
+    name or a 1-based number per column, and the units of the flow and the pressures
+    (None: as the column's name gives it, else l/min and bar(g))."""
+    time_col: object = None
+    flow_col: object = None
+    flow_unit: str | None = None
+    p_up_col: object = None
+    p_down_col: object = None
+    pressure_col: object = None
+    pressure_unit: str | None = None
+
+
+def read_flow_data(path, atmosphere_kpa: float = P_ATM_KPA, temperature_c: float = 20.0,
+                   columns: DataColumns | None = None):
+    """Steady-flow or tank data from a CSV (see the module note; fields separated by
+    ``,``, ``;`` or tabs, with ``;`` or tabs a decimal comma too; ``columns`` names
+    columns the default names do not). Errors name the file, line and column. The file
+    is read a line at a time: at most MAX_POINTS rows, each value of a known column
+    within COLUMN_RANGES."""
     path = Path(path)
     atm = atmosphere_kpa * 1e3
     if not (math.isfinite(temperature_c) and
             TEMPERATURE_C[0] <= temperature_c <= TEMPERATURE_C[1]):
         raise IdentifyError(f"the temperature {temperature_c:g} C is outside "
                             f"{TEMPERATURE_C[0]:g} to {TEMPERATURE_C[1]:g} C")
-    header, values = _read_rows(path)
+    header, values = _read_rows(path, columns or DataColumns(), atmosphere_kpa)
     if "flow_l_min" in header:
         return _steady_flow(path, values, atm, temperature_c)
     if "time_s" in header:
         return _tank(path, values, atm)
     raise IdentifyError(f"{path}: columns {', '.join(header)}: expected steady-flow data "
                         "(p_up_bar_g, p_down_bar_g, flow_l_min) or a tank's pressure "
-                        "(time_s, p_bar_g)")
+                        "(time_s, p_bar_g), or name the columns (--flow-col, --p-up-col, "
+                        "--time-col, --pressure-col)")
 
 
-def _read_rows(path: Path) -> tuple[list[str], list[tuple[int, dict]]]:
-    """(the header's lower-case names, (line, column -> value) of each data row): every
-    value a finite number within its column's range."""
-    header: list[str] | None = None
-    col: dict[str, int] = {}
-    ranges: dict[str, tuple[float, float] | None] = {}
+class _Read(NamedTuple):
+    """How one column of test data is read: the name the fit knows it by, the name its
+    header gives, and value = cell * factor + offset."""
+    key: str
+    name: str
+    factor: float = 1.0
+    offset: float = 0.0
+
+
+def _read_rows(path: Path, columns: DataColumns, atm_kpa: float
+               ) -> tuple[list[str], list[tuple[int, dict]]]:
+    """(the names the fit knows the columns by, (line, name -> value) of each data row):
+    every value a finite number within its column's range."""
+    plan: dict[int, _Read] | None = None
+    decimal_comma, delimiter = False, ","
     values: list[tuple[int, dict]] = []
     with DataLines(path, IdentifyError) as lines:
         for k, line in enumerate(lines, start=1):
             if not line.strip() or line.lstrip().startswith("#"):
                 continue
+            if plan is None:
+                delimiter = max((",", ";", "\t"), key=line.count)
+                decimal_comma = delimiter != ","
             try:
-                row = next(csv.reader([line]))
+                row = next(csv.reader([line], delimiter=delimiter))
             except csv.Error as e:
                 raise IdentifyError(f"{path}:{k}: not CSV: {e}") from None
-            if header is None:
-                header = [h.strip().lower() for h in row]
-                col = {h: i for i, h in enumerate(header)}
-                ranges = {h: _column_range(h) for h in col}
+            if plan is None:
+                plan = _column_plan(path, k, [h.strip() for h in row], columns, atm_kpa)
                 continue
             if len(values) >= MAX_POINTS:
                 raise IdentifyError(f"{path}:{k}: more than {MAX_POINTS:,} data rows")
-            values.append((k, _row_values(path, k, row, col, ranges)))
-    if header is None or not values:
+            values.append((k, _row_values(path, k, row, plan, decimal_comma)))
+    if plan is None or not values:
         raise IdentifyError(f"{path}: needs a header and data rows")
-    return header, values
+    return [r.key for r in plan.values()], values
 
 
-def _row_values(path, k: int, row: list[str], col: dict, ranges: dict) -> dict:
+def _column_plan(path, line: int, header: list[str], columns: DataColumns, atm_kpa: float
+                 ) -> dict[int, _Read]:
+    """Column index -> how it is read: the columns ``columns`` names, then those under
+    the default names (p_up_bar_g, flow_l_min, time_s, ...) that they leave."""
+    named: dict[int, _Read] = {}
+    flow_unit = columns.flow_unit
+    for col, key in ((columns.flow_col, "flow_l_min"), (columns.time_col, "time_s")):
+        if col is None:
+            continue
+        i = _named_column(path, line, header, col, key)
+        factor = 1.0
+        if key == "flow_l_min":
+            said = column_unit(header[i], FLOW_UNIT_SPELLINGS)
+            factor = FLOW_UNITS[flow_unit or said or "l/min"]
+        named[i] = _Read(key, header[i], factor)
+    for col, stem in ((columns.p_up_col, "p_up"), (columns.p_down_col, "p_down"),
+                      (columns.pressure_col, "p")):
+        if col is not None:
+            i = _named_column(path, line, header, col, f"{stem}_kpa")
+            unit = columns.pressure_unit or column_unit(header[i], PRESSURE_UNIT_SPELLINGS) \
+                or "bar"
+            bar_per_unit, absolute = PRESSURE_UNITS[unit]
+            # read as kPa absolute, the default names' own unit
+            named[i] = _Read(f"{stem}_kpa", header[i], bar_per_unit * 100.0,
+                             0.0 if absolute else atm_kpa)
+    taken = {r.key.rpartition("_")[0] if r.key.endswith("_kpa") else r.key
+             for r in named.values()}
+    plan = dict(named)
+    for i, h in enumerate(header):
+        key = h.lower()
+        stem = next((s for s in ("p_up", "p_down", "p") for u in ("_bar_g", "_bar", "_kpa")
+                     if key == s + u), None)
+        if i in plan or (stem or key) in taken:
+            continue
+        if stem is not None or key in ("flow_l_min", "time_s", "t_up_c"):
+            plan[i] = _Read(key, h)
+    return plan
+
+
+def _named_column(path, line: int, header: list[str], wanted, what: str) -> int:
+    """The index of the column ``wanted`` names (a header name or a 1-based number)."""
+    text = str(wanted).strip()
+    if text.isascii() and text.isdigit():
+        if not 1 <= int(text) <= len(header):
+            raise IdentifyError(f"{path}:{line}: column {text} for {what}: the header has "
+                                f"{len(header)} columns ({', '.join(header)})")
+        return int(text) - 1
+    lower = [h.lower() for h in header]
+    if text.lower() not in lower:
+        raise IdentifyError(f"{path}:{line}: no column {text!r} for {what} (columns: "
+                            f"{', '.join(header)})")
+    return lower.index(text.lower())
+
+
+def _row_values(path, k: int, row: list[str], plan: dict[int, _Read],
+                decimal_comma: bool) -> dict:
     parsed = {}
-    for name, i in col.items():
+    for i, how in plan.items():
         if i >= len(row) or not row[i].strip():
             continue
+        cell = row[i].strip()
         try:
-            v = float(row[i])
+            v = float(cell.replace(",", ".") if decimal_comma else cell)
         except ValueError:
-            raise IdentifyError(f"{path}:{k}:{i + 1}: {name}: not a number: "
+            raise IdentifyError(f"{path}:{k}:{i + 1}: {how.name}: not a number: "
                                 f"{row[i][:40]!r}") from None
         if not math.isfinite(v):
-            raise IdentifyError(f"{path}:{k}:{i + 1}: {name}: not a finite number")
-        lo_hi = ranges[name]
+            raise IdentifyError(f"{path}:{k}:{i + 1}: {how.name}: not a finite number")
+        v = v * how.factor + how.offset
+        lo_hi = _column_range(how.key)
         if lo_hi is not None and not lo_hi[0] <= v <= lo_hi[1]:
-            raise IdentifyError(f"{path}:{k}:{i + 1}: {name}: {row[i].strip()[:40]} "
-                                f"is outside {lo_hi[0]:g} to {lo_hi[1]:g} (a unit "
-                                "mix-up?)")
-        parsed[name] = v
+            raise IdentifyError(f"{path}:{k}:{i + 1}: {how.name}: {cell[:40]} "
+                                f"is outside {_in_unit(lo_hi, how)} (a unit mix-up?)")
+        parsed[how.key] = v
     return parsed
+
+
+def _in_unit(lo_hi: tuple[float, float], how: _Read) -> str:
+    """A column's range in the unit of its cells."""
+    lo, hi = ((x - how.offset) / how.factor for x in lo_hi)
+    return f"{lo:g} to {hi:g}"
 
 
 def _steady_flow(path, values, atm: float, temperature_c: float) -> FlowData:

@@ -24,7 +24,6 @@ from __future__ import annotations
 import copy
 import itertools
 import os
-import sys
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,6 +35,7 @@ from .errors import PlcpredError
 from .machine import MachineError, machine_from_data, read_machine_data, schema
 from .memory import use_large_malloc_thresholds
 from .parser import ProgramError, parse_st
+from .progress import Progress, progress_or_off
 
 DASK_CONNECT_TIMEOUT_S = 10
 # scenarios a sweep runs at most unless asked for more: every one is validated in this
@@ -221,7 +221,6 @@ def _tables(data: dict, key: str) -> list:
 
 
 def _set_program_value(program, name: str, value: str, key: str):
-
     try:
         snippet = parse_st(f"PROGRAM _P VAR _v : INT := {value}; END_VAR END_PROGRAM",
                            f"--set {key}")
@@ -246,8 +245,11 @@ def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
                  program_path: str | None = None, hours: float | None = None,
                  sec: float | None = None, price: float | None = None,
                  compressor=None) -> dict:
-    """One prediction with the scenario applied: a row of totals, and the year's air,
-    energy and cost (``hours`` None: the machine file's [calendar], else 4000 h)."""
+    """One prediction with the scenario applied: a row of totals, the cycle (per hour
+    and NL per cycle; None without a steady cycle), the year's air, energy and cost
+    (``hours`` None: the machine file's [calendar], else 4000 h), and under
+    ``warnings`` what ``size`` would warn of (a machine that stands still before the
+    horizon ends)."""
 
     data = read_machine_data(machine_path)
     base = machine_from_data(data, machine_path)
@@ -262,11 +264,13 @@ def run_scenario(machine_path: str, scenario: dict, horizon_s: float, dt_s,
     row = dict(scenario)
     row.update({"total_nl": s.total_nl, "mean_l_min": s.mean_l_min,
                 "peak_l_min": s.peak_l_min, "peak_1s_l_min": s.peak_1s_l_min,
+                "cycles_per_hour": s.cycles_per_hour, "nl_per_cycle": s.nl_per_cycle,
                 "air_nm3_per_year": s.air_nm3_per_year,
                 "energy_kwh_per_year": s.energy_kwh_per_year,
                 "cost_per_year": s.cost_per_year})
     for name, v in zip(result.profile.names, result.profile.consumer_nl):
         row[f"{name}_nl"] = float(v)
+    row["warnings"] = list(s.warnings)
     return row
 
 
@@ -304,34 +308,17 @@ def _files_state(path: Path) -> tuple:
         return ("unreadable",)
 
 
-class _Progress:
-    """A one-line progress bar on stderr, only when stderr is a terminal."""
-
-    def __init__(self, total: int, enabled: bool | None = None):
-        self.total, self.done = total, 0
-        self.enabled = sys.stderr.isatty() if enabled is None else enabled
-
-    def step(self):
-        self.done += 1
-        if self.enabled:
-            width = 30
-            filled = int(width * self.done / self.total)
-            sys.stderr.write(f"\r[{'#' * filled}{'.' * (width - filled)}] "
-                             f"{self.done}/{self.total} scenarios")
-            if self.done == self.total:
-                sys.stderr.write("\n")
-            sys.stderr.flush()
-
-
 def sweep(machine_path, settings: list[Setting], horizon_s: float, dt_s=None,
           engine: str = "local", scheduler: str | None = None, workers: int | None = None,
-          progress: bool | None = None, program=None, hours: float | None = None,
+          progress: Progress | bool | None = None, program=None, hours: float | None = None,
           sec: float | None = None, price: float | None = None,
           compressor=None, max_scenarios: int = MAX_SCENARIOS,
           notes: list | None = None) -> list[dict]:
     """Rows of :func:`run_scenario` for every scenario, in scenario order. More than
     ``max_scenarios`` is an error before any work; ``notes`` hears of what the user
-    should know about the run (a Dask worker lost on the way)."""
+    should know about the run (a Dask worker lost on the way); ``progress`` shows the
+    scenarios done (:func:`~plcpred.progress.progress_or_off`)."""
+    progress = progress_or_off(progress)
     count = 1
     for s in settings:
         count *= len(s.values)
@@ -346,6 +333,7 @@ def sweep(machine_path, settings: list[Setting], horizon_s: float, dt_s=None,
             program = Path(program).resolve()
     machine_path = str(machine_path)
     combos = scenarios(settings)
+    progress.stage(f"checking {len(combos):,} scenarios")
     # fail fast, in this process, on settings that cannot apply
     data = read_machine_data(machine_path)
     base = machine_from_data(data, machine_path)
@@ -353,19 +341,24 @@ def sweep(machine_path, settings: list[Setting], horizon_s: float, dt_s=None,
     prog = base.read_program(program_path)
     for sc in combos:
         apply_settings(data, machine_path, prog, sc)
-    bar = _Progress(len(combos), progress)
     args = [(machine_path, sc, horizon_s, dt_s, program_path, hours, sec, price, compressor)
             for sc in combos]
-    if engine == "dask":
-        return _run_dask(args, scheduler, bar, notes if notes is not None else [])
-    if engine != "local":
+    if engine not in ("local", "dask"):
         raise SweepError(f"unknown engine '{engine}' (local or dask)")
-    workers = workers or min(len(combos), os.cpu_count() or 1)
+    with progress.bar(len(combos), "scenarios") as bar:
+        if engine == "dask":
+            return _run_dask(args, scheduler, bar, notes if notes is not None else [])
+        return _run_local(args, workers, bar)
+
+
+def _run_local(args, workers: int | None, bar) -> list[dict]:
+    """The scenarios of ``args`` in this process (one worker) or a pool of processes."""
+    workers = workers or min(len(args), os.cpu_count() or 1)
     if workers <= 1:
         rows = []
         for a in args:
             rows.append(run_scenario(*a))
-            bar.step()
+            bar.update()
         return rows
     rows = [None] * len(args)
     with ProcessPoolExecutor(max_workers=workers,
@@ -373,7 +366,7 @@ def sweep(machine_path, settings: list[Setting], horizon_s: float, dt_s=None,
         futures = {pool.submit(run_scenario, *a): k for k, a in enumerate(args)}
         for f in as_completed(futures):
             rows[futures[f]] = f.result()
-            bar.step()
+            bar.update()
     return rows
 
 
@@ -434,7 +427,7 @@ def _run_dask(args, scheduler, bar, notes: list):
         for f in as_completed(futures):
             for k, row in zip(index[f.key], f.result()):
                 rows[k] = row
-                bar.step()
+                bar.update()
         lost = sorted(workers - set(client.nthreads()))
         if lost:
             notes.append(f"{len(lost)} Dask worker(s) left during the sweep "

@@ -219,7 +219,7 @@ def compare_table_case(run: Run, capsys) -> None:
 def compare_json_case(run: Run, capsys) -> None:
     new = _bigger_press(run)
     assert run.cli(capsys, ["compare", "samples/press.toml", str(new), "--horizon", "20s",
-                            "--json", "--max-increase", "40%"]) == 0
+                            "--json", "-", "--max-increase", "40%"]) == 0
 
 
 def sweep_case(workers: int) -> Callable:

@@ -10,8 +10,14 @@ import numpy as np
 import pytest
 
 from plcpred.cli import main
-from plcpred.identify import (FlowData, IdentifyError, TankData, identify_steady,
-                              identify_tank, read_flow_data)
+from plcpred.identify import (
+    FlowData,
+    IdentifyError,
+    TankData,
+    identify_steady,
+    identify_tank,
+    read_flow_data,
+)
 from plcpred.machine import Consumer, load_machine
 from plcpred.physics import chamber as physics
 from plcpred.physics.drive import drive_params

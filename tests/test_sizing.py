@@ -10,8 +10,8 @@ import pytest
 
 from plcpred import predict
 from plcpred.air import demand_profile
-from plcpred.air.demand import ConsumerModel
 from plcpred.air.cycles import last_switch_s
+from plcpred.air.demand import ConsumerModel
 from plcpred.air.sizing import receiver_deficit, size
 from plcpred.sequencer.timeline import Signal, Timeline
 
@@ -88,7 +88,7 @@ def test_idle_share_counts_air_while_no_cylinder_moves():
 
 
 def run(*args):
-    return subprocess.run([sys.executable, "-m", "plcpred.cli", *map(str, args)],
+    return subprocess.run(check=False, args=[sys.executable, "-m", "plcpred.cli", *map(str, args)],
                           capture_output=True, text=True)
 
 
@@ -113,7 +113,7 @@ def test_compare_exit_codes(tmp_path):
                "--max-increase", "2%")
     assert more.returncode == 1 and "FAIL" in more.stdout
     loose = run("compare", RIG, SAMPLES / "prototype_rig" / "rig_seq2.toml", "--horizon",
-                "30s", "--max-increase", "100NL", "--json")
+                "30s", "--max-increase", "100NL", "--json", "-")
     assert loose.returncode == 0
     data = json.loads(loose.stdout)
     assert data["within_allowance"] and data["delta_nl"] > 0
@@ -169,7 +169,7 @@ pulse_ms = 500
     assert r.returncode == 4, r.stdout + r.stderr
     assert "NEW never moves" in r.stdout and "I_ESTOP_OK" in r.stdout
     js = run("compare", tmp_path / "base.toml", tmp_path / "new.toml", "--horizon", "20s",
-             "--json")
+             "--json", "-")
     data = json.loads(js.stdout)
     assert js.returncode == 4 and data["new_moves"] is False and data["passes"] is False
     ok = run("compare", tmp_path / "base.toml", tmp_path / "base.toml", "--horizon", "20s")
@@ -201,7 +201,7 @@ def test_per_cycle_sizing_does_not_depend_on_the_horizon():
         c = cycles_of(p.machine, p.timeline, p.profile)
         s = size(p.profile, cycles=c)
         figures.append((s.cycle_s, s.nl_per_cycle, c.count))
-    (c1, nl1, n1), (c24, nl24, n24) = figures
+    (c1, nl1, _n1), (c24, nl24, n24) = figures
     assert c1 == c24 == 4.0                       # the repeating state's period
     assert nl1 == pytest.approx(nl24, rel=1e-6)
     # and it is the air of one cycle: the mean flow times the cycle, once start-up is past
@@ -214,7 +214,7 @@ def test_compare_fails_a_throughput_drop(tmp_path):
     throughput gate fails it (exit 5), and air is compared per part."""
     slow = _pick_place_variant(tmp_path, "slow.toml", "stroke_time_s = [0.45, 0.45]",
                                "stroke_time_s = [2.0, 2.0]")
-    r = run("compare", PICK, slow, "--horizon", "10min", "--json")
+    r = run("compare", PICK, slow, "--horizon", "10min", "--json", "-")
     assert r.returncode == 5, r.stdout + r.stderr
     data = json.loads(r.stdout)
     base, new = data["cycles"]["base"], data["cycles"]["new"]
@@ -602,7 +602,7 @@ def test_the_waiting_cells_of_a_repeating_run_are_read_from_one_period():
 
 
 def test_sizing_ten_years_of_a_fast_machine(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "plcpred", "size",
+    r = subprocess.run(check=False, args=[sys.executable, "-m", "plcpred", "size",
                         str(SAMPLES / "ld_ejector.toml"), "--horizon", "3650d", "--out",
                         str(tmp_path / "o")], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr
@@ -611,15 +611,15 @@ def test_sizing_ten_years_of_a_fast_machine(tmp_path):
 
 @pytest.mark.parametrize("option,value", [("--allowance", "abc"), ("--band", "1xbar")])
 def test_unreadable_size_options_name_themselves(tmp_path, option, value):
-    r = subprocess.run([sys.executable, "-m", "plcpred", "size", str(SAMPLES / "press.toml"),
+    r = subprocess.run(check=False, args=[sys.executable, "-m", "plcpred", "size", str(SAMPLES / "press.toml"),
                         "--horizon", "10s", "--out", str(tmp_path / "o"), option, value],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and f"{option}: cannot read '{value}'" in r.stderr, r.stderr
 
 
 def test_compare_json_takes_a_path_like_every_other_command(tmp_path, capsys):
-    """One convention: --json OUT writes the file (the table still on stdout); --json
-    alone or --json - prints the JSON instead of the table."""
+    """One convention: --json PATH writes the file (the table still on stdout); --json -
+    prints the JSON alone on stdout and the table on stderr; --json needs its PATH."""
     from plcpred.cli import main
     press = SAMPLES / "press.toml"
     out = tmp_path / "cmp.json"
@@ -627,9 +627,14 @@ def test_compare_json_takes_a_path_like_every_other_command(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert code == 0 and out.exists()
     assert json.loads(out.read_text())["within_allowance"] is True
-    assert not printed.lstrip().startswith("{")
-    for flag in (["--json"], ["--json", "-"]):
-        assert main(["compare", str(press), str(press), "--horizon", "10s", *flag]) == 0
-        assert json.loads(capsys.readouterr().out)["within_allowance"] is True
+    assert printed.startswith("air use over 10 s") and "ok: new uses" in printed
+    assert main(["compare", str(press), str(press), "--horizon", "10s", "--json", "-"]) == 0
+    captured = capsys.readouterr()
+    assert json.loads(captured.out)["within_allowance"] is True
+    assert "ok: new uses" in captured.err
+    with pytest.raises(SystemExit) as exit_:
+        main(["compare", str(press), str(press), "--horizon", "10s", "--json"])
+    assert exit_.value.code == 2
+    assert "--json: expected one argument" in capsys.readouterr().err
     assert main(["compare", str(press), str(press), "--horizon", "10s", "--json",
                  str(tmp_path)]) == 2

@@ -65,14 +65,14 @@ def test_bad_settings_are_named(bad, message):
 
 
 def test_cli_sweep_is_quiet_off_a_terminal_and_writes_csv(tmp_path):
-    r = subprocess.run([sys.executable, "-m", "plcpred.cli", "sweep", str(RIG), "--set",
+    r = subprocess.run(check=False, args=[sys.executable, "-m", "plcpred.cli", "sweep", str(RIG), "--set",
                         "supply_bar_g=3,4", "--horizon", "10s", "--out", str(tmp_path)],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     assert r.stderr == ""
     lines = (tmp_path / "sweep.csv").read_text().splitlines()
     assert len(lines) == 3 and lines[0].startswith("supply_bar_g,total_nl")
-    r = subprocess.run([sys.executable, "-m", "plcpred.cli", "sweep", str(RIG), "--set",
+    r = subprocess.run(check=False, args=[sys.executable, "-m", "plcpred.cli", "sweep", str(RIG), "--set",
                         "supply_bar_g=3", "--horizon", "10s", "--engine", "dask"],
                        capture_output=True, text=True)
     assert r.returncode == 2 and "--scheduler" in r.stderr
@@ -322,3 +322,36 @@ def test_dask_workers_started_elsewhere_find_a_relative_machine_path(tmp_path, m
                      5.0, 0.05, engine="dask", scheduler=cluster.scheduler_address)
     assert [r["supply_bar_g"] for r in rows] == ["3", "5"]
     assert rows[1]["total_nl"] > rows[0]["total_nl"]
+
+
+def test_a_sweep_shows_each_scenarios_cycle_and_warns_as_size_does(tmp_path, capsys):
+    """Cycles per hour and NL per cycle per scenario (a scenario that takes more air per
+    part shows it at the same throughput), as size gives them; and size's warning that
+    the machine stands still for most of the horizon."""
+    from plcpred.air.sizing import size_prediction
+    from plcpred.cli import main
+    pick = SAMPLES / "pick_place.toml"
+    rows = sweep(pick, [parse_setting("supply_bar_g=5,6")], 30.0, workers=1)
+    machine = load_machine(pick)
+    for row, supply in zip(rows, (5.0, 6.0)):
+        machine.supply_bar_g = supply
+        s = size_prediction(predict(machine, 30.0))
+        assert row["cycles_per_hour"] == pytest.approx(s.cycles_per_hour) == 900.0
+        assert row["nl_per_cycle"] == pytest.approx(s.nl_per_cycle, rel=1e-12)
+        assert row["warnings"] == []
+    assert rows[1]["nl_per_cycle"] > 1.1 * rows[0]["nl_per_cycle"]
+    assert main(["sweep", str(pick), "--set", "supply_bar_g=5,6", "--horizon", "30s",
+                 "--workers", "1", "--out", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].split()[4:6] == ["cycles_per_hour", "nl_per_cycle"]
+    assert out[2].split()[4:6] == ["900.00", f"{rows[0]['nl_per_cycle']:.2f}"]
+    csv_head = (tmp_path / "o" / "sweep.csv").read_text().splitlines()[0].split(",")
+    assert "nl_per_cycle" in csv_head and "warnings" not in csv_head
+    # the rig runs its sequence once: it stands still after 8 s of 60
+    assert main(["sweep", str(RIG), "--set", "supply_bar_g=4,5", "--horizon", "60s",
+                 "--workers", "1"]) == 0
+    captured = capsys.readouterr()
+    assert captured.err.count("warning:") == 1
+    assert "warning: every scenario: the valves last switch at 8.26 s of the 60 s " \
+           "horizon" in captured.err
+    assert captured.out.splitlines()[2].split()[4:6] == ["-", "-"]

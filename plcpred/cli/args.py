@@ -3,8 +3,10 @@ command-line word into a value or an argparse error that says what was expected.
 from __future__ import annotations
 
 import argparse
+import math
 import re
 
+from ..datafile import FLOW_UNIT_SPELLINGS, PRESSURE_UNIT_SPELLINGS, unit_name
 from ..output import SHOWN_CONSUMERS
 from ..physics.units import CFM_M3_MIN
 
@@ -23,7 +25,6 @@ def shown_consumers(text: str) -> int | None:
 
 
 def consumers_arg(p) -> None:
-
     p.add_argument("--consumers", type=shown_consumers, default=SHOWN_CONSUMERS,
                    metavar="N|all",
                    help="consumers shown one by one in demand.csv and demand.png: the N "
@@ -86,6 +87,96 @@ def max_rows_arg(p, beyond: str) -> None:
                         f"{DEFAULT_MAX_ROWS * 30 / 1e9:.1f} GB); {beyond}")
 
 
+def _unit_type(spellings: dict, what: str):
+    def unit(text: str) -> str:
+        name = unit_name(text, spellings)
+        if name is None:
+            raise argparse.ArgumentTypeError(f"unknown {what} unit {text!r} (known: "
+                                             f"{', '.join(spellings)})")
+        return name
+    unit.__name__ = f"{what} unit"
+    return unit
+
+
+flow_unit = _unit_type(FLOW_UNIT_SPELLINGS, "flow")
+pressure_unit = _unit_type(PRESSURE_UNIT_SPELLINGS, "pressure")
+
+FLOW_UNIT_HELP = (f"{', '.join(FLOW_UNIT_SPELLINGS)} (at the meter's reference condition; "
+                  "also as headers spell them: NL/min, lpm, slpm, Nm3/h, Nm³/h, m3/min, "
+                  "cfm, ...)")
+PRESSURE_UNIT_HELP = (f"{', '.join(PRESSURE_UNIT_SPELLINGS)} (gauge; bara, psia, kpaa "
+                      "absolute; also as headers spell them: bar(g), psig, kPa, ...)")
+
+
+def log_column_args(p, supply: bool = True) -> None:
+    """Where a logger's CSV holds its values and in which units (diagnose, identify)."""
+    p.add_argument("--time-col", metavar="NAME|N", help="time column (default time_s, else "
+                   "the one column named as a time: Time, Timestamp, Zeit, Uhrzeit, ...; a "
+                   "name such as t_ms or 'Zeit [ms]' gives numbers in ms, '(min)' in "
+                   "minutes); seconds, ISO 8601 date-times, a logger's date-times "
+                   "(24.11.2026 13:05:00,5; 2026/11/24 13:05:00; 11/24/2026 1:05:00 PM) or "
+                   "times of day (13:05:00.5). Lines above the header (device, serial) are "
+                   "skipped")
+    p.add_argument("--date-col", metavar="NAME|N",
+                   help="date column, for a time column that holds the time of day only "
+                        "(default: the one column named as a date, Date or Datum, beside a "
+                        "time column named Time, Zeit or Uhrzeit)")
+    p.add_argument("--flow-col", metavar="NAME|N",
+                   help="flow column (default flow_l_min, else the one column named as a "
+                        "flow: Flow, Durchfluss, Volumenstrom, FAD, Debit, ...)")
+    p.add_argument("--flow-unit", type=flow_unit, metavar="UNIT",
+                   help="unit of the flow column: " + FLOW_UNIT_HELP + ". Default: the unit "
+                        "its header names, as in 'Flow (m3/h)' (a warning where --flow-unit "
+                        "says another), else l/min")
+    if supply:
+        p.add_argument("--supply-col", metavar="NAME|N",
+                       help="supply pressure column (default supply_bar_g, else the one "
+                            "column named as a pressure: Pressure, Druck, ...): its readings "
+                            "bound the supply the diagnosis may find")
+        p.add_argument("--supply-unit", type=pressure_unit, metavar="UNIT",
+                       help="unit of the supply column: " + PRESSURE_UNIT_HELP + ". "
+                            "Default: the unit its header names, as in 'Druck [psi]', else "
+                            "bar(g)")
+
+
+def test_column_args(p) -> None:
+    """Where test data hold their values (identify), named as diagnose names a log's."""
+    p.add_argument("--time-col", metavar="NAME|N",
+                   help="tank data: the time column, seconds (default time_s)")
+    p.add_argument("--flow-col", metavar="NAME|N",
+                   help="steady flow: the flow column (default flow_l_min)")
+    p.add_argument("--flow-unit", type=flow_unit, metavar="UNIT",
+                   help="unit of --flow-col: " + FLOW_UNIT_HELP + ". Default: the unit its "
+                        "header names, as in 'Q [m3/h]', else l/min")
+    p.add_argument("--p-up-col", metavar="NAME|N",
+                   help="steady flow: the upstream pressure column (default p_up_bar_g, "
+                        "p_up_bar or p_up_kpa)")
+    p.add_argument("--p-down-col", metavar="NAME|N",
+                   help="steady flow: the downstream pressure column (default p_down_bar_g, "
+                        "p_down_bar or p_down_kpa; without one, atmospheric)")
+    p.add_argument("--pressure-col", metavar="NAME|N",
+                   help="tank data: the tank's pressure column (default p_bar_g, p_bar or "
+                        "p_kpa)")
+    p.add_argument("--pressure-unit", type=pressure_unit, metavar="UNIT",
+                   help="unit of the pressure columns named above: " + PRESSURE_UNIT_HELP
+                        + ". Default: the unit each header names, as in 'p1 [psi]', else "
+                        "bar(g)")
+
+
+def json_arg(p, what: str) -> None:
+    """``--json PATH``, the same on every command: ``-`` is stdout, which then holds the
+    JSON alone (what the command prints otherwise goes to stderr)."""
+    p.add_argument("--json", metavar="PATH",
+                   help=f"also write {what} as JSON to PATH; - for stdout, which then "
+                        "holds the JSON alone (the text goes to stderr)")
+
+
+def quiet_arg(p) -> None:
+    p.add_argument("--quiet", "-q", action="store_true",
+                   help="show no progress on stderr (it is shown only while stderr is a "
+                        "terminal; warnings and errors are printed all the same)")
+
+
 def machine_args(p, out: str | None = "output directory", dt: bool = True) -> None:
     """The arguments every machine-running command shares."""
     p.add_argument("machine", metavar="MACHINE", help="machine file (.toml)")
@@ -101,6 +192,7 @@ def machine_args(p, out: str | None = "output directory", dt: bool = True) -> No
                        metavar="N", help="most signal changes held in memory (default "
                        f"{DEFAULT_MAX_CHANGES:,}); a program that changes a signal every "
                        "scan over a long horizon stops with an error naming it")
+    quiet_arg(p)
 
 
 DEFAULT_MAX_CHANGES = 20_000_000  # the sequencer's default (not imported: --help stays fast)
@@ -109,12 +201,6 @@ DEFAULT_MAX_CHANGES = 20_000_000  # the sequencer's default (not imported: --hel
 # timeline.csv rows written at most unless --max-rows says otherwise (about 30 bytes a
 # row: 1.5 GB); a tiled year of a fast machine would otherwise fill the disk
 DEFAULT_MAX_ROWS = 50_000_000
-
-
-EXIT_NEVER_MOVES = 4   # compare: NEW never moves (a deadlock passes no air gate)
-
-
-EXIT_THROUGHPUT_DROP = 5   # compare: NEW completes fewer cycles per hour than allowed
 
 
 def whole_number(text: str, least: int) -> int:
@@ -194,6 +280,6 @@ def seconds(text: str) -> float:
         v = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected seconds, not {text!r}") from None
-    if v != v or abs(v) > 1e12:
+    if math.isnan(v) or abs(v) > 1e12:
         raise argparse.ArgumentTypeError(f"expected a finite number of seconds, not {text!r}")
     return v

@@ -9,23 +9,30 @@ from ..machine import load_machine
 from ..output import output_dir
 from ..outputs.files import write_emulation
 from ..plant import emulate
+from ..progress import Progress
 from .common import command_line, exit_code, horizon_and_out
 
 
 def cmd_emulate(args) -> int:
-
     horizon_s, _, out = horizon_and_out(args)
-    try:
-        em = emulate(args.machine, horizon_s, truth=args.truth, seed=args.seed,
-                     program=args.program)
-        nominal = load_machine(args.machine)
-        predicted = predict(nominal, horizon_s, program=args.program,
-                            max_events=args.max_events).profile
-    except PlcpredError as e:
-        print(e, file=sys.stderr)
-        return exit_code(e)
-    with output_dir(out, command_line(args)) as staging:
-        written = [out / f.name for f in write_emulation(em, staging, plot=not args.no_plot)]
+    with Progress.on_terminal(args.quiet) as progress:
+        try:
+            with progress.bar(horizon_s, "s", "physics plant, simulated") as bar:
+                em = emulate(args.machine, horizon_s, truth=args.truth, seed=args.seed,
+                             program=args.program, on_time=lambda t_ns: bar.update_to(
+                                 round(t_ns / 1e9, 1)))
+            progress.stage("predicting the same run for comparison")
+            nominal = load_machine(args.machine)
+            predicted = predict(nominal, horizon_s, program=args.program,
+                                max_events=args.max_events).profile
+        except PlcpredError as e:
+            progress.close()
+            print(e, file=sys.stderr)
+            return exit_code(e)
+        with output_dir(out, command_line(args)) as staging:
+            written = [out / f.name for f in write_emulation(em, staging,
+                                                             plot=not args.no_plot,
+                                                             progress=progress)]
     for w in em.machine.warnings:
         print(f"warning: {w}", file=sys.stderr)
     print(f"{em.machine.name}: emulated {horizon_s:g} s at {em.machine.supply_bar_g:g} bar(g)"

@@ -30,16 +30,24 @@ import itertools
 import math
 import re
 from array import array
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
-from typing import Iterator, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
-from ..datafile import DataLines
+from ..datafile import (
+    FLOW_UNIT_SPELLINGS,
+    PRESSURE_UNIT_SPELLINGS,
+    DataLines,
+    known_units,
+    unit_name,
+)
 from ..errors import PlcpredError
 from ..physics import meter
+from ..physics.units import BAR_PER_PSI, P_ATM_PA, PA_PER_BAR
 from ..sequencer.timeline import (
     MAX_HORIZON_NS,
     MAX_HORIZON_TEXT,
@@ -49,10 +57,15 @@ from ..sequencer.timeline import (
     parse_horizon,
 )
 
-# volume units per minute -> litres per minute
+# volume units per minute -> litres per minute (the names FLOW_UNIT_SPELLINGS spells)
 FLOW_UNITS = {"l/min": 1.0, "m3/h": 1000.0 / 60.0, "l/s": 60.0, "m3/min": 1000.0,
               "scfm": 28.316846592}
-# reference conditions: (pressure Pa, temperature K)
+# pressure units -> (bar per unit, absolute): a supply column is read as bar(g), an
+# absolute one less the standard atmosphere
+PRESSURE_UNITS = {"bar": (1.0, False), "bara": (1.0, True),
+                  "psi": (BAR_PER_PSI, False), "psia": (BAR_PER_PSI, True),
+                  "kpa": (0.01, False), "kpaa": (0.01, True), "mpa": (10.0, False),
+                  "mbar": (1e-3, False)}
 # Limits of what a flow log or an I/O trace may hold. Both are read a line at a time and
 # keep only their numbers (8 bytes a value: a flow log of MAX_ROWS rows holds at most about
 # 500 MB, an I/O trace about 400 MB as the timeline it becomes), so memory stays bounded
@@ -141,15 +154,20 @@ def reference_factor(reference: str) -> float:
 
 def canonical_flow_unit(unit: str) -> str:
     """The FLOW_UNITS key ``unit`` spells (``Nm³/h``, ``m3h``, ``lpm``, ``NL/min``)."""
-    key = unit.strip().lower().replace(" ", "").replace("³", "3").replace("lpm", "l/min")
-    key = {"nl/min": "l/min", "nm3/h": "m3/h", "nl/s": "l/s", "l_min": "l/min",
-           "m3_h": "m3/h", "l_s": "l/s", "cfm": "scfm", "m3h": "m3/h", "nm3h": "m3/h",
-           "lmin": "l/min", "nlmin": "l/min", "nl_min": "l/min", "nm3/min": "m3/min",
-           "m3_min": "m3/min", "m3min": "m3/min"}.get(key, key)
-    if key not in FLOW_UNITS:
+    name = unit_name(unit, FLOW_UNIT_SPELLINGS)
+    if name is None:
         raise MeasuredDataError(f"unknown flow unit {unit!r} (known: "
-                                f"{', '.join(FLOW_UNITS)})")
-    return key
+                                f"{known_units(FLOW_UNIT_SPELLINGS)})")
+    return name
+
+
+def canonical_pressure_unit(unit: str) -> str:
+    """The PRESSURE_UNITS key ``unit`` spells (``psig``, ``bar(g)``, ``kPa``)."""
+    name = unit_name(unit, PRESSURE_UNIT_SPELLINGS)
+    if name is None:
+        raise MeasuredDataError(f"unknown pressure unit {unit!r} (known: "
+                                f"{known_units(PRESSURE_UNIT_SPELLINGS)})")
+    return name
 
 
 def flow_unit_factor(unit: str) -> float:
@@ -163,7 +181,9 @@ def _column_number(text) -> bool:
 
 
 def _column(path: str, header: list[str], wanted, default: str | None, what: str,
-            option: str) -> int | None:
+            option: str, line: int) -> int | None:
+    """The index of the column ``wanted`` names (a name or a 1-based number), or of
+    ``default`` when nothing is wanted (None if the header has no such column)."""
     names = [h.strip() for h in header]
     if wanted is None:
         if default in names:
@@ -173,46 +193,82 @@ def _column(path: str, header: list[str], wanted, default: str | None, what: str
     if _column_number(text):
         k = int(text)
         if not 1 <= k <= len(names):
-            raise MeasuredDataError(f"{path}: {option} {k}: the file has {len(names)} "
-                                    "columns")
+            raise MeasuredDataError(f"{path}: line {line}: {option} {k}: the header has "
+                                    f"{len(names)} columns ({', '.join(names)})")
         return k - 1
     lower = [n.lower() for n in names]
     if text.lower() in lower:
         return lower.index(text.lower())
-    raise MeasuredDataError(f"{path}: no {what} column {text!r} (columns: "
+    raise MeasuredDataError(f"{path}: line {line}: no {what} column {text!r} (columns: "
                             f"{', '.join(names)}); name it with {option}")
 
 
-# header words a logger's export names its time and flow columns with (English, German,
-# French, Italian, Spanish), matched in a name without its unit: "Flow (m3/h)" is a flow
-_TIME_WORDS = ("time", "timestamp", "zeit", "zeitstempel", "datetime", "date time",
-               "date/time", "datum/zeit", "datum zeit", "horodatage", "tempo", "tiempo",
-               "heure", "t_s", "time_s", "t_ms")
-_FLOW_WORDS = ("flow", "durchfluss", "volumenstrom", "verbrauch", "debit", "débit",
-               "portata", "caudal", "consumption", "q")
+# header words a logger's export names its columns with (English, German, French,
+# Italian, Spanish), matched in a name without its unit: "Flow (m3/h)" is a flow
+_TIME_WORDS = ("time", "timestamp", "zeit", "zeitstempel", "zeitpunkt", "uhrzeit",
+               "datetime", "date time", "date/time", "date_time", "datum/zeit", "datum zeit",
+               "datum/uhrzeit", "datum uhrzeit", "horodatage", "tempo", "tiempo", "heure",
+               "hora", "ora", "t_s", "time_s", "t_ms")
+# words of a column that holds the date alone, beside one with the time of day
+_DATE_WORDS = ("date", "datum", "data", "fecha")
+_TIME_OF_DAY_WORDS = ("time", "zeit", "uhrzeit", "heure", "hora", "ora", "tempo", "tiempo")
+_FLOW_WORDS = ("flow", "durchfluss", "volumenstrom", "verbrauch", "luftverbrauch",
+               "druckluftverbrauch", "luftmenge", "liefermenge", "fad", "free air delivery",
+               "debit", "débit", "portata", "caudal", "consumption", "q")
+_PRESSURE_WORDS = ("pressure", "supply", "supply pressure", "line pressure", "druck",
+                   "netzdruck", "versorgungsdruck", "systemdruck", "leitungsdruck",
+                   "pression", "pressione", "presión", "presion")
+
+# a unit in brackets at the end of a name ("Druck [bar(g)]"), else anywhere ("Flow (m3/h)
+# avg"), else after an underscore, "in" or a space ("flow_m3_min", "supply_bar_g")
+_UNIT_AT_END = re.compile(r"[\(\[]\s*(.+?)\s*[\)\]]\s*$")
+_UNIT_INSIDE = re.compile(r"[\(\[]\s*([^\)\]]+?)\s*[\)\]]")
+_UNIT_AFTER = re.compile(r"(?:_|\s+in\s+|\s+)((?:n?m3|n?m³)_?/?(?:h|min)|n?l_?/?(?:min|s)|lpm"
+                         r"|slpm|s?cfm|bar_?[ga]?|m?bar|psi[ga]?|k?pa_?[ga]?|mpa)$")
+
+
+def _name_and_unit(name: str) -> tuple[str, str | None]:
+    """(a header name in lower case without its unit, the unit's text if it names one):
+    ``Flow (m3/h)`` -> (``flow``, ``m3/h``), ``supply_bar_g`` -> (``supply``, ``bar_g``)."""
+    text = name.strip().lower()
+    m = _UNIT_AT_END.search(text) or _UNIT_INSIDE.search(text) or _UNIT_AFTER.search(text)
+    if m is None:
+        return text.strip(" _-:"), None
+    return (text[:m.start()] + text[m.end():]).strip(" _-:"), m.group(1)
+
+
+def column_unit(name: str, spellings: dict) -> str | None:
+    """The unit of ``spellings`` (FLOW_UNIT_SPELLINGS, PRESSURE_UNIT_SPELLINGS) a
+    column's header name gives (``Flow (m3/h)`` -> ``m3/h``), if it gives one."""
+    unit = _name_and_unit(name)[1]
+    return None if unit is None else unit_name(unit, spellings)
 
 
 def _bare(name: str) -> tuple[str, str | None]:
-    """(a header name without its unit, the unit it names in brackets or after an
-    underscore, if one of FLOW_UNITS'): ``Flow (m3/h)`` -> (``flow``, ``m3/h``)."""
-    text = name.strip().lower()
-    unit = None
-    m = re.search(r"[\(\[]\s*([^\)\]]+?)\s*[\)\]]", text)
-    if m:
-        unit = m.group(1)
-        text = (text[:m.start()] + text[m.end():]).strip()
-    else:
-        m = re.search(r"(?:_|\s+in\s+|\s+)((?:n?m3|n?m³)_?/?(?:h|min)|n?l_?/?(?:min|s)|lpm"
-                      r"|s?cfm)$", text)
-        if m:
-            unit = m.group(1)
-            text = text[:m.start()].strip()
-    if unit is not None:
-        try:
-            unit = canonical_flow_unit(unit)
-        except MeasuredDataError:
-            unit = None
-    return text.strip(" _-:"), unit
+    """(a header name without its unit, the flow unit it names, if one of FLOW_UNITS')."""
+    text, unit = _name_and_unit(name)
+    return text, None if unit is None else unit_name(unit, FLOW_UNIT_SPELLINGS)
+
+
+def _pressure_unit_of(name: str) -> str | None:
+    """The pressure unit a header name gives (``Druck [psi]`` -> ``psi``), if any."""
+    unit = _name_and_unit(name)[1]
+    return None if unit is None else unit_name(unit, PRESSURE_UNIT_SPELLINGS)
+
+
+def _named_as(header: list[str], words, exclude=()) -> int | None:
+    """The one column whose name (without its unit) is one of ``words`` or starts with
+    one; None where no column or several are."""
+    bare = [_name_and_unit(h)[0] for h in header]
+    hits = [k for k, b in enumerate(bare) if k not in exclude and (
+        b in words or any(b.startswith((w + " ", w + "_")) for w in words if len(w) > 2))]
+    return hits[0] if len(hits) == 1 else None
+
+
+def _time_named(header: list[str], exclude=()) -> int | None:
+    """The column named as a time, else the one named as a date (a date-time in it)."""
+    k = _named_as(header, _TIME_WORDS, exclude)
+    return k if k is not None else _named_as(header, _DATE_WORDS, exclude)
 
 
 TIME_UNITS_S = {"ms": 0.001, "s": 1.0, "sec": 1.0, "min": 60.0, "h": 3600.0}
@@ -227,58 +283,85 @@ def _time_unit_s(name: str) -> float:
     return TIME_UNITS_S[m.group(1)] if m else 1.0
 
 
-def _guess_columns(header: list[str]) -> tuple[int, int, str | None] | None:
-    """(time column, flow column, the flow column's unit) where exactly one column's
-    name says time and exactly one says flow (``Timestamp``, ``Flow (m3/h)``); None
-    where that is not so."""
-    bare = [_bare(h) for h in header]
-
-    def only(words, exclude=()):
-        hits = [k for k, (b, _) in enumerate(bare) if k not in exclude and (
-            b in words or any(b.startswith(w + " ") or b.startswith(w + "_")
-                              for w in words if len(w) > 2))]
-        return hits[0] if len(hits) == 1 else None
-
-    t = only(_TIME_WORDS)
-    if t is None:
-        return None
-    f = only(_FLOW_WORDS, exclude=(t,))
-    if f is None:
-        return None
-    return t, f, bare[f][1]
-
-
 MAX_PREAMBLE_LINES = 50
+
+
+def _cells(line: str) -> list[str]:
+    return next(csv.reader([line], delimiter=_delimiter(line)))
 
 
 def _header_line(lines: list[str], time_col, flow_col) -> int:
     """Index of the header row: the first line, or the first of the first
     MAX_PREAMBLE_LINES lines that names the time and flow columns (a logger's export
     often starts with lines about the device); with columns given by number, the line
-    before the first row whose time and flow read as numbers or date-times."""
-    def cells(line):
-        return next(csv.reader([line], delimiter=_delimiter(line)))
-
-    def names(wanted, default):
-        return [default] if wanted is None else [str(wanted).strip()]
-
-    t_names, f_names = names(time_col, "time_s"), names(flow_col, "flow_l_min")
-    numbered = _column_number(t_names[0]) and _column_number(f_names[0])
+    before the first row whose time and flow read as numbers or date-times. Where none
+    does, the line above the first row of data, whose columns the error then lists."""
+    numbered = _column_number(time_col) and _column_number(flow_col)
     for k, line in enumerate(lines[:MAX_PREAMBLE_LINES]):
         if not line.strip():
             continue
-        row = [c.strip().lower() for c in cells(line)]
+        row = [c.strip() for c in _cells(line)]
         if numbered:
-            ti, fi = int(t_names[0]) - 1, int(f_names[0]) - 1
+            ti, fi = int(time_col) - 1, int(flow_col) - 1
             if k and max(ti, fi) < len(row) and _reads_as_sample(row[ti], row[fi]):
                 return max(j for j in range(k) if lines[j].strip())
-        elif (_column_number(t_names[0]) or t_names[0].lower() in row) and \
-                (_column_number(f_names[0]) or f_names[0].lower() in row):
+        elif _names(row, time_col, "time_s", _time_named) and \
+                _names(row, flow_col, "flow_l_min",
+                       lambda h: _named_as(h, _FLOW_WORDS)):
             return k
-        elif time_col is None and flow_col is None and _guess_columns(row):
-            return k
-    # not found: the first line with anything on it, whose columns the error lists
-    return next(k for k, line in enumerate(lines) if line.strip())
+    return _above_data(lines)
+
+
+def _names(row: list[str], wanted, default: str, guess) -> bool:
+    """Whether a header ``row`` holds the column ``wanted`` names (any row does for a
+    number), or without one the default name or one ``guess`` finds."""
+    if wanted is None:
+        return default in row or guess(row) is not None
+    text = str(wanted).strip()
+    return _column_number(text) or text.lower() in [c.lower() for c in row]
+
+
+def _above_data(lines: list[str]) -> int:
+    """The last line with anything on it above the first row of data (every field a
+    number, a date or a time, at least two of them), else the first such line: where the
+    header most likely is, for an error that lists its columns."""
+    filled = [k for k, line in enumerate(lines) if line.strip()]
+    for before, k in itertools.pairwise(filled):
+        # split as the header would be (1;1,5 holds a comma and a semicolon)
+        delimiter = _delimiter(lines[before])
+        if _data_row(lines[k], delimiter) and not _data_row(lines[before], delimiter):
+            return before
+    return filled[0]
+
+
+_DATE_ONLY_FORMATS = ("%d.%m.%Y", "%d.%m.%y", "%Y-%m-%d", "%Y/%m/%d", "%m/%d/%Y",
+                      "%d/%m/%Y")
+
+
+def _data_row(line: str, delimiter: str) -> bool:
+    """A row of data: at least two fields, every one a number, a date-time, a date or a
+    time of day."""
+    cells = [c.strip() for c in next(csv.reader([line], delimiter=delimiter)) if c.strip()]
+    return len(cells) >= 2 and all(_data_cell(c) for c in cells)
+
+
+def _data_cell(cell: str) -> bool:
+    try:
+        _number(cell, True)
+        return True
+    except ValueError:
+        pass
+    for fmt in _DATE_ONLY_FORMATS:
+        try:
+            datetime.strptime(cell, fmt)
+            return True
+        except ValueError:
+            continue
+    try:
+        _timestamp(cell)
+        return True
+    except ValueError:
+        return False
 
 
 def _delimiter(line: str) -> str:
@@ -378,29 +461,37 @@ class _LogRequest(NamedTuple):
     time_col: object
     flow_col: object
     supply_col: object
-    flow_unit: str | None
+    flow_unit: str | None           # a FLOW_UNITS key
     reference: str
+    supply_unit: str | None = None  # a PRESSURE_UNITS key
+    date_col: object = None
 
 
 def read_measured(path, time_col=None, flow_col=None, flow_unit: str | None = None,
-                  reference: str = "iso8778", supply_col=None) -> MeasuredRun:
+                  reference: str = "iso8778", supply_col=None,
+                  supply_unit: str | None = None, date_col=None) -> MeasuredRun:
     """Read a flow log (see the module docstring). Rows whose flow is empty or not a
     number are skipped and counted in ``source["skipped_rows"]``; times must increase.
-    Without ``time_col``/``flow_col`` and without the default names, a header with
-    exactly one column named as a time and one as a flow is read so (``Timestamp``,
-    ``Flow (m3/h)``), in the unit the flow column's name gives unless ``flow_unit`` is
-    given (else l/min); ``source["columns_guessed"]`` says what was taken.
+    Columns not named (a header name or a 1-based number) are found by their default
+    names, else where exactly one column is named as a time (or a date beside a time of
+    day: ``Datum``, ``Uhrzeit``), a flow or a pressure; ``source["columns_guessed"]``
+    says what was taken. The flow is in the unit its column's name gives (``Flow
+    (m3/h)``, ``Volumenstrom [m3/min]``) unless ``flow_unit`` is given (a warning in
+    ``source["warnings"]`` where the two differ), else l/min; the supply likewise
+    (``Druck [psi]``, ``supply_unit``), else bar(g).
     Raises :class:`MeasuredDataError` naming the file, the line and the column."""
     path = Path(path)
-    unit_k = flow_unit_factor(flow_unit or "l/min")
+    flow_unit = None if flow_unit is None else canonical_flow_unit(flow_unit)
+    supply_unit = None if supply_unit is None else canonical_pressure_unit(supply_unit)
     ref_k = reference_factor(reference)
-    request = _LogRequest(time_col, flow_col, supply_col, flow_unit, reference)
+    request = _LogRequest(time_col, flow_col, supply_col, flow_unit, reference, supply_unit,
+                          date_col)
     with DataLines(path, MeasuredDataError, MAX_ROWS, extra=MAX_PREAMBLE_LINES + 1) as lines:
-        return _read_measured(path, lines, request, unit_k, ref_k)
+        return _read_measured(path, lines, request, ref_k)
 
 
-def _read_measured(path: Path, lines: DataLines, request: _LogRequest, unit_k: float,
-                   ref_k: float) -> MeasuredRun:
+def _read_measured(path: Path, lines: DataLines, request: _LogRequest, ref_k: float
+                   ) -> MeasuredRun:
     """The flow log ``lines`` of ``path``: its header found, its columns chosen, its rows
     read and checked one at a time, and the samples in NL/min at the ISO 8778 reference."""
     file = str(path)
@@ -410,7 +501,7 @@ def _read_measured(path: Path, lines: DataLines, request: _LogRequest, unit_k: f
     rows = _csv_rows(csv.reader(itertools.chain(top, lines), delimiter=delimiter), file,
                      start)
     _, header = next(rows)
-    cols = _log_columns(file, header, start, request, unit_k)
+    cols = _log_columns(file, header, start, request)
     # a numeric time column's name may give its unit (t_ms, Zeit [ms])
     clock = _LogClock(decimal_comma, _time_unit_s(header[cols.time]))
     samples = _read_samples(rows, file, header, cols, clock)
@@ -441,59 +532,111 @@ def _header_lines(lines: DataLines, file: str, request: _LogRequest
 
 
 class _Columns(NamedTuple):
-    """Where a flow log's values stand, and the unit of its flows."""
+    """Where a flow log's values stand, and the units of its flows and pressures."""
     time: int
     flow: int
     supply: int | None
-    flow_unit: str | None           # the caller's or the header's (None: l/min)
+    flow_unit: str                  # the caller's, else the header's, else l/min
     unit_k: float                   # l/min per unit of the log's flows
-    guessed: tuple | None           # (time, flow, unit) taken from the header's names
+    guessed: list                   # what was taken from the header's names, as said
+    date: int | None = None         # a date beside a time of day
+    supply_unit: str = "bar"        # the caller's, else the header's, else bar(g)
+    warnings: tuple = ()
 
 
-def _log_columns(file: str, header: list[str], start: int, request: _LogRequest,
-                 unit_k: float) -> _Columns:
+def _log_columns(file: str, header: list[str], start: int, request: _LogRequest
+                 ) -> _Columns:
     """The columns of a flow log: as the caller names them, else by their default
-    names, else as a logger's own names say (one column a time and one a flow); the
-    flow's unit as the caller gives it, else as the flow column's name gives it."""
-    time_col, flow_col, flow_unit = request.time_col, request.flow_col, request.flow_unit
-    t_idx = _column(file, header, time_col, "time_s", "time", "--time-col")
-    f_idx = _column(file, header, flow_col, "flow_l_min", "flow", "--flow-col")
-    guessed = None
-    if (t_idx is None and time_col is None) or (f_idx is None and flow_col is None):
-        # a logger's own names: taken where one column says time and one says flow
-        guess = _guess_columns(header)
-        if guess is not None and t_idx in (None, guess[0]) and f_idx in (None, guess[1]):
-            guessed = guess
-            header_unit = guess[2] if f_idx is None else None
-            t_idx, f_idx = guess[0], guess[1]
-            if flow_unit is None and header_unit is not None:
-                unit_k = flow_unit_factor(header_unit)
-                flow_unit = header_unit
-    if f_idx is not None and flow_unit is None and guessed is None:
-        # a column named by --flow-col keeps the unit its header gives (read as l/min,
-        # a Volumenstrom [m3/h] would be 16.7 times too low)
-        header_unit = _bare(header[f_idx])[1]
-        if header_unit is not None and header_unit != "l/min":
-            unit_k = flow_unit_factor(header_unit)
-            flow_unit = header_unit
-            guessed = (t_idx, f_idx, header_unit)
+    names, else as a logger's own names say; the units as the caller gives them, else
+    as the columns' names give them."""
+    line = start + 1
+    names = [h.strip() for h in header]
+    t_idx = _column(file, header, request.time_col, "time_s", "time", "--time-col", line)
+    f_idx = _column(file, header, request.flow_col, "flow_l_min", "flow", "--flow-col", line)
+    guessed = []
+    if t_idx is None and request.time_col is None:
+        t_idx = _time_named(header, exclude=(f_idx,))
+        if t_idx is not None:
+            guessed.append(f"time from column '{names[t_idx]}'")
+    if f_idx is None and request.flow_col is None:
+        f_idx = _named_as(header, _FLOW_WORDS, exclude=(t_idx,))
     if t_idx is None or f_idx is None:
         raise _no_columns(file, header, start, t_idx, f_idx)
+    d_idx = _date_column(file, header, request, t_idx, f_idx, line)
+    if d_idx is not None and request.date_col is None:
+        guessed[:] = [f"time from columns '{names[d_idx]}' and '{names[t_idx]}'"]
+    warnings = []
+    flow_unit, unit_said = _unit(names[f_idx], request.flow_unit, "--flow-unit", "l/min",
+                                 lambda n: _bare(n)[1], warnings)
+    if guessed or (request.flow_col is None and names[f_idx] != "flow_l_min") or unit_said:
+        guessed.append(f"flow from '{names[f_idx]}' in {flow_unit}")
     s_idx = _column(file, header, request.supply_col, "supply_bar_g", "supply",
-                    "--supply-col")
-    return _Columns(t_idx, f_idx, s_idx, flow_unit, unit_k, guessed)
+                    "--supply-col", line)
+    s_guessed = s_idx is None and request.supply_col is None
+    if s_guessed:
+        s_idx = _named_as(header, _PRESSURE_WORDS, exclude=(t_idx, f_idx, d_idx))
+        if s_idx is not None and _name_and_unit(names[s_idx])[1] is not None and \
+                _pressure_unit_of(names[s_idx]) is None:
+            s_idx = None                # a unit that is no pressure's: not the supply
+    supply_unit = "bar"
+    if s_idx is not None:
+        supply_unit, unit_said = _unit(names[s_idx], request.supply_unit, "--supply-unit",
+                                       "bar", _pressure_unit_of, warnings)
+        if s_guessed or unit_said:
+            guessed.append(f"supply from '{names[s_idx]}' in {_pressure_text(supply_unit)}")
+    return _Columns(t_idx, f_idx, s_idx, flow_unit, FLOW_UNITS[flow_unit], guessed, d_idx,
+                    supply_unit, tuple(warnings))
+
+
+def _pressure_text(unit: str) -> str:
+    """How a report names a pressure unit: gauge bar(g), psi(g), ...; absolute bar(a)."""
+    text = {"kpa": "kPa", "kpaa": "kPaa", "mpa": "MPa"}.get(unit, unit)
+    return f"{text[:-1]}(a)" if PRESSURE_UNITS[unit][1] else f"{text}(g)"
+
+
+def _unit(name: str, given: str | None, option: str, default: str, of_header,
+          warnings: list) -> tuple[str, bool]:
+    """(the unit a column is read in, whether its header gave it): ``given`` (the
+    caller's, with a warning where the header names another), else the header's, else
+    ``default``."""
+    said = of_header(name)
+    if given is None:
+        return (said, said != default) if said is not None else (default, False)
+    if said is not None and said != given:
+        warnings.append(f"column '{name}' says {said}, read as {given} as {option} says")
+    return given, False
+
+
+def _date_column(file: str, header: list[str], request: _LogRequest, t_idx: int,
+                 f_idx: int, line: int) -> int | None:
+    """The column of a date beside a time column that holds the time of day: as the
+    caller names it, else the one column named as a date (``Datum`` beside ``Uhrzeit``)."""
+    if request.date_col is not None:
+        return _column(file, header, request.date_col, None, "date", "--date-col", line)
+    if _name_and_unit(header[t_idx])[0] not in _TIME_OF_DAY_WORDS:
+        return None
+    return _named_as(header, _DATE_WORDS, exclude=(t_idx, f_idx))
 
 
 def _no_columns(file: str, header: list[str], start: int, t_idx: int | None,
                 f_idx: int | None) -> MeasuredDataError:
-    """The error for a flow log whose time or flow column (or both) is not found."""
+    """The error for a flow log whose time or flow column (or both) is not found: which
+    is missing, or which columns are named alike (two flows: name one)."""
     missing = "time and flow columns" if t_idx is None and f_idx is None else (
         "time column" if t_idx is None else "flow column")
+    alike = []
+    for idx, words, what, option in ((t_idx, _TIME_WORDS, "a time", "--time-col"),
+                                     (f_idx, _FLOW_WORDS, "a flow", "--flow-col")):
+        hits = [h.strip() for k, h in enumerate(header)
+                if k not in (t_idx, f_idx) and _named_as([h], words) == 0]
+        if idx is None and len(hits) > 1:
+            alike.append(f"{', '.join(hits)} are each named as {what}: name one with "
+                         f"{option}")
     return MeasuredDataError(
         f"{file}: line {start + 1}: no {missing} (expected the header "
         f"time_s,flow_l_min, or one column named as a time and one as a flow; this "
-        f"file has {', '.join(h.strip() for h in header) or 'no columns'}); name "
-        "the columns with --time-col and --flow-col")
+        f"file has {', '.join(h.strip() for h in header) or 'no columns'}); "
+        + ("; ".join(alike) if alike else "name the columns with --time-col and --flow-col"))
 
 
 @dataclass
@@ -540,6 +683,7 @@ class _Samples:
     flows: array = field(default_factory=lambda: array("d"))
     supplies: array = field(default_factory=lambda: array("d"))
     skipped: int = 0                # rows without a number in the flow column
+    date_used: bool = False         # the times are a date column's and a time column's
     repeated: tuple | None = None   # (line, time) of the first time equal to the one before
 
 
@@ -548,15 +692,22 @@ def _read_samples(rows, file: str, header: list[str], cols: _Columns, clock: _Lo
     """The samples of a flow log's rows after its header, each row checked as it
     comes; a row without a number in the flow column is counted and skipped."""
     samples = _Samples()
+    date = cols.date
+    bar_per_unit, absolute = PRESSURE_UNITS[cols.supply_unit]
+    atmosphere_bar = P_ATM_PA / PA_PER_BAR if absolute else 0.0
     for lineno, row in rows:
         if not row or not "".join(row).strip():
             continue
         if len(samples.times) >= MAX_ROWS:
             raise MeasuredDataError(f"{file}: more than {MAX_ROWS:,} samples")
-        if max(cols.time, cols.flow) >= len(row):
+        if max(cols.time, cols.flow, -1 if date is None else date) >= len(row):
             raise MeasuredDataError(f"{file}: line {lineno}: {len(row)} fields, the "
                                     f"header has {len(header)}")
-        t = clock.read(row[cols.time], file, lineno, cols.time, samples.times)
+        if date is not None and not samples.times and not _dated(row[date], row[cols.time]):
+            date = None                 # the time column holds whole date-times
+        cell = row[cols.time] if date is None else \
+            f"{row[date].strip()} {row[cols.time].strip()}"
+        t = clock.read(cell, file, lineno, cols.time, samples.times)
         q = _reading(row[cols.flow], clock.decimal_comma)
         if not math.isfinite(q):
             samples.skipped += 1
@@ -565,9 +716,20 @@ def _read_samples(rows, file: str, header: list[str], cols: _Columns, clock: _Lo
         samples.times.append(t)
         samples.flows.append(q)
         if cols.supply is not None and cols.supply < len(row):
-            p = _reading(row[cols.supply], clock.decimal_comma)
+            p = _reading(row[cols.supply], clock.decimal_comma) * bar_per_unit - atmosphere_bar
             samples.supplies.append(p if abs(p) <= MAX_SUPPLY_BAR else math.nan)  # not read
+    samples.date_used = date is not None
     return samples
+
+
+def _dated(date_cell: str, time_cell: str) -> bool:
+    """Whether a date and a time of day read as one date-time (else the time column
+    holds the date too, or seconds)."""
+    try:
+        _timestamp(f"{date_cell.strip()} {time_cell.strip()}")
+        return True
+    except ValueError:
+        return False
 
 
 def _reading(cell: str, decimal_comma: bool) -> float:
@@ -624,12 +786,22 @@ def _measured_run(path: Path, header: list[str], cols: _Columns, samples: _Sampl
     supply = np.frombuffer(samples.supplies, dtype=float) if cols.supply is not None and \
         len(samples.supplies) == len(samples.times) else None
     source = {}
-    if cols.guessed is not None:
-        source["columns_guessed"] = (
-            f"time from column '{header[cols.time].strip()}', flow from "
-            f"'{header[cols.flow].strip()}' in {cols.flow_unit or 'l/min'}")
+    guessed = [g for g in cols.guessed
+               if samples.date_used or not g.startswith("time from columns")]
+    if cols.date is not None and not samples.date_used and cols.guessed and \
+            cols.guessed[0].startswith("time from columns"):
+        guessed.insert(0, f"time from column '{header[cols.time].strip()}'")
+    if guessed:
+        source["columns_guessed"] = ", ".join(guessed)
+    if cols.warnings:
+        source["warnings"] = list(cols.warnings)
+    if supply is not None:
+        source.update(supply_column=header[cols.supply].strip(),
+                      supply_unit=cols.supply_unit)
+    if samples.date_used:
+        source["date_column"] = header[cols.date].strip()
     return MeasuredRun(path.name, time_s, flow, supply,
-                       {**source, "path": file, "flow_unit": cols.flow_unit or "l/min",
+                       {**source, "path": file, "flow_unit": cols.flow_unit,
                         "reference": reference,
                         "time_format": ("iso8601" if time_format == "iso" else time_format)
                         if time_format else "seconds",

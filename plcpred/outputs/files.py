@@ -10,29 +10,34 @@ import numpy as np
 
 from ..air.cycles import arrival_period_s
 from ..output import SHOWN_CONSUMERS, atomic_writer, csv_column_name, write_json
+from ..progress import Progress, progress_or_off
 from ..sequencer.timeline import NS, seconds_texts
 from .report import plot_demand, plot_emulation
 
 
-def write_prediction(prediction, out_dir, plot: bool = True, timeline: bool = True
-                     ) -> list[Path]:
+def write_prediction(prediction, out_dir, plot: bool = True, timeline: bool = True,
+                     progress: Progress | None = None) -> list[Path]:
     """``timeline.csv`` (unless ``timeline`` is false), ``demand.csv``, ``summary.json``
     and ``demand.png`` of a :class:`~plcpred.air.Prediction` in ``out_dir``; the time
-    each took goes to its ``stage_s``."""
+    each took goes to its ``stage_s``; ``progress`` shows which is being written."""
     p = prediction
+    progress = progress_or_off(progress)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     files = []
     if timeline:
+        progress.stage(f"writing timeline.csv ({p.timeline.n_changes:,} rows)")
         p.timeline.to_csv(out / "timeline.csv")
         files.append(out / "timeline.csv")
+    progress.stage(f"writing demand.csv ({p.profile.n_cells:,} rows)")
     write_demand_csv(p.profile, out / "demand.csv", shown=p.shown)
     write_summary(p.profile, out / "summary.json", {
         "machine": p.machine.name, "supply_bar_g": p.machine.supply_bar_g})
     p.stage_s["write_csv"] = time.perf_counter() - t0
     files += [out / "demand.csv", out / "summary.json"]
     if plot:
+        progress.stage("drawing demand.png")
         t0 = time.perf_counter()
         plot_demand(p.profile, out / "demand.png",
                     title=f"{p.machine.name}: air demand over {_span(p.profile.horizon_s)}",
@@ -75,8 +80,13 @@ def write_demand_csv(profile, path, shown: int | None = SHOWN_CONSUMERS,
 
 
 def write_summary(profile, path, extra: dict | None = None) -> None:
-    """``summary.json``: the profile's summary, with ``extra`` keys."""
-    data = profile.summary()
+    """``summary.json``: the profile's summary with the 1-minute peak the console
+    prints (what a compressor's control sees), and ``extra`` keys."""
+    data = {}
+    for key, value in profile.summary().items():
+        data[key] = value
+        if key == "peak_1s_l_min":
+            data["peak_1min_l_min"] = profile.peak_l_min(60.0)
     if extra:
         data.update(extra)
     write_json(path, data)
@@ -121,17 +131,23 @@ def write_plant(emulation, path, table=None) -> None:
         np.savetxt(f, rows, fmt="%.6g", delimiter=",")
 
 
-def write_emulation(emulation, directory, plot: bool = True) -> list[Path]:
+def write_emulation(emulation, directory, plot: bool = True,
+                    progress: Progress | None = None) -> list[Path]:
     """``measured.csv``, ``timeline.csv``, ``plant.csv`` and ``emulate.png`` of an
-    :class:`~plcpred.plant.Emulation` in ``directory``."""
+    :class:`~plcpred.plant.Emulation` in ``directory``; ``progress`` shows which is
+    being written."""
+    progress = progress_or_off(progress)
     directory = Path(directory)
     files = [directory / "measured.csv", directory / "timeline.csv",
              directory / "plant.csv"]
+    progress.stage("writing measured.csv and timeline.csv")
     write_measured(emulation, files[0])
     emulation.timeline.to_csv(files[1])
+    progress.stage("sampling the plant into plant.csv")
     table = emulation.plant_table()     # sampling the plant: once for the file and the plot
     write_plant(emulation, files[2], table)
     if plot:
+        progress.stage("drawing emulate.png")
         files.append(directory / "emulate.png")
         plot_emulation(emulation, files[-1], table)
     return files

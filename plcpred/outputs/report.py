@@ -52,7 +52,7 @@ def whole_periods(k: int, period_s: float | None, dt_s: float, n_cells: int) -> 
     draw a moire of stripes; bins of whole cycles all average the same air), else ``k``."""
     if not period_s:
         return k
-    per = max(1, int(round(period_s / dt_s)))
+    per = max(1, round(period_s / dt_s))
     if n_cells / per <= MAX_CYCLES_DRAWN:
         return k
     return max(1, int(np.ceil(k / per))) * per
@@ -342,8 +342,8 @@ def sizing_assumptions(machine, s, today=None) -> list[tuple[str, str]]:
     return [
         ("machine file", shown(machine.path)),
         ("program", shown(machine.program_path)),
-        ("supply pressure", f"{machine.supply_bar_g:g} bar(g), atmosphere "
-                            f"{machine.atmosphere_kpa:g} kPa"),
+        ("supply pressure", (f"{machine.supply_bar_g:g} bar(g), atmosphere "
+                            f"{machine.atmosphere_kpa:g} kPa")),
         ("reference condition", "ISO 8778 (100 kPa, 20 °C)"),
         ("consumers", ", ".join(f"{n} {k}" for k, n in sorted(kinds.items())) or "none"),
         ("horizon, grid", f"{s.horizon_s:g} s, {s.dt_s:g} s"),
@@ -375,8 +375,8 @@ def sizing_markdown(machine_name: str, s, profile, plots=("sizing.png", "demand.
     lines = [
         f"# Compressed-air sizing: {machine_name}",
         "",
-        f"Horizon {s.horizon_s:g} s, grid {s.dt_s:g} s. Flows in NL/min at the ISO 8778 "
-        "reference condition (100 kPa, 20 °C).",
+        (f"Horizon {s.horizon_s:g} s, grid {s.dt_s:g} s. Flows in NL/min at the ISO 8778 "
+        "reference condition (100 kPa, 20 °C)."),
         "",
         "| quantity | value |",
         "|---|---|",
@@ -385,10 +385,10 @@ def sizing_markdown(machine_name: str, s, profile, plots=("sizing.png", "demand.
         f"| peak over 1 s | {s.peak_1s_l_min:.1f} NL/min |",
         f"| peak over 1 min | {s.peak_1min_l_min:.1f} NL/min |",
         f"| 95th percentile (grid) | {s.p95_l_min:.1f} NL/min |",
-        f"| **compressor design flow** (mean + {pct(s.allowance)}) | "
-        f"**{s.design_flow_l_min:.1f} NL/min** ({s.design_flow_l_min * 0.06:.2f} Nm³/h) |",
-        f"| largest deficit over the design flow | {s.deficit_nl:.2f} NL at "
-        f"{s.deficit_at_s:g} s |",
+        (f"| **compressor design flow** (mean + {pct(s.allowance)}) | "
+        f"**{s.design_flow_l_min:.1f} NL/min** ({s.design_flow_l_min * 0.06:.2f} Nm³/h) |"),
+        (f"| largest deficit over the design flow | {s.deficit_nl:.2f} NL at "
+        f"{s.deficit_at_s:g} s |"),
         f"| **receiver** for a {s.band_bar:g} bar band | **{s.receiver_l:.1f} L** |",
         (f"| energy per year ({s.hours_per_year:g} h, {s.sec_kwh_per_nm3:.3g} kWh/Nm³) | "
          f"{s.energy_kwh_per_year:,.0f} kWh |" if not s.idle_hours_per_year else
@@ -396,8 +396,8 @@ def sizing_markdown(machine_name: str, s, profile, plots=("sizing.png", "demand.
          f"{s.idle_hours_per_year:,.0f} h standing at {s.idle_flow_l_min:.1f} NL/min; "
          f"{s.air_nm3_per_year:,.0f} Nm³ at {s.sec_kwh_per_nm3:.3g} kWh/Nm³) | "
          f"{s.energy_kwh_per_year:,.0f} kWh |"),
-        f"| cost per year (at {s.price_per_kwh:g}{money} per kWh) | "
-        f"{s.cost_per_year:,.0f}{money} |",
+        (f"| cost per year (at {s.price_per_kwh:g}{money} per kWh) | "
+        f"{s.cost_per_year:,.0f}{money} |"),
         f"| steady cycle | {s.cycle_s:.3g} s ({s.cycles_per_hour:.4g} per hour, by "
         f"{_cell(s.cycle_source)}) |" if s.cycle_s is not None else
         "| steady cycle | none found (no cycle_signal, no repeating state) |",
@@ -407,19 +407,19 @@ def sizing_markdown(machine_name: str, s, profile, plots=("sizing.png", "demand.
         *[f"**Warning**: {_cell(w)}\n" for w in s.warnings],
         "| air | NL | share |",
         "|---|---|---|",
-        f"| active (cylinders, drives, grippers) | {s.active_nl:.2f} | "
-        f"{pct(s.active_nl / total)} |",
+        (f"| active (cylinders, drives, grippers) | {s.active_nl:.2f} | "
+        f"{pct(s.active_nl / total)} |"),
         f"| passive (nozzles, air knives) | {s.passive_nl:.2f} | {pct(s.passive_nl / total)} |",
         f"| leaks | {s.leak_nl:.2f} | {pct(s.leak_nl / total)} |",
-        f"| **while idle** (waiting: no cylinder moving, outputs as it waits) | "
-        f"{s.idle_nl:.2f} | **{pct(s.idle_share)}** |",
+        (f"| **while idle** (waiting: no cylinder moving, outputs as it waits) | "
+        f"{s.idle_nl:.2f} | **{pct(s.idle_share)}** |"),
         f"| of it leaks | {s.idle_leak_nl:.2f} | {pct(s.idle_leak_nl / total)} |",
-        f"| of it nozzles and blowers left on | {s.idle_blowers_nl:.2f} | "
-        f"{pct(s.idle_blowers_nl / total)} |",
+        (f"| of it nozzles and blowers left on | {s.idle_blowers_nl:.2f} | "
+        f"{pct(s.idle_blowers_nl / total)} |"),
         "",
-        "A published industrial case study (an automated assembly module, 20 h of flow "
+        ("A published industrial case study (an automated assembly module, 20 h of flow "
         "logging) found about a third of machine air non-productive (leaks 21 %, uncontrolled blowers 13 %); best practice keeps "
-        "leakage below 10 % of production.",
+        "leakage below 10 % of production."),
         "",
         "| consumer | role | total NL | share |",
         "|---|---|---|---|",
@@ -447,10 +447,10 @@ def sizing_html(markdown_text: str, images: dict) -> str:
         return re.sub(r"\*\*(.+?)\*\*", r"<strong>\1</strong>", text)
 
     out = ["<!DOCTYPE html><html><head><meta charset='utf-8'><title>Sizing</title>",
-           "<style>body{font-family:sans-serif;max-width:980px;margin:2em auto;color:#222}"
+           ("<style>body{font-family:sans-serif;max-width:980px;margin:2em auto;color:#222}"
            "table{border-collapse:collapse;margin:1em 0}td,th{border:1px solid #ccc;"
            "padding:4px 10px;text-align:left}th{background:#f3f3f3}img{max-width:100%}"
-           "</style></head><body>"]
+           "</style></head><body>")]
     rows = []
 
     def flush():
@@ -567,9 +567,9 @@ def diagnosis_html(d, png: bytes | None) -> str:
     """``diagnose.html``: the printed report and the plot in one self-contained page."""
 
     parts = ["<!DOCTYPE html><html><head><meta charset='utf-8'><title>Diagnosis</title>",
-             "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;"
+             ("<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;"
              "color:#222}pre{background:#f6f6f6;padding:1em;overflow-x:auto}"
-             "img{max-width:100%}</style></head><body>",
+             "img{max-width:100%}</style></head><body>"),
              f"<h1>{html.escape(d.machine.name)}: diagnosis of the sim-to-real gap</h1>",
              f"<pre>{html.escape(d.report())}</pre>"]
     if png is not None:
