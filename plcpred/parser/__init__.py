@@ -5,12 +5,12 @@
   extension (:mod:`.read`), with what it uses from vendor libraries (:mod:`.libraries`)
 """
 from . import ir
-from .errors import ProgramError, ProgramWarning
+from .errors import ProgramError, ProgramFileError, ProgramWarning
 from .libraries import library_program
 from .read import DIALECTS, read_program
 from .st import parse_st
 
-__all__ = ["ir", "ProgramError", "ProgramWarning", "parse_st", "load_program", "DIALECTS"]
+__all__ = ["ir", "ProgramError", "ProgramFileError", "ProgramWarning", "parse_st", "load_program", "DIALECTS"]
 
 
 def load_program(path, libraries: bool = True, lib_dirs=(), dialect: str = "auto",

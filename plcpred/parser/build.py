@@ -3,17 +3,12 @@ ever materialised), and the glue that runs a grammar over a :class:`Tokenizer`."
 from __future__ import annotations
 
 import contextvars
-import hashlib
-import itertools
-import os
-import tempfile
+import gc
 import threading
+from functools import partial
+from operator import itemgetter
 
-import lark
-from lark import Lark
-from lark.lexer import Lexer
-
-from . import ir
+from . import ir, tables
 from .errors import ProgramError
 from .lexer import Token
 from .literals import parse_int, parse_real, parse_time_literal, parse_typed_literal, unquote_string
@@ -807,19 +802,6 @@ def make_action_assoc(name, qualifier, rest, pos, err):
 
 # ---------------------------------------------------------------------- running a grammar
 
-class _Feed(Lexer):
-    """A do-nothing lexer, so that lark builds the LALR tables without compiling a lexer
-    of its own: tokens come from :class:`Tokenizer` and :meth:`GrammarRunner.parse`
-    drives the tables itself."""
-    __future_interface__ = 2
-
-    def __init__(self, lexer_conf):
-        pass
-
-    def lex(self, lexer_state, parser_state):
-        return lexer_state.text
-
-
 _END = Token("$END", "", 0, 0)  # end of input, fed through the same loop
 
 
@@ -895,124 +877,208 @@ def describe_expected(expected: set[str]) -> str:
     return names[0] if len(names) == 1 else "one of " + ", ".join(names)
 
 
-def _cache_path(grammar: str):
-    """Where lark may keep the analysed grammar between runs (building the LALR tables
-    takes about half a second); False when there is no writable cache directory."""
-
-    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    digest = hashlib.sha256((grammar + lark.__version__).encode()).hexdigest()[:16]
-    for root in (os.path.join(base, "plcpred"), os.path.join(tempfile.gettempdir(),
-                                                              "plcpred-cache")):
-        try:
-            os.makedirs(root, exist_ok=True)
-            if os.access(root, os.W_OK):
-                return os.path.join(root, f"grammar-{digest}.lark.cache")
-        except OSError:
-            continue
-    return False
-
-
 class GrammarRunner:
-    """One LALR parser for a grammar, shared by all parses (built once, lazily).
+    """One LALR parser for a grammar, shared by all parses (its tables read once, when
+    first used: :mod:`.tables`).
 
-    lark builds the tables; the reduce callbacks (:func:`_compile_rule`, lark's
-    tree-building semantics calling :class:`IRBuilder` methods directly) and the
-    shift/reduce loop are our own. lark's general loop and callback wrappers serve
-    interactive parsing and debugging too, and cost about twice as much per token.
-    Unit reductions of ``?`` rules, which only pass their single child up, skip the
-    callback altogether.
+    lark analysed the grammar (:mod:`.tablegen`); the reduce callbacks
+    (:func:`_compile_rule`, lark's tree-building semantics calling :class:`IRBuilder`
+    methods directly) and the shift/reduce loop are our own. lark's general loop and
+    callback wrappers serve interactive parsing and debugging too, and cost about twice
+    as much per token. Unit reductions of ``?`` rules, which only pass their single child
+    up, skip the callback altogether.
     """
 
     def __init__(self, grammar: str, builder_cls=IRBuilder):
-        self._grammar = grammar
+        self._grammar = grammar      # its name in grammar.GRAMMARS
         self._builder_cls = builder_cls
         self._tables = None
         self._builder = None
+        self._chains: dict = {}
         self._lock = threading.Lock()
 
     def _get(self):
         if self._tables is None:
             self._builder = self._builder_cls()
-            lark = Lark(self._grammar, parser="lalr", lexer=_Feed, maybe_placeholders=True,
-                        cache=_cache_path(self._grammar))
-            table = lark.parser.parser.parser.parse_table  # frontend -> LALR_Parser -> _Parser
-            compiled = {}
-            states = {}
-            for state, row in table.states.items():
-                out = {}
-                for sym, (action, arg) in row.items():
-                    sym = str(sym)  # lark's keys are Tokens, whose __eq__ is slow
-                    if action.name == "Shift":
-                        out[sym] = (True, arg)
-                        continue
-                    rule = arg
-                    if rule not in compiled:
-                        compiled[rule] = _compile_rule(rule, self._builder)
-                    out[sym] = (False, (len(rule.expansion), str(rule.origin.name),
-                                        compiled[rule]))
-                states[state] = out
-            start = lark.options.start[0]
-            self._tables = (states, table.start_states[start], table.end_states[start])
+            found = tables.load(self._grammar)
+            self._tables = (found.rows, _Reducers(found.rules, self._builder), found.start,
+                            found.end)
         return self._tables
 
     def parse(self, tokenizer, filename: str):
         with self._lock:
-            states, start_state, end_state = self._get()
+            states, reducers, start_state, end_state = self._get()
             self._builder.file = filename
-            feed = _Recording()
-            state_stack = [start_state]
-            value_stack = []
-            push_state = state_stack.append
-            push_value = value_stack.append
-            errors: list[ProgramError] = []
-            tokens = itertools.chain(tokenizer, (_END,))
+            # the cyclic garbage collector finds nothing to free here (tokens and nodes
+            # make no cycles), and its passes over the growing tree took a fifth of a
+            # large file's parse; it is turned back on as it was found
+            collecting = gc.isenabled()
+            gc.disable()
             try:
-                for tok in tokens:
-                    if tok is not _END:
-                        feed.prev = feed.last
-                        feed.last = tok
+                return _drive(iter(tokenizer), states, reducers, self._chains, start_state,
+                              end_state, filename)
+            finally:
+                if collecting:
+                    gc.enable()
+
+
+# how a reduction makes its value (see _Reducers): the top value stays (a ``?rule`` with
+# one child), ``func(*children)``, ``func(*pick(children))``, ``func(children[i])``, or
+# ``func(children)`` (the general callback of _compile_rule)
+PASS, STAR, PICK, ONE, CALL = range(5)
+
+
+def _drive(tokens, states, reducers, chains, start_state, end_state, filename):
+    """The shift/reduce loop over ``tokens``, then the end of the input. Written for
+    speed: it runs for every token of every program read. ``chains``: the outcomes of
+    runs of pass-through reductions (:func:`_pass_run`), kept between parses."""
+    state_stack = [start_state]
+    value_stack = []
+    push_state = state_stack.append
+    push_value = value_stack.append
+    errors: list[ProgramError] = []
+    prev = last = None      # the last two tokens read, for error messages
+    row = states[start_state]
+    try:
+        for tok in tokens:
+            prev, last = last, tok
+            ttype = tok.type
+            while True:
+                act = row.get(ttype)
+                if act is None:
+                    tok = _recover(tok, row, prev, last, errors, tokens, states, state_stack,
+                                   value_stack, filename)
                     ttype = tok.type
-                    while True:
-                        act = states[state_stack[-1]].get(ttype)
-                        if act is None:
-                            errors.append(_syntax_error(None if tok is _END else tok,
-                                                        _expected(states[state_stack[-1]]), feed,
-                                                        filename, value_stack))
-                            tok = _resume(tok, errors, tokens, states, state_stack, value_stack)
-                            ttype = tok.type
-                            continue
-                        if act[0]:
-                            push_state(act[1])
-                            push_value(tok)
-                            break
-                        size, origin, callback = act[1]
-                        if callback is None:  # pass-through: the value stays where it is
-                            del state_stack[-1]
+                    row = states[state_stack[-1]]
+                    continue
+                if act >= 0:
+                    push_state(act)
+                    push_value(tok)
+                    row = states[act]
+                    break
+                size, origin, kind, func, arg = reducers[~act]
+                if kind:
+                    if size:
+                        args = value_stack[-size:]
+                        del state_stack[-size:]
+                        del value_stack[-size:]
+                    else:
+                        args = []
+                    try:
+                        if kind == STAR:
+                            push_value(func(*args))
+                        elif kind == PICK:
+                            push_value(func(*arg(args)))
+                        elif kind == ONE:
+                            push_value(func(args[arg]))
                         else:
-                            if size:
-                                args = value_stack[-size:]
-                                del state_stack[-size:]
-                                del value_stack[-size:]
-                            else:
-                                args = []
-                            if errors:  # after recovery the values may not fit the rule
-                                try:
-                                    value = callback(args)
-                                except Exception:  # noqa: BLE001 - report what was found
-                                    raise _with_more(errors) from None
-                                push_value(value)
-                            else:
-                                push_value(callback(args))
-                        push_state(states[state_stack[-1]][origin][1])
-                        if tok is _END and state_stack[-1] == end_state:
-                            if errors:
-                                raise _with_more(errors)
-                            return value_stack[-1]
-            except ProgramError as e:   # the tokenizer's, or a builder's, after earlier ones
-                if not errors or e in errors:
-                    raise
-                errors.append(e)
-                raise _with_more(errors) from None
+                            push_value(func(args))
+                    except Exception:
+                        if errors:  # after recovery the values may not fit the rule
+                            raise _with_more(errors) from None
+                        raise
+                else:
+                    # pass-through reductions (a ``?rule`` of one child) replace the top
+                    # state and keep the value; a run of them ends, for a given state
+                    # below, top state and token, in one state, worked out once
+                    key = (state_stack[-2], state_stack[-1], ttype)
+                    act = chains.get(key)
+                    if act is None:
+                        act = chains[key] = _pass_run(key, states, reducers)
+                    state_stack[-1] = act
+                    row = states[act]
+                    continue
+                act = states[state_stack[-1]][origin]
+                push_state(act)
+                row = states[act]
+        return _finish(row, prev, last, errors, tokens, states, reducers, state_stack,
+                       value_stack, end_state, filename)
+    except ProgramError as e:   # the tokenizer's, or a builder's, after earlier ones
+        if not errors or e in errors:
+            raise
+        errors.append(e)
+        raise _with_more(errors) from None
+
+
+def _pass_run(key, states, reducers) -> int:
+    """The top state after the pass-through reductions that follow one another from
+    ``key`` = (state below, top state, token type): each replaces the top state by the
+    goto of the state below (which stays), until the token meets another action."""
+    below, top, ttype = key
+    while True:
+        act = states[top].get(ttype)
+        if act is None or act >= 0 or reducers[~act][2] != PASS:
+            return top
+        top = states[below][reducers[~act][1]]
+
+
+def _recover(tok, row, prev, last, errors, tokens, states, state_stack, value_stack,
+             filename):
+    """A syntax error at ``tok``: recorded, and the token to go on with (_resume)."""
+    feed = _Recording()
+    feed.prev, feed.last = prev, last
+    errors.append(_syntax_error(None if tok is _END else tok, _expected(row), feed,
+                                filename, value_stack))
+    return _resume(tok, errors, tokens, states, state_stack, value_stack)
+
+
+def _finish(row, prev, last, errors, tokens, states, reducers, state_stack, value_stack,
+            end_state, filename):
+    """The end of the input: reduce until the start rule is complete (the value of the
+    whole input), or report what is missing."""
+    push_state = state_stack.append
+    push_value = value_stack.append
+    while True:
+        act = row.get("$END")
+        if act is None:
+            _recover(_END, row, prev, last, errors, tokens, states, state_stack,
+                     value_stack, filename)   # raises: nothing follows the end
+        if act >= 0:
+            push_state(act)
+            push_value(_END)
+            return None
+        size, origin, kind, func, arg = reducers[~act]
+        if kind:
+            if size:
+                args = value_stack[-size:]
+                del state_stack[-size:]
+                del value_stack[-size:]
+            else:
+                args = []
+            try:
+                value = (func(*args) if kind == STAR else func(*arg(args)) if kind == PICK
+                         else func(args[arg]) if kind == ONE else func(args))
+            except Exception:
+                if errors:
+                    raise _with_more(errors) from None
+                raise
+            push_value(value)
+        else:
+            del state_stack[-1]
+        act = states[state_stack[-1]][origin]
+        push_state(act)
+        row = states[act]
+        if act == end_state:
+            if errors:
+                raise _with_more(errors)
+            return value_stack[-1]
+
+
+class _Reducers(dict):
+    """Rule number -> (symbols popped, the rule's name for the goto, kind, function,
+    argument): how :func:`_drive` reduces by the rule (:func:`_reduction`), worked out
+    when the rule is first reduced."""
+
+    def __init__(self, rules, builder):
+        super().__init__()
+        self._rules = rules
+        self._builder = builder
+
+    def __missing__(self, number):
+        plan = self._rules[number]
+        entry = (plan[2], plan[1], *_reduction(plan, self._builder))
+        self[number] = entry
+        return entry
 
 
 MAX_SYNTAX_ERRORS = 20
@@ -1038,7 +1104,7 @@ def _resume(tok, errors, tokens, states, state_stack, value_stack):
         errors.pop()
     while tok.type != "_SEMI":
         try:
-            tok = next(tokens)
+            tok = next(tokens, _END)
         except ProgramError as e:  # the tokenizer's: a bad character or literal
             errors.append(e)
             raise _with_more(errors) from None
@@ -1061,36 +1127,58 @@ class _Splice(list):
     __slots__ = ()
 
 
-def _compile_rule(rule, builder):
-    """The reduce callback for one grammar rule, with lark's tree-building semantics:
-    filtered tokens dropped (unless ``!rule``), ``_rule`` children spliced in, ``None`` for
-    absent ``[optional]`` items, ``?rule`` with one child passing it up, then the builder
-    method named after the alias or rule called with the children as arguments.
-    Returns None for a pure pass-through (the driver then skips the call)."""
-    expansion = rule.expansion
-    opts = rule.options
-    if opts.empty_indices:
-        bits = "".join(str(int(b)) for b in opts.empty_indices)
-        empty_counts = [len(run) for run in bits.split("0")]
-    else:
-        empty_counts = [0] * (len(expansion) + 1)
-    plan = []  # (child index, splice?, Nones to insert before it)
-    nones = 0
-    for i, sym in enumerate(expansion):
-        nones += empty_counts[i]
-        if opts.keep_all_tokens or not (sym.is_term and sym.filter_out):
-            plan.append((i, (not sym.is_term) and sym.name.startswith("_"), nones))
-            nones = 0
-    trailing = nones + empty_counts[len(expansion)]
-    name = rule.alias or rule.origin.name
+def _reduction(rule, builder) -> tuple:
+    """(kind, function, argument) of a rule's reduction (see :data:`PASS` ...): the
+    builder method called directly where the rule's children need no reshaping (most
+    reductions), else the callback of :func:`_compile_rule`."""
+    name, _, size, expand1, plan, trailing = rule
+    callback = _compile_rule(rule, builder)
+    if callback is None:
+        return PASS, None, None
     func = getattr(builder, name, None)
-    expand1 = bool(opts.expand1) and not rule.alias  # an alias disables ? (as in lark)
-    if (expand1 and len(plan) == 1 and not plan[0][1] and plan[0][2] == 0 and not trailing
-            and len(expansion) == 1):
+    keep = [i for i, splice, n in plan if not splice and not n]
+    if func is None and not expand1 and not trailing and size == 2 \
+            and plan == [[0, True, 0], [1, False, 0]]:
+        # a list growing by one (lark's ``__x_star: __x_star x``), the most frequent of
+        # the rest
+        return CALL, partial(_grown, callback), None
+    if func is None or trailing or len(keep) != len(plan) or (expand1 and len(keep) == 1):
+        return CALL, callback, None
+    if keep == list(range(size)):
+        return STAR, func, None
+    if len(keep) == 1:
+        return ONE, func, keep[0]
+    if keep:
+        return PICK, func, itemgetter(*keep)
+    return CALL, callback, None
+
+
+def _grown(callback, children):
+    """``callback(children)`` of a list rule ``__x_star: __x_star x``, which appends to
+    the list it has so far, as the callback would."""
+    first = children[0]
+    if first.__class__ is _Splice:
+        first.append(children[1])
+        return first
+    return callback(children)
+
+
+def _compile_rule(rule, builder):
+    """The reduce callback for one grammar rule (its plan, :func:`.tablegen.rule_plan`),
+    with lark's tree-building semantics: filtered tokens dropped (unless ``!rule``),
+    ``_rule`` children spliced in, ``None`` for absent ``[optional]`` items, ``?rule``
+    with one child passing it up, then the builder method named after the alias or rule
+    called with the children as arguments. Returns None for a pure pass-through (the
+    driver then skips the call)."""
+    name, _, size, expand1, plan, trailing = rule
+    plan = [tuple(p) for p in plan]  # (child index, splice?, Nones to insert before it)
+    func = getattr(builder, name, None)
+    if expand1 and len(plan) == 1 and not plan[0][1] and plan[0][2] == 0 and not trailing \
+            and size == 1:
         return None
     simple = not trailing and all(not splice and not n for _, splice, n in plan)
     keep = [i for i, _, _ in plan]
-    everything = keep == list(range(len(expansion)))
+    everything = keep == list(range(size))
 
     def callback(children):
         if simple:

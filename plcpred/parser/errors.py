@@ -30,6 +30,11 @@ class ProgramError(Positioned, PlcpredError):
     more: tuple = ()
 
 
+class ProgramFileError(ProgramError):
+    """A program file that cannot be read at all (missing, unreadable, a machine file
+    given as a program): bad input (exit 2), not a finding in a program (exit 1)."""
+
+
 class ProgramWarning(Positioned):
     """Not fatal: collected, never raised (so ``except ProgramError`` never takes one),
     and reported with ``warning:`` in front of the message."""

@@ -27,7 +27,7 @@ import re
 import stat
 from pathlib import Path
 
-from .errors import ProgramError
+from .errors import ProgramError, ProgramFileError
 
 MAX_FILE_BYTES = 64_000_000        # a program, library or project file (64 MB)
 MAX_FOLDER_ENTRIES = 20_000         # files and folders a folder walk looks at
@@ -135,8 +135,8 @@ def read_bytes(path: Path, limit: int | None = None) -> bytes:
         # checked
         fd = os.open(resolved(path) if current_roots() is not None else path, flags)
     except (OSError, ValueError) as e:
-        raise ProgramError(f"cannot read file: {getattr(e, 'strerror', None) or e}",
-                           str(path), 0, 0) from None
+        raise ProgramFileError(f"cannot read file: {getattr(e, 'strerror', None) or e}",
+                               str(path), 0, 0) from None
     try:
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):
@@ -161,7 +161,7 @@ def read_bytes(path: Path, limit: int | None = None) -> bytes:
                                "plcpred reads", str(path), 0, 0)
         return b"".join(parts)
     except OSError as e:
-        raise ProgramError(f"cannot read file: {e.strerror}", str(path), 0, 0) from None
+        raise ProgramFileError(f"cannot read file: {e.strerror}", str(path), 0, 0) from None
     finally:
         os.close(fd)
 
@@ -205,7 +205,7 @@ def listing(folder: Path, depth: int | None = None) -> list[Path]:
                     except OSError:
                         continue    # vanished or unreadable: not a file of the project
         except OSError as e:
-            raise ProgramError(f"cannot read folder: {e.strerror}", str(where), 0, 0) \
+            raise ProgramFileError(f"cannot read folder: {e.strerror}", str(where), 0, 0) \
                 from None
     return sorted(out)
 

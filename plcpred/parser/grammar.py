@@ -233,3 +233,32 @@ program_config: PROGRAM [program_retain] NAME [NAME NAME] _COLON qual_name [_LPA
 """
 
 ST_GRAMMAR = TERMINALS + COMMON + ST_TOP
+
+# the .seq sequence-chart format (:mod:`.seq`): the same expressions, statements and
+# declarations
+SEQ_TOP = r"""
+%declare SEQUENCE INPUT OUTPUT INITIAL WHEN AFTER _GOTO JOIN
+
+start: [header] _seq_item*
+header: SEQUENCE NAME
+_seq_item: seq_decl | seq_step | seq_join | seq_action
+
+seq_decl: (INPUT | OUTPUT | VAR) seq_var (_COMMA seq_var)*
+seq_var: NAME [_COLON type_spec] [_ASSIGN initializer]
+
+seq_step: [INITIAL] STEP NAME _COLON? _step_item*
+_step_item: seq_assoc | seq_when
+seq_assoc: NAME [TIME_LIT] NAME
+seq_when: WHEN expr _goto seq_targets
+        | AFTER TIME_LIT [WHEN expr] _goto seq_targets -> seq_after
+_goto: _ARROW | _GOTO
+seq_targets: NAME
+           | _LPAR NAME (_COMMA NAME)* _RPAR
+seq_join: JOIN NAME (_COMMA NAME)+ [WHEN expr] _goto seq_targets
+seq_action: ACTION NAME _COLON? stmt_list _END_ACTION
+"""
+
+SEQ_GRAMMAR = TERMINALS + COMMON + SEQ_TOP
+
+# every grammar by name, as :mod:`.tables` keeps their LALR tables
+GRAMMARS = {"st": ST_GRAMMAR, "seq": SEQ_GRAMMAR}

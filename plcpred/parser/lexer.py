@@ -7,6 +7,7 @@ Keywords are case-insensitive; a keyword token's type is its upper-case spelling
 """
 from __future__ import annotations
 
+import itertools
 import re
 
 from .errors import ProgramError
@@ -110,6 +111,10 @@ _AFTER_A_NAME = {"_COLON", "_ASSIGN", "_SEMI", "_COMMA", "_RPAR", "_DOT", "_LSQB
 _BEFORE_A_NAME = {"_ASSIGN", "_LPAR", "_COMMA", "PLUS", "MINUS", "STAR", "SLASH", "EQ", "NE",
                   "LT", "GT", "LE", "GE", "_LSQB", "_OUTASSIGN"}
 _WORD = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
+# words whose token Tokenizer._word works out (REF=, S= and R=, a CATCH variable) or that
+# may be read as a name after all (Tokenizer._neighbours); other names and keywords are
+# read on the spot
+_READ_AGAIN = SOFT_KEYWORDS | {"REF", "S", "R", "STRING", "WSTRING", "__CATCH"}
 
 # Leading white space is part of every match, which halves the number of matches. Digits
 # are ASCII ([0-9], not \d): int() of a literal must mean what the PLC reads.
@@ -181,20 +186,39 @@ class Tokenizer:
           STRING and WSTRING before ``.`` or ``:`` (a GVL's ``WString : WideStrings;``
           and ``WString.Concat2(...)``), and, for the modifier-like keywords of
           :data:`SOFT_KEYWORDS`, where only a name can stand (``Internal : BOOL;``,
-          ``x := Reference + 1;``)."""
-        prev = None
-        tokens = self._tokens()
-        tok = next(tokens, None)
-        while tok is not None:
-            nxt = next(tokens, None)
-            if tok.type == "NAME" and prev is not None and prev.type in _VARIABLE_END \
-                    and tok.value.upper() in ("S", "R") and nxt is not None \
-                    and nxt.type == "EQ" and nxt.line == tok.line \
-                    and nxt.column == tok.column + 1:
-                tok = Token("_SETASSIGN" if tok.value.upper() == "S" else "_RESETASSIGN",
-                            tok.value.upper() + "=", tok.line, tok.column)
-                nxt = next(tokens, None)
-            elif tok.type != "NAME" and _WORD.fullmatch(tok.value) and (
+          ``x := Reference + 1;``).
+
+        The text is read whole when iteration starts (one loop, no generator per token:
+        the parser benchmark's largest share); an error in it is raised where a token by
+        token reading would have raised it, after the tokens before it."""
+        raw, marks, error = self._scan()
+        tokens = self._neighbours(raw, marks, error)
+        if self.origin is not None:
+            tokens = [Token(t.type, t.value, *self.place(t.line, t.column)) for t in tokens]
+        return iter(tokens) if error is None else itertools.chain(tokens, _raising(error))
+
+    def _neighbours(self, raw: list, marks: list[int], error) -> list:
+        """``raw`` with the readings of :meth:`__iter__` applied at the tokens ``marks``
+        lists (the only ones they can change), in order, each seeing the tokens before it
+        as read and the one after it as scanned. With an ``error``, the last token (and an
+        ``S=`` it ends) is left out: reading it needed the token after it."""
+        n = len(raw)
+        for i in marks:
+            tok = raw[i]
+            prev = raw[i - 1] if i else None
+            if prev is None and i > 1:      # the '=' of an S= before it
+                prev = raw[i - 2]
+            nxt = raw[i + 1] if i + 1 < n else None
+            if tok.type == "NAME":
+                if prev is not None and prev.type in _VARIABLE_END \
+                        and tok.value.upper() in ("S", "R") and nxt is not None \
+                        and nxt.type == "EQ" and nxt.line == tok.line \
+                        and nxt.column == tok.column + 1:
+                    raw[i] = Token("_SETASSIGN" if tok.value.upper() == "S" else
+                                   "_RESETASSIGN", tok.value.upper() + "=", tok.line,
+                                   tok.column)
+                    raw[i + 1] = None
+            elif _WORD.fullmatch(tok.value) and (
                     (prev is not None and prev.type == "_DOT")
                     # a namespace or block named like a type: String.Concat2(...)
                     or (tok.type in ("STRING", "WSTRING") and nxt is not None
@@ -202,16 +226,15 @@ class Tokenizer:
                     or (tok.value.upper() in SOFT_KEYWORDS and (
                         nxt is None or nxt.type in _AFTER_A_NAME
                         or (prev is not None and prev.type in _BEFORE_A_NAME)))):
-                tok = Token("NAME", tok.value, tok.line, tok.column)
-            if self.origin is not None:
-                tok = Token(tok.type, tok.value, *self.place(tok.line, tok.column))
-            yield tok
-            prev, tok = tok, nxt
+                raw[i] = Token("NAME", tok.value, tok.line, tok.column)
+        if error is not None and n:
+            del raw[n - 2 if raw[n - 1] is None else n - 1:]
+        return [t for t in raw if t is not None] if len(marks) else raw
 
-    def _tokens(self):
-        """Every token of the text, in order. One function on purpose: it runs once per
-        token of every program read, and calls to helpers per token would cost more than
-        the matching (the parser benchmark's largest share)."""
+    def _scan(self) -> tuple[list, list[int], ProgramError | None]:
+        """(every token of the text as scanned, the positions of those
+        :meth:`_neighbours` may read otherwise, the error that stopped the scan or None).
+        One loop on purpose: it runs once per token of every program read."""
         text = self.text
         n = len(text)
         pos = 0
@@ -220,105 +243,133 @@ class Tokenizer:
         keywords = self.keywords
         match = _MASTER.match
         ops = OPERATORS
-        while pos < n:
-            m = match(text, pos)
-            if m is None:
-                stop = n - len(text[pos:].lstrip())  # first non-space character, or n
-                nls = text.count("\n", pos, stop)
-                if nls:
-                    line += nls
-                    line_start = text.rindex("\n", pos, stop) + 1
-                pos = stop
-                if pos >= n:
+        tokens: list = []
+        append = tokens.append
+        marks: list[int] = []
+        try:
+            while pos < n:
+                m = match(text, pos)
+                if m is None:
+                    self._no_token(pos, line, line_start)   # raises, or the text ends
                     break
-                col = pos - line_start + 1
-                raise self.error(f"unexpected character {text[pos]!r}", line, col)
-            kind = m.lastgroup
-            value = m.group(kind)
-            start = m.start(kind)
-            if start != pos and text.find("\n", pos, start) >= 0:
-                line += text.count("\n", pos, start)
-                line_start = text.rindex("\n", pos, start) + 1
-            pos = start
-            end = m.end()
-            col = pos - line_start + 1
-            if kind == "ident":
-                word = value
-                if end < n and text[end] == "#":
-                    tok, end = self._hash_literal(word, end, line, col)
-                    yield tok
-                    pos = end
-                    continue
-                upper = word.upper()
-                toktype = keywords.get(upper)
-                if toktype == "_CATCH" and (m2 := _CATCH_VARIABLE.match(text, end)):
-                    yield Token("CATCH_VAR", m2.group(1), line, col)
-                    end = m2.end()
-                elif toktype is not None:
-                    yield Token(toktype, word, line, col)
-                elif upper == "REF" and text.startswith("=", end) and not text.startswith("=>", end):
-                    yield Token("_REFASSIGN", "REF=", line, col)
-                    end += 1
+                kind = m.lastgroup
+                start = m.start(kind)
+                if start != pos and text.find("\n", pos, start) >= 0:
+                    line += text.count("\n", pos, start)
+                    line_start = text.rindex("\n", pos, start) + 1
+                pos = start
+                end = m.end()
+                if kind == "op":
+                    value = text[pos:end]
+                    append(Token(ops[value], value, line, pos - line_start + 1))
+                elif kind == "ident":
+                    word = text[pos:end]
+                    upper = word.upper()
+                    toktype = keywords.get(upper)
+                    if (end < n and text[end] == "#") or upper in _READ_AGAIN or (
+                            toktype is not None and tokens and tokens[-1].type == "_DOT"):
+                        end = self._word(pos, end, line, pos - line_start + 1, tokens, marks)
+                    else:
+                        append(Token(toktype or "NAME", word, line, pos - line_start + 1))
+                elif kind == "num":
+                    value = text[pos:end]
+                    append(Token("REAL" if "." in value or "#" not in value and (
+                        "e" in value or "E" in value) else "INTEGER", value, line,
+                        pos - line_start + 1))
                 else:
-                    yield Token("NAME", word, line, col)
+                    end, line, line_start = self._other(kind, m, pos, line, line_start,
+                                                        append)
                 pos = end
-                continue
-            if kind == "op":
-                yield Token(ops[value], value, line, col)
-                pos = end
-                continue
-            if kind == "num":
-                if m.group("frac") or m.group("exp"):
-                    yield Token("REAL", value, line, col)
-                else:
-                    yield Token("INTEGER", value, line, col)
-                pos = end
-                continue
-            if kind in ("str", "wstr"):
-                yield Token("STRING_LIT" if kind == "str" else "WSTRING_LIT", value, line, col)
-                nls = value.count("\n")
-                if nls:
-                    line += nls
-                    line_start = pos + value.rfind("\n") + 1
-                pos = end
-                continue
-            if kind == "addr":
-                yield Token("ADDRESS", value, line, col)
-                pos = end
-                continue
-            if kind == "part":  # IEC partial access w.%X3: the bit access w.3
-                yield Token("INTEGER", value[2:], line, col)
-                pos = end
-                continue
-            if kind == "lc":
-                pos = end
-                continue
-            # comments and pragmas that may span lines
-            if kind == "pc":
-                end = self._nested_comment_end(pos, line, col)
-            elif kind == "bc":
-                end = text.find("*/", pos + 2)
-                if end < 0:
-                    raise self.error("comment '/*' is never closed", line, col)
-                end += 2
-            elif text.startswith("{{", pos):  # Beremiz/matiec inline C: a statement
-                end = text.find("}}", pos + 2)
-                if end < 0:
-                    raise self.error("inline code '{{' is never closed", line, col)
-                end += 2
-                yield Token("INLINE_CODE", text[pos:end], line, col)
-            else:  # pragma
-                end = text.find("}", pos + 1)
-                if end < 0:
-                    raise self.error("pragma '{' is never closed", line, col)
-                end += 1
-                self.pragmas.append((text[pos:end], line, col))
-            chunk = text[pos:end]
-            nls = chunk.count("\n")
-            if nls:
-                line += nls
-                line_start = pos + chunk.rfind("\n") + 1
-            pos = end
+        except ProgramError as e:
+            return tokens, marks, e
+        return tokens, marks, None
+
+    def _no_token(self, pos: int, line: int, line_start: int) -> None:
+        """Where nothing matches: white space to the end of the text, or a character no
+        token starts with (an error)."""
+        text = self.text
+        n = len(text)
+        stop = n - len(text[pos:].lstrip())  # first non-space character, or n
+        nls = text.count("\n", pos, stop)
+        if nls:
+            line += nls
+            line_start = text.rindex("\n", pos, stop) + 1
+        if stop < n:
+            raise self.error(f"unexpected character {text[stop]!r}", line,
+                             stop - line_start + 1)
+
+    def _word(self, pos: int, end: int, line: int, col: int, tokens: list,
+              marks: list[int]) -> int:
+        """The token of an identifier-like word at ``pos``: a typed, time or enumerated
+        literal, a keyword, ``REF=``, a CATCH variable or a name; where it ends."""
+        text = self.text
+        word = text[pos:end]
+        if end < len(text) and text[end] == "#":
+            tok, end = self._hash_literal(word, end, line, col)
+            tokens.append(tok)
+            return end
+        upper = word.upper()
+        toktype = self.keywords.get(upper)
+        if toktype is None:
+            if upper == "REF" and text.startswith("=", end) and not text.startswith("=>", end):
+                tokens.append(Token("_REFASSIGN", "REF=", line, col))
+                return end + 1
+            if upper == "S" or upper == "R":
+                marks.append(len(tokens))
+            tokens.append(Token("NAME", word, line, col))
+            return end
+        if toktype == "_CATCH" and (m2 := _CATCH_VARIABLE.match(text, end)):
+            marks.append(len(tokens))
+            tokens.append(Token("CATCH_VAR", m2.group(1), line, col))
+            return m2.end()
+        if (upper in SOFT_KEYWORDS or toktype == "STRING" or toktype == "WSTRING"
+                or (tokens and tokens[-1].type == "_DOT")):
+            marks.append(len(tokens))
+        tokens.append(Token(toktype, word, line, col))
+        return end
+
+    def _other(self, kind: str, m, pos: int, line: int, line_start: int, append):
+        """Strings, addresses, comments, pragmas and inline code at ``pos``: (where they
+        end, the line and the line's start there)."""
+        text = self.text
+        col = pos - line_start + 1
+        end = m.end()
+        value = m.group(kind)
+        if kind in ("str", "wstr"):
+            append(Token("STRING_LIT" if kind == "str" else "WSTRING_LIT", value, line, col))
+        elif kind == "addr":
+            append(Token("ADDRESS", value, line, col))
+            return end, line, line_start
+        elif kind == "part":  # IEC partial access w.%X3: the bit access w.3
+            append(Token("INTEGER", value[2:], line, col))
+            return end, line, line_start
+        elif kind == "lc":
+            return end, line, line_start
+        elif kind == "pc":
+            end = self._nested_comment_end(pos, line, col)
+        elif kind == "bc":
+            end = text.find("*/", pos + 2)
+            if end < 0:
+                raise self.error("comment '/*' is never closed", line, col)
+            end += 2
+        elif text.startswith("{{", pos):  # Beremiz/matiec inline C: a statement
+            end = text.find("}}", pos + 2)
+            if end < 0:
+                raise self.error("inline code '{{' is never closed", line, col)
+            end += 2
+            append(Token("INLINE_CODE", text[pos:end], line, col))
+        else:  # pragma
+            end = text.find("}", pos + 1)
+            if end < 0:
+                raise self.error("pragma '{' is never closed", line, col)
+            end += 1
+            self.pragmas.append((text[pos:end], line, col))
+        chunk = text[pos:end]
+        nls = chunk.count("\n")
+        if nls:
+            line += nls
+            line_start = pos + chunk.rfind("\n") + 1
+        return end, line, line_start
 
     def _nested_comment_end(self, pos: int, line: int, col: int) -> int:
         """Where a ``(*`` comment ends. CODESYS and TwinCAT nest comments; matiec (Beremiz,
@@ -371,3 +422,9 @@ class Tokenizer:
             raise self.error(f"expected an enumeration value after '{word}#'",
                              line, col + len(word) + 1)
         return Token("ENUM_LIT", f"{word}#{m.group()}", line, col), m.end()
+
+
+def _raising(error: ProgramError):
+    """An iterator that raises ``error`` when asked for its first item."""
+    raise error
+    yield  # a generator: the error is raised when it is first advanced

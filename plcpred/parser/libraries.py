@@ -200,13 +200,13 @@ def strip_namespaces(program: ir.Program, namespaces: set[str]) -> None:
     stack = [program]
     while stack:
         node = stack.pop()
-        for f in dataclasses.fields(node):
-            value = getattr(node, f.name)
+        for name in ir.field_names(type(node)):
+            value = getattr(node, name)
             if isinstance(value, ir.NamedType):
                 value.name = strip(value.name)
             new = _unqualified(value, ns)
             if new is not value:
-                setattr(node, f.name, new)
+                setattr(node, name, new)
                 value = new
             _push(stack, value, ns)
 
@@ -263,8 +263,7 @@ def referenced_names(node) -> set[tuple[str, str]]:
             names.update(("T", x.upper()) for x in [n.extends or ""] + n.implements if x)
         elif isinstance(n, ir.Interface):
             names.update(("T", x.upper()) for x in n.extends)
-        for f in dataclasses.fields(n):
-            stack.append(getattr(n, f.name))
+        stack.extend(getattr(n, name) for name in ir.field_names(type(n)))
     return names
 
 

@@ -6,10 +6,7 @@ exact.
 """
 from __future__ import annotations
 
-import calendar
-import datetime
 import re
-from fractions import Fraction
 
 NS_PER_UNIT = {"d": 86_400 * 10**9, "h": 3_600 * 10**9, "m": 60 * 10**9, "s": 10**9,
                "ms": 10**6, "us": 10**3, "ns": 1}
@@ -78,7 +75,9 @@ def parse_duration_ns(text: str) -> int:
     if text and text[0] in "+-":
         sign = -1 if text[0] == "-" else 1
         text = text[1:]
-    total = Fraction(0)
+    # the exact sum as numerator / denominator (a power of ten): integers, not Fraction,
+    # whose import a syntax check would wait for
+    num, den = 0, 1
     pos = 0
     for m in _TIME_PART.finditer(text):
         if m.start() != pos:
@@ -86,14 +85,27 @@ def parse_duration_ns(text: str) -> int:
         number = m.group(1).replace("_", "")
         if len(number) > 40:   # longer than LTIME holds, or finer than a nanosecond
             raise ValueError(f"a number of {len(number)} digits in a duration")
-        total += Fraction(number) * NS_PER_UNIT[m.group(2).lower()]
+        whole, _, fraction = number.partition(".")
+        part_den = 10 ** len(fraction)
+        if part_den > den:
+            num *= part_den // den
+            den = part_den
+        num += int(whole + fraction) * NS_PER_UNIT[m.group(2).lower()] * (den // part_den)
         pos = m.end()
     if pos != len(text) or pos == 0:
         raise ValueError(f"malformed duration {text[:40]!r}")
-    ns = sign * round(total)
+    ns = sign * _round_half_even(num, den)
     if abs(ns) > DURATION_MAX_NS:
         raise ValueError(f"duration {text[:40]!r} is longer than LTIME holds (about 584 years)")
     return ns
+
+
+def _round_half_even(num: int, den: int) -> int:
+    """``round(num / den)`` exactly (halves to the even neighbour), ``num >= 0``."""
+    q, r = divmod(num, den)
+    if 2 * r > den or (2 * r == den and q % 2):
+        q += 1
+    return q
 
 
 _TOD = re.compile(r"(\d{1,2}):(\d{1,2})(?::(\d{1,2}(?:\.\d{1,9})?))?")
@@ -107,11 +119,12 @@ def parse_tod_ns(text: str) -> int:
     if m is None:
         raise ValueError(f"time of day {text!r}: write hh:mm:ss")
     h, mi = int(m.group(1)), int(m.group(2))
-    s = Fraction(m.group(3)) if m.group(3) else Fraction(0)
-    if h > 23 or mi > 59 or s >= 60:
+    whole, _, fraction = (m.group(3) or "0").partition(".")
+    s_num, s_den = int(whole + fraction), 10 ** len(fraction)   # the seconds, exactly
+    if h > 23 or mi > 59 or s_num >= 60 * s_den:
         raise ValueError(f"time of day {text!r} does not exist (hours 0..23, minutes and "
                          "seconds 0..59)")
-    return round(((h * 60 + mi) * 60 + s) * 10**9)
+    return _round_half_even(((h * 60 + mi) * 60 * s_den + s_num) * 10**9, s_den)
 
 
 def parse_date_ns(text: str) -> int:
@@ -121,11 +134,39 @@ def parse_date_ns(text: str) -> int:
     if m is None:
         raise ValueError(f"date {text!r}: write yyyy-mm-dd")
     y, mo, d = (int(g) for g in m.groups())
-    try:
-        datetime.date(y, mo, d)
-    except ValueError as e:
-        raise ValueError(f"date {text!r} does not exist ({e})") from None
-    return calendar.timegm((y, mo, d, 0, 0, 0)) * 10**9
+    problem = _date_problem(y, mo, d)
+    if problem:
+        raise ValueError(f"date {text!r} does not exist ({problem})")
+    return _days_from_civil(y, mo, d) * 86_400 * 10**9
+
+
+# the proleptic Gregorian calendar's dates, years 1 to 9999 (Python's date), in integer
+# arithmetic (H. Hinnant's days_from_civil and civil_from_days): the datetime and
+# calendar modules cost a syntax check about 3 ms to import, as much as parsing a small
+# program
+_MONTH_DAYS = (31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31)
+
+
+def _date_problem(y: int, mo: int, d: int) -> str:
+    """Why ``y-mo-d`` is not a date, in the words of Python's date(); "" if it is one."""
+    if not 1 <= y <= 9999:
+        return f"year {y} is out of range"
+    if not 1 <= mo <= 12:
+        return "month must be in 1..12"
+    leap = y % 4 == 0 and (y % 100 != 0 or y % 400 == 0)
+    if not 1 <= d <= _MONTH_DAYS[mo - 1] + (mo == 2 and leap):
+        return "day is out of range for month"
+    return ""
+
+
+def _days_from_civil(y: int, mo: int, d: int) -> int:
+    """Days from 1970-01-01 to the date ``y-mo-d``."""
+    y -= mo <= 2
+    era = y // 400
+    yoe = y - era * 400
+    doy = (153 * (mo + (-3 if mo > 2 else 9)) + 2) // 5 + d - 1
+    doe = yoe * 365 + yoe // 4 - yoe // 100 + doy
+    return era * 146097 + doe - 719468
 
 
 def parse_time_literal(text: str) -> tuple[int, str]:
@@ -241,8 +282,22 @@ def _format_tod(ns: int) -> str:
 
 
 def _civil_from_days(days: int) -> tuple[int, int, int]:
-    d = datetime.date(1970, 1, 1) + datetime.timedelta(days=days)
-    return d.year, d.month, d.day
+    """The date ``days`` after 1970-01-01 (OverflowError outside years 1 to 9999, as
+    Python's date arithmetic)."""
+    if abs(days) > 999_999_999:     # as timedelta(days=days) says
+        raise OverflowError(f"days={days}; must have magnitude <= 999999999")
+    z = days + 719468
+    era = z // 146097
+    doe = z - era * 146097
+    yoe = (doe - doe // 1460 + doe // 36524 - doe // 146096) // 365
+    doy = doe - (365 * yoe + yoe // 4 - yoe // 100)
+    mp = (5 * doy + 2) // 153
+    d = doy - (153 * mp + 2) // 5 + 1
+    mo = mp + (3 if mp < 10 else -9)
+    y = yoe + era * 400 + (mo <= 2)
+    if not 1 <= y <= 9999:
+        raise OverflowError("date value out of range")
+    return y, mo, d
 
 
 def parse_typed_literal(text: str):

@@ -127,15 +127,23 @@ def validate_names(program: ir.Program) -> ir.Program:
     Returns the program; raises :class:`ProgramError` at the offending node's position (or
     the nearest enclosing node that has one)."""
     stack = [(program, None, None, _NO_DEPTH)]
+    # names already checked (names repeat): as identifiers, and as qualified names
+    good, good_qualified = set(), set()
     while stack:
         node, pos, ctx, depth = stack.pop()
-        if isinstance(node, ir.Pos):
+        cls = node.__class__
+        if cls is ir.Pos:
             continue
-        if isinstance(node, (list, tuple)):
+        if cls is list or cls is tuple or isinstance(node, (list, tuple)):
+            if isinstance(node, ir.Pos):
+                continue
+            known = good_qualified if ctx in _QUALIFIED else good
             for item in node:
                 if isinstance(item, str):
-                    if not _name_ok(item, ctx):
-                        raise _bad_name(item, pos, _what(*ctx) if ctx else "name")
+                    if item not in known:
+                        if not _name_ok(item, ctx):
+                            raise _bad_name(item, pos, _what(*ctx) if ctx else "name")
+                        known.add(item)
                 elif item is not None and not isinstance(item, (int, float)):
                     stack.append((item, pos, ctx, depth))
             continue
@@ -145,46 +153,96 @@ def validate_names(program: ir.Program) -> ir.Program:
                     raise _bad_name(k, pos, "name")
                 stack.append((v, pos, ctx, depth))
             continue
-        if not dataclasses.is_dataclass(node):
-            raise at(pos, f"unexpected {type(node).__name__} in the program structure")
-        cls = type(node)
+        plan = _PLANS.get(cls)
+        if plan is None:
+            if not dataclasses.is_dataclass(node):
+                raise at(pos, f"unexpected {type(node).__name__} in the program structure")
+            plan = _plan(node)
         pos = getattr(node, "pos", None) or pos
-        depth = _deeper(node, depth, pos)
+        if plan[0]:
+            depth = _deeper(node, depth, pos)
         paths = cls is ir.VarBlock and node.kind in ("VAR_CONFIG", "VAR_ACCESS")
-        for f in dataclasses.fields(node):
-            key = (cls, f.name)
-            if f.name == "pos" or key in _FREE_TEXT:
+        for name, key, check, allowed in plan[1]:
+            value = getattr(node, name)
+            if value is None or value.__class__ is bool:
                 continue
-            value = getattr(node, f.name)
-            if value is None or isinstance(value, bool):
-                continue
-            allowed = _ENUM_FIELDS.get(key)
-            if allowed is not None:
+            if check is _GENERIC:
+                if isinstance(value, str):
+                    known = good_qualified if key in _QUALIFIED else good
+                    if value not in known:
+                        if not _name_ok(value, key):
+                            raise _bad_name(value, pos, _what(cls, name))
+                        known.add(value)
+                elif not isinstance(value, (int, float)):
+                    stack.append((value, pos, key, depth))
+            elif check is _ENUM:
                 if value not in allowed:
-                    raise at(pos, f"invalid {f.name} {str(value)[:60]!r}")
-                continue
-            if key == (ir.Literal, "value"):
+                    raise at(pos, f"invalid {name} {str(value)[:60]!r}")
+            elif check is _LITERAL:
                 if not _literal_ok(value):
                     raise at(pos, f"invalid literal value of type {type(value).__name__}")
-                continue
-            if key in _ADDRESS_FIELDS:
+            elif check is _ADDRESS_FIELD:
                 if not (isinstance(value, str) and _ADDRESS.fullmatch(value)):
                     raise at(pos, f"invalid direct address {str(value)[:60]!r}")
-                continue
-            if isinstance(value, str):
-                if key == (ir.VarDecl, "name") and ctx == _PATH:
-                    key = _PATH  # VAR_CONFIG / VAR_ACCESS: an instance path, never emitted
-                if not _name_ok(value, key):
-                    raise _bad_name(value, pos, _what(cls, f.name))
-            elif isinstance(value, (int, float)):
-                if key == (ir.BitAccess, "bit") and not (
-                        isinstance(value, int) and 0 <= value < 64):
-                    raise at(pos, f"bit number {value} is outside 0..63")
-            elif paths and f.name == "decls":
-                stack.extend((d, pos, _PATH, depth) for d in value)
             else:
-                stack.append((value, pos, key, depth))
+                _check_special(node, name, key, check, value, pos, ctx, depth, paths, stack)
     return program
+
+
+# how validate_names checks a field (see _plan)
+_GENERIC, _ENUM, _LITERAL, _ADDRESS_FIELD, _DECL_NAME, _BIT, _DECLS = range(7)
+_DEPTH_CLASSES = _TYPES + _INITIALIZERS + _EXPRESSIONS + _STATEMENTS + (
+    ir.Pou, ir.Method, ir.PropertyAccessor, ir.SfcAction)
+# dataclass -> (whether _deeper counts it, ((field, key, check, allowed values), ...))
+_PLANS: dict[type, tuple] = {}
+
+
+def _plan(node) -> tuple:
+    """How :func:`validate_names` checks the fields of ``node``'s class, in field order:
+    worked out once per class (``dataclasses.fields`` for every node cost more than
+    the checks)."""
+    cls = type(node)
+    fields = []
+    for f in dataclasses.fields(node):
+        key = (cls, f.name)
+        if f.name == "pos" or key in _FREE_TEXT:
+            continue
+        if key in _ENUM_FIELDS:
+            check = _ENUM
+        elif key == (ir.Literal, "value"):
+            check = _LITERAL
+        elif key in _ADDRESS_FIELDS:
+            check = _ADDRESS_FIELD
+        elif key == (ir.VarDecl, "name"):
+            check = _DECL_NAME
+        elif key == (ir.BitAccess, "bit"):
+            check = _BIT
+        elif cls is ir.VarBlock and f.name == "decls":
+            check = _DECLS
+        else:
+            check = _GENERIC
+        fields.append((f.name, key, check, _ENUM_FIELDS.get(key)))
+    plan = (issubclass(cls, _DEPTH_CLASSES), tuple(fields))
+    if not isinstance(node, type):
+        _PLANS[cls] = plan
+    return plan
+
+
+def _check_special(node, name, key, check, value, pos, ctx, depth, paths, stack) -> None:
+    """The checks of a VarDecl's name, a bit number and a VarBlock's declarations, as
+    for any other field but for what sets them apart."""
+    if isinstance(value, str):
+        if check is _DECL_NAME and ctx == _PATH:
+            key = _PATH  # VAR_CONFIG / VAR_ACCESS: an instance path, never emitted
+        if not _name_ok(value, key):
+            raise _bad_name(value, pos, _what(type(node), name))
+    elif isinstance(value, (int, float)):
+        if check is _BIT and not (isinstance(value, int) and 0 <= value < 64):
+            raise at(pos, f"bit number {value} is outside 0..63")
+    elif check is _DECLS and paths:
+        stack.extend((d, pos, _PATH, depth) for d in value)
+    else:
+        stack.append((value, pos, key, depth))
 
 
 def _deeper(node, depth, pos):

@@ -10,7 +10,7 @@ from pathlib import Path
 from . import ir, twincat
 from .beremiz_project import confnode_globals, is_beremiz_project
 from .bnr import BNR_SUFFIXES, has_cyclic, is_bnr_folder, load_bnr, only_actions
-from .errors import ProgramError
+from .errors import ProgramError, ProgramFileError
 from .files import confined_to, env_roots, listing, resolved
 from .names import validate_names
 from .notes import missing_pragma, reference_pragma
@@ -77,9 +77,9 @@ def read_file(path, dialect: str = "auto") -> ir.Program:
     if kind in twincat.OBJECT_SUFFIXES:
         return twincat.parse_twincat(text, str(path))
     if kind == "machine":
-        raise ProgramError("this is a machine file (TOML), not a PLC program: give it to "
-                           "predict, timeline, size, compare, sweep or diagnose, which read "
-                           "the program it names", str(path), 1, 1)
+        raise ProgramFileError("this is a machine file (TOML), not a PLC program: give it "
+                               "to predict, timeline, size, compare, sweep or diagnose, "
+                               "which read the program it names", str(path), 1, 1)
     return parse_st(text, str(path), dialect="bnr" if dialect == "bnr" else "iec")
 
 

@@ -52,7 +52,6 @@ from pathlib import Path
 from . import ir
 from .build import GrammarRunner, IRBuilder, make_action_assoc
 from .errors import at
-from .grammar import COMMON, TERMINALS
 from .lexer import KEPT_KEYWORDS, KEYWORDS, Token, Tokenizer
 from .literals import NS_PER_UNIT
 from .names import MAX_NAME_LENGTH, is_identifier, validate_names
@@ -61,29 +60,6 @@ SEQ_KEYWORDS = KEYWORDS | {"SEQUENCE", "INPUT", "OUTPUT", "INITIAL", "STEP", "WH
                            "GOTO", "JOIN", "ACTION"}
 SEQ_KEPT = KEPT_KEYWORDS | {"SEQUENCE", "INPUT", "OUTPUT", "INITIAL", "WHEN", "AFTER", "JOIN"}
 
-SEQ_TOP = r"""
-%declare SEQUENCE INPUT OUTPUT INITIAL WHEN AFTER _GOTO JOIN
-
-start: [header] _seq_item*
-header: SEQUENCE NAME
-_seq_item: seq_decl | seq_step | seq_join | seq_action
-
-seq_decl: (INPUT | OUTPUT | VAR) seq_var (_COMMA seq_var)*
-seq_var: NAME [_COLON type_spec] [_ASSIGN initializer]
-
-seq_step: [INITIAL] STEP NAME _COLON? _step_item*
-_step_item: seq_assoc | seq_when
-seq_assoc: NAME [TIME_LIT] NAME
-seq_when: WHEN expr _goto seq_targets
-        | AFTER TIME_LIT [WHEN expr] _goto seq_targets -> seq_after
-_goto: _ARROW | _GOTO
-seq_targets: NAME
-           | _LPAR NAME (_COMMA NAME)* _RPAR
-seq_join: JOIN NAME (_COMMA NAME)+ [WHEN expr] _goto seq_targets
-seq_action: ACTION NAME _COLON? stmt_list _END_ACTION
-"""
-
-SEQ_GRAMMAR = TERMINALS + COMMON + SEQ_TOP
 _UNITS = set(NS_PER_UNIT)
 
 
@@ -197,7 +173,7 @@ def _with_bare_durations(tokens):
         yield pending
 
 
-_RUNNER = GrammarRunner(SEQ_GRAMMAR, SeqBuilder)
+_RUNNER = GrammarRunner("seq", SeqBuilder)
 
 
 def parse_seq(text: str, filename: str = "<input>") -> ir.Program:

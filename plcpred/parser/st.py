@@ -4,11 +4,10 @@ from __future__ import annotations
 from . import ir
 from .build import DIALECT, GrammarRunner
 from .errors import ProgramError
-from .grammar import ST_GRAMMAR
 from .lexer import Tokenizer
 from .names import validate_names
 
-_RUNNER = GrammarRunner(ST_GRAMMAR)
+_RUNNER = GrammarRunner("st")
 
 
 def parse_st(text: str, filename: str = "<input>", validate: bool = True,
