@@ -11,11 +11,15 @@ from .args import (
     HORIZON_HELP,
     consumers_arg,
     energy_args,
+    json_arg,
+    log_column_args,
     machine_args,
     max_rows_arg,
     positive_int,
+    quiet_arg,
     seconds,
     seed,
+    test_column_args,
 )
 
 
@@ -42,6 +46,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_diagnose(sub)
     _add_emulate(sub)
     _add_identify(sub)
+    _add_serve(sub)
+    _add_watch(sub)
     return ap
 
 
@@ -175,17 +181,17 @@ def _add_compare(sub) -> None:
     p.add_argument("--program-base", metavar="PROGRAM", help="program to run on BASE")
     p.add_argument("--program-new", metavar="PROGRAM", help="program to run on NEW")
     p.add_argument("--dt", help=DT_HELP)
-    p.add_argument("--json", metavar="OUT", nargs="?", const="-",
-                   help="write the comparison as JSON to OUT (- or no value: to stdout, "
-                        "instead of the table)")
+    json_arg(p, "the comparison")
+    quiet_arg(p)
     p.set_defaults(run=("predict", "cmd_compare"))
 
 
 def _add_sweep(sub) -> None:
     p = sub.add_parser("sweep", help="what-if study over combinations of settings",
                        description="Predict the machine for every combination of the --set "
-                                   "values and print totals, mean, peak and energy per "
-                                   "scenario. KEY is a [machine] key (supply_bar_g, scan_ms, "
+                                   "values and print totals, mean, peak, cycles per hour, "
+                                   "NL per cycle and energy per scenario, with the "
+                                   "warnings size gives. KEY is a [machine] key (supply_bar_g, scan_ms, "
                                    "...), CONSUMER.FIELD (\"air knives.pressure_bar_g\", "
                                    "A.stroke_time_s with 0.2/0.3 for extend/retract), "
                                    "input.SIGNAL.FIELD, program.VAR for a variable's "
@@ -242,22 +248,7 @@ def _add_diagnose(sub) -> None:
     p.add_argument("--max-offset", type=seconds, metavar="S",
                    help="search the clock offset within this many seconds of the log's "
                         "first sample (default: half the run, at most 120 s)")
-    p.add_argument("--time-col", metavar="NAME|N", help="time column (default time_s, else "
-                   "the one column named as a time: Time, Timestamp, Zeit, ...; a name "
-                   "such as t_ms or 'Zeit [ms]' gives numbers in ms, '(min)' in minutes); "
-                   "seconds, ISO 8601 date-times, a logger's date-times (24.11.2026 "
-                   "13:05:00,5; 2026/11/24 13:05:00; 11/24/2026 1:05:00 PM) or times of "
-                   "day (13:05:00.5). Lines above the header (device, serial) are "
-                   "skipped")
-    p.add_argument("--flow-col", metavar="NAME|N",
-                   help="flow column (default flow_l_min, else the one column named as a "
-                        "flow: Flow, Durchfluss, Volumenstrom, Debit, ...)")
-    p.add_argument("--supply-col", metavar="NAME|N",
-                   help="supply pressure column, bar(g) (default supply_bar_g when the log "
-                        "has one): its mean is compared with the machine file's supply")
-    p.add_argument("--flow-unit", choices=("l/min", "m3/h", "m3/min", "l/s", "scfm"),
-                   help="unit of the flow column (default: the unit its header names, as "
-                        "in 'Flow (m3/h)', else l/min)")
+    log_column_args(p)
     p.add_argument("--reference", choices=("iso8778", "din1343", "iso2533"),
                    help="the meter's reference condition (default: the machine file's "
                         "[meter] reference, else iso8778)")
@@ -269,7 +260,7 @@ def _add_diagnose(sub) -> None:
                         "instantaneous readings far better)")
     p.add_argument("--effects", metavar="A,B",
                    help="try only these effects (default: all that apply)")
-    p.add_argument("--json", metavar="OUT", help="write the diagnosis as JSON (- for stdout)")
+    json_arg(p, "the diagnosis")
     p.add_argument("--out", metavar="DIR",
                    help="write diagnose.json, diagnose.png and diagnose.html to DIR")
     p.add_argument("--write-machine", metavar="FIXED.toml",
@@ -280,6 +271,7 @@ def _add_diagnose(sub) -> None:
                    help="do not run the machine through the physics plant as a second "
                         "reference (faster; the effects are then fitted in D1's terms "
                         "only)")
+    quiet_arg(p)
     p.set_defaults(run=("diagnose", "cmd_diagnose"))
 
 
@@ -324,11 +316,12 @@ def _add_identify(sub) -> None:
                    help="tank data: emptying to atmosphere (default) or filling")
     p.add_argument("--supply-bar-g", type=float, metavar="P",
                    help="tank charge: the supply pressure (gauge)")
+    test_column_args(p)
     p.add_argument("--atmosphere-kpa", type=float, default=P_ATM_KPA)
     p.add_argument("--temperature-c", type=float, default=20.0,
                    help="air temperature when the data have no t_up_c column")
     p.add_argument("--plot", metavar="FIT.png", help="write the fit plot")
-    p.add_argument("--json", metavar="OUT", help="write the result as JSON (- for stdout)")
+    json_arg(p, "the result")
     p.add_argument("--machine", metavar="MACHINE.toml",
                    help="with --write-machine: the machine file to put the result into")
     p.add_argument("--consumer", metavar="NAME",
@@ -336,3 +329,76 @@ def _add_identify(sub) -> None:
     p.add_argument("--write-machine", metavar="OUT.toml",
                    help="write MACHINE with the identified C, b, m, a in CONSUMER")
     p.set_defaults(run=("identify", "cmd_identify"))
+
+
+def _add_serve(sub) -> None:
+    p = sub.add_parser("serve", help="serve the emulated machine over OPC UA (a digital twin)",
+                       description="Run the machine's program against the physics plant (as "
+                                   "emulate does) in real time, or --speed times as fast, and "
+                                   "serve it as an OPC UA server: every signal of the machine "
+                                   "file a Boolean node ns=2;s={signal}, the flow meter's "
+                                   "reading ns=2;s=flow_l_min and the supply pressure "
+                                   "ns=2;s=supply_bar_g, each value with its time on the "
+                                   "machine's clock as the source time stamp. Stops when the "
+                                   "horizon is served.")
+    p.add_argument("machine", metavar="MACHINE", help="machine file (.toml)")
+    p.add_argument("--endpoint", required=True, metavar="URL",
+                   help="where to serve: opc.tcp://HOST:PORT")
+    p.add_argument("--speed", type=float, default=1.0, metavar="N",
+                   help="the machine's clock runs N times as fast as the wall clock "
+                        "(default 1, at most 1000)")
+    p.add_argument("--horizon", default="1h", metavar="H",
+                   help="machine time to serve (default 1h, at most 24h)")
+    p.add_argument("--truth", metavar="T.toml",
+                   help="the real machine's deviations from MACHINE (a partial machine file, "
+                        "as emulate --truth)")
+    p.add_argument("--truth-at", metavar="T",
+                   help="switch the --truth deviations on at machine time T (default: from "
+                        "the start); they take over at the first moment from then on when "
+                        "every signal agrees")
+    p.add_argument("--epoch", metavar="TIME",
+                   help="when the machine started (ISO 8601, UTC unless it says): a server "
+                        "restarted with its first start's epoch goes on where the machine is "
+                        "(default: now)")
+    p.add_argument("--seed", type=seed, metavar="N", help="seed of the meter's noise")
+    p.add_argument("--program", metavar="PROGRAM",
+                   help="run this program instead of the one the machine file names")
+    p.set_defaults(run=("live", "cmd_serve"))
+
+
+def _add_watch(sub) -> None:
+    p = sub.add_parser("watch", help="watch a running machine over OPC UA against the "
+                                     "prediction",
+                       description="Subscribe to the machine's signals and flow meter on an "
+                                   "OPC UA server (the PLC's, a gateway's, or plcpred serve), "
+                                   "record them in DIR as timeline-NNNN.csv and "
+                                   "measured-NNNN.csv (as diagnose --io and --measured read "
+                                   "them, a new pair every --rotate of machine time and after "
+                                   "every gap) and compare each cycle's measured air with the "
+                                   "air the model predicts from the recorded valve edges: a "
+                                   "line per cycle, events and alarms in DIR/events.jsonl. "
+                                   "Node ids, the meter and the alarms come from the machine "
+                                   "file's [live] table; the options below override it.")
+    p.add_argument("machine", metavar="MACHINE", help="machine file (.toml)")
+    p.add_argument("--endpoint", metavar="URL",
+                   help="the OPC UA server, opc.tcp://HOST:PORT (default: [live] endpoint)")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory")
+    p.add_argument("--duration", metavar="D",
+                   help="stop after D of wall-clock time (default: until Ctrl-C)")
+    p.add_argument("--cycle-signal", metavar="SIGNAL",
+                   help="compare between this signal's rising edges (default: [live] or "
+                        "[machine] cycle_signal; without one, per --window)")
+    p.add_argument("--window", metavar="T",
+                   help="the comparison window without a cycle signal (default 60s)")
+    p.add_argument("--rotate", metavar="T",
+                   help="a new pair of files every T of machine time (default 1h)")
+    p.add_argument("--gap-alarm", type=float, metavar="PERCENT",
+                   help="alarm when measured and predicted air differ by more than this "
+                        "(default 10) ...")
+    p.add_argument("--gap-cycles", type=positive_int, metavar="N",
+                   help="... for N cycles in a row (default 3)")
+    p.add_argument("--idle-limit", type=float, metavar="NL_MIN",
+                   help="alarm when the flow while the machine rests exceeds this")
+    p.add_argument("--publishing-ms", type=float, metavar="MS",
+                   help="the subscription's publishing interval (default 100)")
+    p.set_defaults(run=("live", "cmd_watch"))

@@ -1,0 +1,162 @@
+"""``serve``: the emulated machine as an OPC UA server (a digital twin).
+
+Every signal of the machine file is a Boolean node ``ns=2;s={signal}``, the flow meter
+``ns=2;s=flow_l_min`` (its reading, at the meter's reference) and the supply pressure
+``ns=2;s=supply_bar_g`` (bar gauge). Each value is written when the served clock reaches
+it, with that time as its source time stamp. The served clock runs ``speed`` times as
+fast as the wall clock from ``epoch`` (the machine's start), so a server restarted with
+the same epoch goes on where the machine would be, as a PLC runs on while its OPC UA
+server restarts."""
+from __future__ import annotations
+
+import asyncio
+import time
+from dataclasses import dataclass
+from datetime import UTC, datetime, timedelta
+
+import numpy as np
+from asyncua import Server, ua
+
+from ..sequencer.timeline import NS
+from .settings import LiveError, check_endpoint
+from .twin import Twin
+
+NAMESPACE_URI = "urn:plcpred:twin"
+MAX_SPEED = 1000.0
+WALL_CHUNK_S = 0.5        # values are worked out this far ahead (wall time) in a thread
+MIN_CHUNK_S = 5.0         # ... and at least this much machine time
+_EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
+
+
+@dataclass
+class ServeResult:
+    endpoint: str
+    served_s: float
+    values_written: int
+    epoch: datetime
+
+
+def source_time(epoch: datetime, t_ns: int) -> datetime:
+    """The source time stamp of machine time ``t_ns`` (to the microsecond, as asyncua
+    carries time stamps)."""
+    return epoch + timedelta(microseconds=t_ns // 1000)
+
+
+def _variant(value, boolean: bool):
+    return ua.Variant(bool(value), ua.VariantType.Boolean) if boolean else \
+        ua.Variant(float(value), ua.VariantType.Double)
+
+
+async def serve(twin: Twin, endpoint: str, speed: float = 1.0, epoch: datetime | None = None,
+                report=print, started=None, hold: asyncio.Event | None = None) -> ServeResult:
+    """Serve ``twin`` at ``endpoint`` until its horizon (machine time) is served.
+    ``started(epoch)`` is called once the machine clock runs, with its start. With
+    ``hold``, the server comes up with the machine at rest at its start and its clock
+    starts when ``hold`` is set (a client connected first sees every edge)."""
+    if not 0 < speed <= MAX_SPEED:
+        raise LiveError(f"--speed must be more than 0 and at most {MAX_SPEED:g}")
+    check_endpoint(endpoint)
+    start_s = 0.0
+    if epoch is not None:     # a machine started before: on where it is now
+        epoch = epoch.astimezone(UTC)
+        start_s = max(0.0, (datetime.now(UTC) - epoch).total_seconds() * speed)
+    if start_s >= twin.horizon_s:
+        raise LiveError(f"--epoch {epoch.isoformat()}: at --speed {speed:g} the machine "
+                        f"would be {start_s:g} s in, past the horizon of {twin.horizon_s:g} s")
+    horizons = [h for h in twin.run_horizons() if h > start_s] or [twin.horizon_s]
+    run = await asyncio.to_thread(twin.run, horizons.pop(0))
+    server, nodes, boolean = await _server(twin, endpoint, twin.values_at(run, start_s))
+    try:
+        report(f"serving {twin.nominal.name} at {endpoint}: {len(twin.signals)} signals, "
+               "meter and supply" + ("; holding at the start" if hold is not None else ""))
+        if hold is not None and epoch is None:
+            await hold.wait()
+        if epoch is None:         # the machine starts now, on the millisecond
+            now = datetime.now(UTC)
+            epoch = now.replace(microsecond=now.microsecond // 1000 * 1000)
+        stamp = source_time(epoch, round(start_s * NS))
+        for node in nodes[:twin.meter_index] + nodes[twin.pressure_index:]:
+            # every value as of the machine clock's start (the meter's first reading is
+            # one period on)
+            value = await node.read_data_value()
+            await server.write_attribute_value(node.nodeid, ua.DataValue(
+                Value=value.Value, SourceTimestamp=stamp, ServerTimestamp=stamp))
+        if started is not None:
+            started(epoch)
+        written = await _publish(server, twin, run, horizons, nodes, boolean, speed, epoch,
+                                 start_s, report)
+    finally:
+        await server.stop()
+    return ServeResult(endpoint, twin.horizon_s - start_s, written, epoch)
+
+
+async def _server(twin: Twin, endpoint: str, values: list):
+    """(the started server, its nodes, which of them are Boolean) with ``values``."""
+    server = Server()
+    await server.init()
+    server.set_endpoint(endpoint)
+    server.set_server_name(f"plcpred twin: {twin.nominal.name}")
+    server.set_security_policy([ua.SecurityPolicyType.NoSecurity])
+    idx = await server.register_namespace(NAMESPACE_URI)
+    folder = await server.nodes.objects.add_object(ua.NodeId("machine", idx), twin.nominal.name)
+    boolean = [i < len(twin.signals) for i in range(len(twin.names))]
+    nodes = []
+    for i, (name, value) in enumerate(zip(twin.names, values)):
+        nodes.append(await folder.add_variable(ua.NodeId(name, idx), name,
+                                               _variant(value, boolean[i])))
+    try:
+        await server.start()
+    except OSError as e:
+        raise LiveError(f"cannot serve at {endpoint}: {e.strerror or e}") from None
+    return server, nodes, boolean
+
+
+async def _publish(server, twin: Twin, run, horizons: list, nodes, boolean, speed: float,
+                   epoch: datetime, start_s: float, report) -> int:
+    """Write every value when the served clock reaches it, working out the next stretch
+    in a thread while this one is written, and the next longer run while the runs go."""
+    wall0 = time.time() - (datetime.now(UTC) - epoch).total_seconds()
+    report(f"machine clock from {epoch.isoformat()} at {speed:g}x"
+           + (f", from {start_s:.3f} s" if start_s else ""))
+    chunk_s = max(MIN_CHUNK_S, speed * WALL_CHUNK_S)
+    next_run = asyncio.create_task(asyncio.to_thread(twin.run, horizons.pop(0))) \
+        if horizons else None
+    done_s, written = start_s, 0
+    ahead = asyncio.create_task(asyncio.to_thread(
+        twin.events, run, done_s, min(done_s + chunk_s, run.horizon_s)))
+    while done_s < twin.horizon_s:
+        end_s = min(done_s + chunk_s, run.horizon_s)
+        t_ns, idx, values = await ahead
+        if end_s >= run.horizon_s and next_run is not None:
+            run = await next_run
+            next_run = asyncio.create_task(asyncio.to_thread(twin.run, horizons.pop(0))) \
+                if horizons else None
+        following = min(end_s + chunk_s, run.horizon_s)
+        if following > end_s:
+            ahead = asyncio.create_task(asyncio.to_thread(twin.events, run, end_s, following))
+        written += await _write(server, nodes, boolean, t_ns, idx, values, wall0, speed, epoch)
+        done_s = end_s
+    if next_run is not None:
+        next_run.cancel()
+    return written
+
+
+async def _write(server, nodes, boolean, t_ns, idx, values, wall0: float, speed: float,
+                 epoch: datetime) -> int:
+    """Write the values at their wall times (a batch for all that are due at once)."""
+    k, n = 0, len(t_ns)
+    while k < n:
+        due = wall0 + t_ns[k] / NS / speed
+        wait = due - time.time()
+        if wait > 0:
+            await asyncio.sleep(wait)
+        now_ns = round((time.time() - wall0) * speed * NS)
+        end = max(k + 1, int(np.searchsorted(t_ns, now_ns, side="right")))
+        for j in range(k, end):
+            stamp = source_time(epoch, int(t_ns[j]))
+            i = int(idx[j])
+            await server.write_attribute_value(
+                nodes[i].nodeid, ua.DataValue(Value=_variant(values[j], boolean[i]),
+                                              SourceTimestamp=stamp, ServerTimestamp=stamp))
+        k = end
+    return n
