@@ -285,7 +285,7 @@ def test_a_stiff_line_stops_emulate_with_an_error_naming_it(tmp_path, capsys, mo
                                         '[[consumer]]\nname = "Z lift"\nline = "main"\n')
     out = tmp_path / "o"
     assert main(["emulate", str(PICK), "--horizon", "1s", "--out", str(out),
-                 "--truth", str(truth)]) == 1
+                 "--truth", str(truth)]) == 2      # a truth file the plant cannot run
     err = capsys.readouterr().err
     assert 'the plant cannot integrate line "main" (drives "Z lift")' in err
     assert "more than 3,000 evaluations" in err

@@ -10,6 +10,7 @@ any such copy into what the meter would have logged for one run.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -68,7 +69,7 @@ class ModelParams:
     # (diagnose.through_plant: RunModel.variant_cells) instead of the nominal file's
     variant: tuple = ()
 
-    def copy(self) -> "ModelParams":
+    def copy(self) -> ModelParams:
         """A copy whose arrays an effect may change (called for every evaluation of a
         fit, so field by field rather than ``copy.deepcopy``)."""
         return dataclasses.replace(self, **{f: getattr(self, f).copy() for f in _ARRAYS})
@@ -93,7 +94,7 @@ class MachineModel:
     plant_variants: object = None
 
     @classmethod
-    def of(cls, machine) -> "MachineModel":
+    def of(cls, machine) -> MachineModel:
         models = consumer_models(machine)
         meter = machine.meter
         if meter is not None and meter.line is not None:
@@ -130,22 +131,71 @@ class MachineModel:
         return [self.models[i] for i in self.passives]
 
 
+# prediction time a run's grid keeps before the first time it is read at: ten lags of the
+# slowest meter a fit tries (effects.MAX_METER_TAU_S), so that a lag started settled at
+# the grid's first cell has forgotten that start (e^-10), and more than any clock
+# adjustment or refill tail
+RENDER_LEAD_S = 100.0
+
+
+def render_start_s(first_read_s: float) -> float:
+    """Where a run's grid may start when nothing before ``first_read_s`` (prediction
+    time: the log's first reading at a given clock) is read: RENDER_LEAD_S before it."""
+    return max(0.0, first_read_s - RENDER_LEAD_S)
+
+
+def window_start_cell(start_s: float, horizon_s: float, dt_s: float) -> int:
+    """The grid cell ``start_s`` falls in (runs with the same grid step and horizon then
+    share edges or differ by whole cells), within the horizon."""
+    return max(0, math.floor(max(0.0, min(start_s, horizon_s - dt_s)) / dt_s + 1e-9))
+
+
+def window_edges_s(start_cell: int, horizon_s: float, dt_s: float) -> np.ndarray:
+    """Edges every ``dt_s`` from cell ``start_cell`` to ``horizon_s`` (the last cell may
+    be short): those of :func:`~plcpred.air.demand.grid_edges_s` from that cell on."""
+    if not start_cell:
+        return grid_edges_s(horizon_s, dt_s)
+    n = max(1, math.ceil(horizon_s / dt_s - 1e-9) - start_cell)
+    edges = np.arange(start_cell, start_cell + n + 1, dtype=float) * dt_s
+    edges[-1] = min(edges[-1], horizon_s)
+    return edges
+
+
 class RunModel:
     """One run's events (from the sequencer or a recorded I/O trace) on a fine grid, and
-    the meter readings any :class:`ModelParams` gives for the run's samples."""
+    the meter readings any :class:`ModelParams` gives for the run's samples.
 
-    def __init__(self, mm: MachineModel, timeline, dt_s: float):
+    The grid covers the prediction from ``start_s`` (0: the machine's start) to its
+    horizon (or ``end_s``): a log read far along a given clock is rendered over its own
+    window, not from the machine's start. A drive's transitions are kept from the two
+    before the window on (a stroke under way at its start, the edge the first fill
+    depends on), a nozzle's periods that reach into it, a leak all along."""
+
+    def __init__(self, mm: MachineModel, timeline, dt_s: float, start_s: float = 0.0,
+                 end_s: float | None = None):
         self.mm = mm
         self.timeline = timeline
+        # (a recorded trace may run on far past what is read: ``end_s`` ends the grid;
+        # within a microsecond of the timeline's end, its own end stands)
         self.horizon_s = timeline.horizon_ns / NS
+        if end_s is not None and end_s < self.horizon_s - 1e-6:
+            self.horizon_s = float(end_s)
         self.dt_s = dt_s
-        self.edges_s = grid_edges_s(self.horizon_s, dt_s)
+        self.start_cell = window_start_cell(start_s, self.horizon_s, dt_s)
+        self.edges_s = window_edges_s(self.start_cell, self.horizon_s, dt_s)
+        self.start_s = float(self.edges_s[0])
         self.n_cells = len(self.edges_s) - 1
+        # the edges from the grid's first: the uniform sampler finds cells by division
+        self._sampled_edges_s = self.edges_s - self.start_s if self.start_s else self.edges_s
         signal_map = timeline.info.get("machine_signals", {})
+        # each evaluation costs what the grid's window holds, however long the run
         self.transitions = []
         for m in mm.drive_models():
             t_ns, ext = valve_transitions(timeline, m, signal_map)
-            self.transitions.append((t_ns / NS, ext))
+            t_s = t_ns / NS
+            a = max(0, int(np.searchsorted(t_s, self.start_s)) - 2)
+            b = int(np.searchsorted(t_s, self.horizon_s, side="right")) + 1
+            self.transitions.append((t_s[a:b], ext[a:b]))
         # a passive consumer's cells per NL/min of flow (its cells scale with the flow)
         self.unit_cells = np.zeros((len(mm.passives), self.n_cells))
         for k, m in enumerate(mm.passive_models()):
@@ -154,6 +204,8 @@ class RunModel:
             else:
                 s_ns, e_ns = passive_intervals(timeline, m, signal_map)
                 s, e = s_ns / NS, e_ns / NS
+                keep = (e >= self.start_s) & (s <= self.horizon_s)
+                s, e = s[keep], e[keep]
             self.unit_cells[k] = interval_cells(self.edges_s, s, e, 1.0)
         self.leak_unit = interval_cells(self.edges_s, [0.0], [self.horizon_s], 1.0)
         self._leak_from: dict[float, np.ndarray] = {}
@@ -202,8 +254,9 @@ class RunModel:
                                          np.where(ext, stroke[0], stroke[1]))
         # the refill as a first-order response to the volume given back at each stroke
         # end (the same filter as the meter's, volume preserved)
-        k_cell = np.clip((end / self.dt_s).astype(np.int64), 0, self.n_cells - 1)
-        keep = end < self.horizon_s
+        k_cell = (end / self.dt_s).astype(np.int64)
+        keep = (k_cell >= self.start_cell) & (end < self.horizon_s)
+        k_cell = np.clip(k_cell - self.start_cell, 0, self.n_cells - 1)
         impulses = np.bincount(k_cell[keep], weights=vol[keep], minlength=self.n_cells)
         return first_order_lag(impulses, self.dt_s, max(params.refill_tau_s, 1e-3),
                                from_rest=True)
@@ -264,6 +317,6 @@ class RunModel:
         time: the total flow through the meter's lag, averaged over the interval."""
         if cum_nl is None:
             cum_nl = self.metered_cumulative_nl(params, total_cells)
-        shift = params.clock_adjust_s
-        return interval_means_l_min(cum_nl, self.edges_s, start_s - shift, end_s - shift,
-                                    self.dt_s)
+        shift = params.clock_adjust_s + self.start_s
+        return interval_means_l_min(cum_nl, self._sampled_edges_s, start_s - shift,
+                                    end_s - shift, self.dt_s)

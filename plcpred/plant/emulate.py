@@ -87,22 +87,24 @@ class Emulation:
         return header, np.column_stack(cols)
 
 
-def run_closed_loop(machine, program, horizon_s: float, compiled=None):
+def run_closed_loop(machine, program, horizon_s: float, compiled=None, on_time=None):
     """(plant, timeline): ``machine``'s program (parsed; ``compiled``: its compiled form)
     run against the physics plant over ``horizon_s``, untiled (the plant's end switches
-    drive it), and the plant integrated to the horizon."""
+    drive it), and the plant integrated to the horizon. ``on_time(t_ns)``: as
+    :meth:`~plcpred.sequencer.Sequencer.run`."""
 
     plant = PlantModel(machine)
     timeline = Sequencer(program, machine, compiled=compiled, plant=plant).run(
-        round(horizon_s * 1e9), tiling=False)
+        round(horizon_s * 1e9), tiling=False, on_time=on_time)
     plant.finish(horizon_s)
     return plant, timeline
 
 
 def emulate(machine, horizon="60s", truth=None, seed: int | None = None,
-            program=None) -> Emulation:
+            program=None, on_time=None) -> Emulation:
     """Run ``machine`` (a path or a loaded Machine; with ``truth``, a truth file applied
-    to it) in closed loop with the physics plant over ``horizon``."""
+    to it) in closed loop with the physics plant over ``horizon``. ``on_time(t_ns)``
+    hears of the simulated time reached as the run goes (a progress bar)."""
 
     wall0 = _time.perf_counter()
     if not isinstance(machine, Machine) or truth is not None:
@@ -118,7 +120,7 @@ def emulate(machine, horizon="60s", truth=None, seed: int | None = None,
     if program is None or not hasattr(program, "pous"):
         program = machine.read_program(program)
     check_against_program(machine, program)
-    plant, timeline = run_closed_loop(machine, program, horizon_s)
+    plant, timeline = run_closed_loop(machine, program, horizon_s, on_time=on_time)
     wall_run = _time.perf_counter() - wall0
     cells = max(1, min(MAX_GRID_CELLS, math.ceil(horizon_s / 1e-3)))
     edges = np.linspace(0.0, horizon_s, cells + 1)

@@ -11,6 +11,8 @@ exhausts and strokes cut short).
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..air.demand import consumer_models, passive_intervals, valve_transitions
@@ -57,23 +59,32 @@ def replay(machine, timeline, horizon_s: float | None = None) -> PlantModel:
 SETTLE_PERIODS = 3
 
 
-def _stop_cell(timeline, edges_s: np.ndarray) -> tuple[int, int]:
-    """(cells to integrate, period in cells): all of them, or where a timeline that
-    repeats one period from some time on (the sequencer's tiling) has repeated
-    SETTLE_PERIODS times, when the period is a whole number of cells."""
+def _stop_cell(timeline, edges_s: np.ndarray) -> tuple[int, int, float]:
+    """(cells to integrate, period in cells, shift s): all of them, or where a timeline
+    that repeats one period from some time on (the sequencer's tiling) has repeated
+    SETTLE_PERIODS times, when the period is a whole number of cells. A grid that
+    starts later than that is integrated whole periods earlier (``shift``: what to
+    take from its edges), where the plant draws the same: a log's window far along a
+    cycling machine costs the plant no more than one near its start."""
     n = len(edges_s) - 1
     if timeline is None:
-        return n, 0
+        return n, 0, 0.0
     info = timeline.info
     period_s, tiled_s = info.get("period_s"), info.get("tiled_from_s")
     if period_s and tiled_s is not None and n > 1:
-        dt_s = float(edges_s[1] - edges_s[0])
+        # (far along, neighbouring edges differ by the step only to their magnitude's
+        # rounding: the step from the whole grid)
+        dt_s = float(edges_s[1] - edges_s[0]) if not edges_s[0] or n < 3 \
+            else float(edges_s[n - 1] - edges_s[0]) / (n - 1)
         period_cells = round(period_s / dt_s)
         if period_cells and abs(period_s / dt_s - period_cells) < 1e-6:
-            stop = int(np.ceil((tiled_s + SETTLE_PERIODS * period_s) / dt_s))
-            if stop < n:
-                return stop, period_cells
-    return n, 0
+            settled_s = tiled_s + SETTLE_PERIODS * period_s
+            shift_s = max(0, math.floor((float(edges_s[0]) - settled_s) / period_s)) \
+                * period_s
+            stop = max(int(np.ceil((settled_s - (float(edges_s[0]) - shift_s)) / dt_s)),
+                       period_cells)
+            return (stop, period_cells, shift_s) if stop < n else (n, 0, shift_s)
+    return n, 0, 0.0
 
 
 def _count(stats: dict | None, plant, horizon_s: float) -> None:
@@ -102,10 +113,11 @@ def replay_total_cells_nl(machine, timeline, edges_s: np.ndarray,
     period is a whole number of cells: an hour's log costs a minute of plant. ``stats``
     (a dict) counts the run's cost (:func:`_count`)."""
     edges_s = np.asarray(edges_s, dtype=float)
-    stop, period_cells = _stop_cell(timeline, edges_s)
-    plant = replay(machine, timeline, float(edges_s[stop]))
-    _count(stats, plant, float(edges_s[stop] - edges_s[0]))
-    return _metered_cells(plant, edges_s[:stop + 1], len(edges_s) - 1, period_cells)
+    stop, period_cells, shift_s = _stop_cell(timeline, edges_s)
+    run_edges_s = edges_s[:stop + 1] - shift_s
+    plant = replay(machine, timeline, float(run_edges_s[-1]))
+    _count(stats, plant, float(run_edges_s[-1] - run_edges_s[0]))
+    return _metered_cells(plant, run_edges_s, len(edges_s) - 1, period_cells)
 
 
 def closed_loop_total_cells_nl(machine, timeline, edges_s: np.ndarray, program,
@@ -117,16 +129,17 @@ def closed_loop_total_cells_nl(machine, timeline, edges_s: np.ndarray, program,
     prediction's); ``program`` the parsed program (``compiled``: its compiled form)."""
 
     edges_s = np.asarray(edges_s, dtype=float)
-    stop, period_cells = _stop_cell(timeline, edges_s)
-    plant, _ = run_closed_loop(machine, program, float(edges_s[stop]), compiled)
-    _count(stats, plant, float(edges_s[stop] - edges_s[0]))
-    return _metered_cells(plant, edges_s[:stop + 1], len(edges_s) - 1, period_cells)
+    stop, period_cells, shift_s = _stop_cell(timeline, edges_s)
+    run_edges_s = edges_s[:stop + 1] - shift_s
+    plant, _ = run_closed_loop(machine, program, float(run_edges_s[-1]), compiled)
+    _count(stats, plant, float(run_edges_s[-1] - run_edges_s[0]))
+    return _metered_cells(plant, run_edges_s, len(edges_s) - 1, period_cells)
 
 
 def shared_run_cells_nl(machine, edges_s: list[np.ndarray], timeline=None, program=None,
                         compiled=None, stats: dict | None = None) -> list[np.ndarray]:
-    """Normal litres per cell through the meter point for each grid of ``edges_s`` (all
-    starting at the run's start), from one plant run to the longest: driven by
+    """Normal litres per cell through the meter point for each grid of ``edges_s`` (each
+    from the run's start or later on), from one plant run to the longest: driven by
     ``timeline``'s edges (:func:`replay`), or with ``program`` given, the program run
     against the plant from its start (a run's first seconds do not depend on how long it
     goes on). Nothing is tiled: the machine's cycle need not be any prediction's.

@@ -406,6 +406,14 @@ def _namespace(timers: list, sfcs: list) -> dict:
     }
 
 
+def _numbered_from(code, first: int):
+    """``code`` (and the functions and classes it defines) with its line numbers
+    ``first`` further on: a code object's lines count from its own first line."""
+    consts = tuple(_numbered_from(c, first) if isinstance(c, type(code)) else c
+                   for c in code.co_consts)
+    return code.replace(co_firstlineno=code.co_firstlineno + first, co_consts=consts)
+
+
 class ProgramInstance:
     """A compiled project, instantiated: its PROGRAM instances, globals and timers."""
 
@@ -415,14 +423,32 @@ class ProgramInstance:
         self.timers: list = []
         self.sfcs: list = []
         self.ns = _namespace(self.timers, self.sfcs)
+        lines = self.compiled.source.split("\n")
+        starts = self.compiled.pieces
+        for a, b in zip(starts, starts[1:] + (len(lines),)):
+            # piece by piece: Python holds a whole compilation's syntax tree and code at
+            # once, many times the text (one of 200,000 statements took 1.6 GB)
+            exec(self._compiled_piece(lines, a, b, program), self.ns)
+        self._work = self.ns["_work"]    # loop passes in this scan (the watchdog's count)
+        self.programs = self.guard(self.ns["_build"])
+        self.g = self.ns["_g"]
+        self.names = [n for n, _ in self.compiled.programs]
+        self._bodies = [p._body for p in self.programs]
+        self.every = None
+
+    def _compiled_piece(self, lines: list[str], a: int, b: int, program):
+        """Lines ``a`` to ``b`` of the generated source compiled, numbered as in the whole
+        source (run-time errors find their program position by it)."""
         try:
-            code = compile(self.compiled.source, self.filename, "exec")
+            return _numbered_from(compile("\n".join(lines[a:b]) + "\n", self.filename,
+                                          "exec"), a)
         except (SyntaxError, RecursionError, MemoryError) as e:
             # Python's own limits (nested parentheses, indentation, nested blocks): the
             # name gate's nesting limits keep programs below them; this names the place
             # should one still be reached
             line = getattr(e, "lineno", None)
-            pos = self.compiled.line_pos[line - 1] if line and 0 < line <= len(
+            line = line + a if line else a + 1
+            pos = self.compiled.line_pos[line - 1] if 0 < line <= len(
                 self.compiled.line_pos) else None
             where = (pos.file, pos.line, pos.col) if pos else (self._file(program), 0, 0)
             if isinstance(e, MemoryError):
@@ -432,13 +458,6 @@ class ProgramInstance:
             raise CompileError("this statement is nested too deeply for the executor "
                                f"({getattr(e, 'msg', None) or type(e).__name__}); split it "
                                "with intermediate variables", *where) from None
-        exec(code, self.ns)
-        self._work = self.ns["_work"]    # loop passes in this scan (the watchdog's count)
-        self.programs = self.guard(self.ns["_build"])
-        self.g = self.ns["_g"]
-        self.names = [n for n, _ in self.compiled.programs]
-        self._bodies = [p._body for p in self.programs]
-        self.every = None
 
     @staticmethod
     def _file(program) -> str:
@@ -1085,7 +1104,7 @@ class Sequencer:
     # ------------------------------------------------------------------ run
     def run(self, horizon_ns: int, scan_stepping: bool = False,
             tiling: bool = True, max_events: int = DEFAULT_MAX_CHANGES,
-            replay: bool = True) -> Timeline:
+            replay: bool = True, on_time=None) -> Timeline:
         """Unfold the program over ``[0, horizon_ns]`` and return the timeline. A run
         whose program keeps changing signals (more than ``max_events`` changes held in
         memory) stops with an error naming the signal that changes most.
@@ -1094,13 +1113,15 @@ class Sequencer:
         rest (nothing but a scheduled input can change anything) in a state it rested in
         before, and the scheduled edges ahead fall on the same scans relative to the
         first as they did then, the recorded response up to the return to that state is
-        copied instead of executed (``replay=False``: always execute)."""
+        copied instead of executed (``replay=False``: always execute). ``on_time(t_ns)``,
+        if given, hears of the time the run has reached at each rest (a progress bar)."""
         wall0 = _time.perf_counter()
         r = self._start(horizon_ns, scan_stepping, tiling, max_events, replay)
         scan_to_rest, after_rest = self._scan_to_rest, self._after_rest
         try:
             while scan_to_rest(r) and after_rest(r):
-                pass
+                if on_time is not None:
+                    on_time(r.t)
         except PlcpredError:    # ours, with its own message (the plant's among them)
             raise
         except Exception as e:  # a fault inside the compiled program

@@ -25,7 +25,12 @@ Mapping:
 * structs and arrays are copied on assignment; references and pointers to FBs are the
   instance itself, to elementary variables a :class:`~plcpred.sequencer.runtime.Ref`;
 * WHILE and REPEAT count iterations; a loop that runs away raises
-  :class:`~plcpred.sequencer.runtime.Watchdog` naming its line.
+  :class:`~plcpred.sequencer.runtime.Watchdog` naming its line;
+* a long statement list (outside loops and JMP blocks) is module-level functions
+  ``_partN`` called in turn, and IF/CASE arms past a few hundred likewise, whose
+  RETURN ends their caller too (a FUNCTION's locals go in and come back out); with
+  :attr:`Compiled.pieces` the executor compiles the module class by class, so that
+  what Python compiles at once stays bounded whatever the program's size.
 
 Direct addresses in code (``%QX0.0 := TRUE``) stand for the variable declared AT them, or
 for a hidden global of the address's size. JMP works within one statement list.

@@ -2,6 +2,7 @@
 the generated source and the compiled result."""
 from __future__ import annotations
 
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 from ...parser import ir
@@ -20,6 +21,11 @@ WATCHDOG_ITERATIONS = 1_000_000
 BIT_READ = "."
 # longest if/elif chain generated at once (StatementsMixin._chain)
 ELIF_CHAIN = 100
+# generated lines compiled at once, at least (top-level classes and functions joined):
+# Python compiles a module or function whole, in memory many times its text, so the
+# executor compiles the module in pieces, and long statement lists are functions of
+# their own (StatementsMixin: PART_NODES)
+PIECE_LINES = 500
 
 # IEC comparison operators and their Python spelling
 COMPARISONS = {"=": "==", "<>": "!=", "<": "<", ">": ">", "<=": "<=", ">=": ">="}
@@ -60,20 +66,54 @@ class Scope:
 
 
 class Source:
-    """Generated lines with the program position each came from (for run-time errors)."""
+    """Generated lines with the program position each came from (for run-time errors),
+    and where each top-level class or function starts: Python compiles a module whole,
+    so the executor compiles these pieces one by one (:attr:`Compiled.pieces`).
+
+    Lines emitted :meth:`aside` (a part of a long statement list, a function of its
+    own) are held and placed at the top level before the next top-level line."""
 
     def __init__(self):
         self.lines: list[str] = []
         self.pos: list = []
         self.tmp = 0
+        self.starts: list[int] = []     # lines where a top-level class or def starts
+        self._held: list[tuple[list, list]] = []
+        self._aside = 0
 
     def emit(self, ind: int, text: str, pos=None):
+        if not ind and not self._aside:
+            self.flush()
+            if text.startswith(("class ", "def ")):
+                self.starts.append(len(self.lines))
         self.lines.append("    " * ind + text)
         self.pos.append(pos)
 
     def temp(self, stem="t") -> str:
         self.tmp += 1
         return f"_{stem}{self.tmp}"
+
+    @contextmanager
+    def aside(self):
+        """Emit a top-level function apart from the lines being emitted (which may be
+        inside a class): it joins the module before the next top-level line."""
+        lines, pos = self.lines, self.pos
+        self.lines, self.pos = [], []
+        self._aside += 1
+        try:
+            yield
+        finally:
+            self._aside -= 1
+            self._held.append((self.lines, self.pos))
+            self.lines, self.pos = lines, pos
+
+    def flush(self) -> None:
+        """Place the functions emitted aside (each a piece of its own)."""
+        held, self._held = self._held, []
+        for lines, pos in held:
+            self.starts.append(len(self.lines))
+            self.lines += lines
+            self.pos += pos
 
 
 @dataclass
@@ -99,6 +139,20 @@ class Compiled:
     # names the machine file reads (Compiler's ``observed``): never left out, so that
     # everything they show is in the compared state
     observed: frozenset = frozenset()
+    # the lines where the pieces of the source start that are compiled one by one (Python
+    # compiles a module or function at once, in memory many times its text)
+    pieces: tuple = (0,)
+
+
+def pieces(starts, n_lines: int) -> tuple:
+    """The first lines of the pieces the executor compiles one by one: the top-level
+    classes and functions starting at ``starts`` (ascending), consecutive ones joined
+    until a piece holds PIECE_LINES lines (fewer, larger compilations)."""
+    out = [0]
+    for a in starts:
+        if a - out[-1] >= PIECE_LINES and a < n_lines:
+            out.append(a)
+    return tuple(out)
 
 
 def pos_args(pos) -> str:

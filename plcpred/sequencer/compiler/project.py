@@ -9,7 +9,7 @@ from .. import types as ty
 from .callables import CallablesMixin
 from .calls import CallsMixin
 from .classes import ClassesMixin
-from .common import Compiled, Scope, Source
+from .common import Compiled, Scope, Source, pieces
 from .compared_state import ComparedState
 from .declarations import DeclarationsMixin
 from .expressions import ExpressionsMixin
@@ -39,6 +39,7 @@ class Compiler(ClassesMixin, CallablesMixin, SfcMixin, StatementsMixin, CallsMix
         self.functions = {ident(p.name): p for p in program.pous if p.kind == "FUNCTION"}
         self.gvl_names = {ident(g.name) for g in program.globals if g.name}
         self._jump = None       # (labels, block variable, loop depth) of the JMP targets
+        self._declares_mangled: bool | None = None  # a name __X (StatementsMixin._can_part)
         self._loop_depth = 0
         self._boxes = None      # locals boxed for the call being compiled (_boxed)
         self.address_slots: dict[str, str] = {}  # undeclared direct address -> global
@@ -87,11 +88,13 @@ class Compiler(ClassesMixin, CallablesMixin, SfcMixin, StatementsMixin, CallsMix
         prog_types = {name: next(f for f in fbs if f.cls_name == cls) for name, cls in programs}
         self._check_memory(gdecls, prog_types.values())
         self._build_function(programs)
+        self.src.flush()
         return Compiled("\n".join(self.src.lines) + "\n", self.src.pos, programs, prog_types,
                         self.globals, self.reads_et, self.reads_clock, self.types,
                         dict(self.address_slots), dict(self.intervals),
                         tuple(sorted(self.et_thresholds)), self._written(),
-                        dict(self.compared.left_out), self.observed)
+                        dict(self.compared.left_out), self.observed,
+                        pieces(self.src.starts, len(self.src.lines)))
 
     def _global_decls(self) -> list:
         """The declarations of the module's globals: VAR_GLOBAL, the hidden ones of

@@ -2,12 +2,23 @@
 TRY, and JMP within one statement list."""
 from __future__ import annotations
 
+import dataclasses
+
 from ...parser import ir
 from ...parser.names import ident
 from .. import types as ty
 from ..types import BOOL, EnumT
 from .common import ELIF_CHAIN, WATCHDOG_ITERATIONS, CompileError, Scope, error_at, pos_args
 from .conversions import convert
+
+# a statement list of more IR nodes than this (statements, expressions, names) is
+# compiled as functions of about PART_LINES generated lines each, called in turn, and IF
+# and CASE arms beyond PART_ARMS as functions of that many arms: Python compiles a
+# function at once, in memory many times its text (one body of 200,000 statements took
+# 1.6 GB)
+PART_NODES = 5_000
+PART_LINES = 1_000
+PART_ARMS = 300
 
 
 class StatementsMixin:
@@ -16,6 +27,10 @@ class StatementsMixin:
     def _stmts(self, stmts, scope: Scope, ind: int, loop: bool = False):
         if any(isinstance(s, ir.Label) for s in stmts):
             self._jump_blocks(stmts, scope, ind, loop)
+            return
+        if len(stmts) > 1 and not loop and _larger_than(stmts, PART_NODES) \
+                and self._can_part(scope):
+            self._parts(stmts, scope, ind)
             return
         for s in stmts:
             self._stmt(s, scope, ind, loop)
@@ -137,15 +152,21 @@ class StatementsMixin:
                     tests.append(f"{tmp} == {v}")
             return " or ".join(tests)
         self._chain([(lambda b=br: labels(b), br.body, br.pos or pos)
-                     for br in s.branches], s.else_body, scope, ind, pos, loop)
+                     for br in s.branches], s.else_body, scope, ind, pos, loop, (tmp,))
 
-    def _chain(self, arms, else_body, scope: Scope, ind: int, pos, loop: bool) -> None:
+    def _chain(self, arms, else_body, scope: Scope, ind: int, pos, loop: bool,
+               carry: tuple = (), hit: str | None = None) -> None:
         """``if``/``elif``/``else`` over ``arms`` [(a function giving the test's code, the
         body, its position)]. Python's compiler recurses once per ``elif``, so a chain
         longer than ELIF_CHAIN (a CASE of 20,000 labels ran it out of memory) is cut into
-        chains that each run only when none before matched."""
+        chains that each run only when none before matched; more than PART_ARMS arms are
+        functions of their own (:meth:`_arm_parts`; ``carry``: the Python locals their
+        tests read). ``hit``: a variable set to whether an arm ran."""
+        if len(arms) > PART_ARMS and not loop and self._can_part(scope):
+            self._arm_parts(arms, else_body, scope, ind, pos, carry)
+            return
         e = self.src.emit
-        hit = self.src.temp("hit") if len(arms) > ELIF_CHAIN else None
+        hit = hit or (self.src.temp("hit") if len(arms) > ELIF_CHAIN else None)
         for start in range(0, len(arms), ELIF_CHAIN):
             inner = ind
             if start:
@@ -163,6 +184,80 @@ class StatementsMixin:
         if else_body is not None:
             e(ind, f"if not {hit}:" if hit else "else:" if arms else "if True:", pos)
             self._stmts(else_body, scope, ind + 1, loop)
+            e(ind + 1, "pass")
+
+    # ---------------------------------------------------------------- parts
+    def _can_part(self, scope: Scope) -> bool:
+        """May statements of ``scope`` move into a module-level function: not inside a
+        JMP dispatch (its ``continue``), nor of a class when the program declares a name
+        ``__X`` (Python mangles those inside a class only)."""
+        if self._jump is not None:
+            return False
+        if scope.fb is None:
+            return True
+        if self._declares_mangled is None:
+            self._declares_mangled = _declares_mangled(self.program)
+        return not self._declares_mangled
+
+    def _part_call(self, scope: Scope, extra: tuple = ()):
+        """(the parameters of a part of ``scope``'s code, the Python locals it hands
+        back): ``self``, the carried ``extra``, then the locals, which it returns after
+        a status (0: went on to its end)."""
+        keep = tuple(sorted(scope.pylocals))
+        params = ("self",) if scope.fb is not None else ()
+        return ", ".join(params + extra + keep), keep
+
+    def _part_def(self, name: str, params: str, keep: tuple, scope: Scope, status: int,
+                  pos) -> Scope:
+        """Emit (aside) the header of a part; the scope its statements compile in, where
+        RETURN hands back ``status``."""
+        self.src.emit(0, f"def {name}({params}):", pos)
+        return dataclasses.replace(scope, ret=f"return {_status(status, keep)}")
+
+    def _parts(self, stmts, scope: Scope, ind: int) -> None:
+        """A long statement list as functions of about PART_LINES generated lines each,
+        called in turn; RETURN in one ends the caller too."""
+        e = self.src.emit
+        params, keep = self._part_call(scope)
+        k = 0
+        while k < len(stmts):
+            name, pos = self.src.temp("part"), stmts[k].pos
+            with self.src.aside():
+                inner = self._part_def(name, params, keep, scope, 1, pos)
+                while k < len(stmts) and len(self.src.lines) < PART_LINES:
+                    self._stmt(stmts[k], inner, 1, False)
+                    k += 1
+                e(1, f"return {_status(0, keep)}")
+            if keep:
+                st = self.src.temp("st")
+                e(ind, f"{st}, {', '.join(keep)}, = {name}({params})", pos)
+                e(ind, f"if {st}: {scope.ret}", pos)
+            else:
+                e(ind, f"if {name}({params}): {scope.ret}", pos)
+
+    def _arm_parts(self, arms, else_body, scope: Scope, ind: int, pos, carry: tuple) -> None:
+        """IF/CASE arms as functions of PART_ARMS arms each, tried in turn until one
+        matches (status 1; 2: RETURN), then ELSE when none did."""
+        e = self.src.emit
+        params, keep = self._part_call(scope, carry)
+        hit = self.src.temp("hit")
+        for k in range(0, len(arms), PART_ARMS):
+            name = self.src.temp("part")
+            with self.src.aside():
+                inner = self._part_def(name, params, keep, scope, 2, pos)
+                found = self.src.temp("hit")
+                self._chain(arms[k:k + PART_ARMS], None, inner, 1, pos, False, hit=found)
+                e(1, f"return {_status(f'1 if {found} else 0', keep)}")
+            at = ind
+            if k:
+                e(ind, f"if not {hit}:", pos)
+                at = ind + 1
+            e(at, f"{hit}{''.join(', ' + x for x in keep)}, = {name}({params})"
+                  if keep else f"{hit} = {name}({params})", pos)
+            e(at, f"if {hit} == 2: {scope.ret}", pos)
+        if else_body is not None:
+            e(ind, f"if not {hit}:", pos)
+            self._stmts(else_body, scope, ind + 1)
             e(ind + 1, "pass")
 
     # ---------------------------------------------------------------- loops
@@ -262,6 +357,32 @@ class StatementsMixin:
             raise error_at(s, "JMP out of a FOR, WHILE or REPEAT loop is not supported")
         self.src.emit(ind, f"{jl} = {labels[ident(s.label)]}", s.pos)
         self.src.emit(ind, "continue", s.pos)
+
+
+def _status(status, keep: tuple) -> str:
+    """What a part returns: its status, and the locals it hands back."""
+    return f"({status}, {', '.join(keep)},)" if keep else str(status)
+
+
+def _larger_than(root, limit: int) -> bool:
+    """Does ``root`` (IR, lists included) hold more than ``limit`` nodes?"""
+    for n, _ in enumerate(ir.nodes(root)):
+        if n >= limit:
+            return True
+    return False
+
+
+def _declares_mangled(program: ir.Program) -> bool:
+    """Does ``program`` declare a variable, member or parameter ``__X``? (Inside a
+    class, Python mangles such a name; the generated code names nothing else a program
+    names.)"""
+    blocks = [p.var_blocks for p in program.pous]
+    blocks += [m.var_blocks for p in program.pous for m in p.methods]
+    blocks += [a.var_blocks for p in program.pous for pr in p.properties
+               for a in pr.accessors]
+    roots = [blocks, program.types, program.globals, program.configurations]
+    return any(isinstance(node, ir.VarDecl) and node.name.startswith("__")
+               for node, _ in ir.nodes(roots))
 
 
 def _short_for(s: ir.For) -> int | None:
