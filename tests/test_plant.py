@@ -671,7 +671,7 @@ def test_too_long_an_emulation_stops_with_a_clear_error(tmp_path, capsys, monkey
     import plcpred.physics.group as group
     monkeypatch.setattr(group, "MAX_PIECES", 50)
     out = tmp_path / "o"
-    assert main(["emulate", str(PICK), "--horizon", "60s", "--out", str(out)]) == 1
+    assert main(["emulate", str(PICK), "--horizon", "60s", "--out", str(out)]) == 2
     err = capsys.readouterr().err
     assert "more than 50 integration pieces" in err and "shorter horizon" in err
     assert "Traceback" not in err and not out.exists()

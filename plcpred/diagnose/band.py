@@ -19,19 +19,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from .effects import Effect, Param
+from .effects import PASSIVE_TOLERANCE_SHARE, Effect, Param
 from .fit_model import MachineModel, ModelParams
 
 # a stroke may take this share of D1 more than a settled stroke (bore, stroke and tube
-# lengths as built, a supply a little above the regulator's setting)
-DRIVE_ABOVE_SHARE = 0.02
+# lengths as built, a supply a little above the regulator's setting, the cylinder's own
+# dead volume, which the file rarely gives)
+DRIVE_ABOVE_SHARE = 0.04
 # and this share less: an incomplete top-up after a hot fill and an exhaust cut short
-# (settled strokes take about 0.96 x D1, short dwells and fast cycles less)
+# (settled strokes take about 0.96 x D1, short dwells and fast cycles less). Wider, it
+# would hold a supply a bar low (14 % less air) for a healthy machine's
 DRIVE_THERMAL_SHARE = 0.08
-# a nozzle's or a leak's D2 flow either way: its conductance from a catalogue or an
-# orifice and Cd known to about 10 %, and the pressure at the nozzle a few per cent
-# below the supply while it flows (a worn or a blocked nozzle is 20 % and more)
-PASSIVE_SHARE = 0.15
+# a nozzle's or a leak's D2 flow either way (a worn or a blocked nozzle is 20 % and more)
+PASSIVE_SHARE = PASSIVE_TOLERANCE_SHARE
 
 
 def drive_factor_range(mm: MachineModel, p: ModelParams) -> tuple[np.ndarray, np.ndarray]:

@@ -42,6 +42,7 @@ from ..air.demand import stroke_cuts
 from ..errors import PlcpredError
 from ..machine import Machine, as_machine, read_machine_data, save_machine
 from ..plant.replay import closed_loop_total_cells_nl, replay_total_cells_nl
+from ..progress import progress_or_off
 from ..sequencer import compile_program, observed_names, unfold
 from .band import ModelForm, band_pct, drive_factor_range
 from .effects import (
@@ -156,6 +157,9 @@ class Diagnosis:
     flexed: "EffectResult | None" = None
     band_pct: tuple = (0.0, 0.0)
     within_band: bool = False
+    # why the best effects move the file's values no further than a healthy machine's
+    # own differ from its file (then the verdict is none)
+    within_tolerance: list = field(default_factory=list)
     # the meter's own noise (from flat stretches of the log, :func:`_meter_noise`), the
     # flat neighbours it rests on, and the held-out RMS error beyond it that the best
     # explanation leaves (NL/min)
@@ -233,6 +237,8 @@ class Diagnosis:
                 "heldout_rmse_l_min": _num(self.flexed.heldout_score.rmse_l_min),
                 "parameters": self.flexed.physical,
                 "explains_the_gap": self.within_band}
+        if self.within_tolerance:
+            out["within_tolerance"] = list(self.within_tolerance)
         if self.step_contexts:
             out["step_contexts"] = [c.summary() for c in self.step_contexts]
         return out
@@ -370,6 +376,10 @@ class Diagnosis:
                          "cent of their rating)"
                          + (": what the effects explain, the band explains as well"
                             if self.within_band else ""))
+        if self.within_tolerance:
+            lines.append("  the best effects move the file's values no further than a healthy "
+                         "machine's own differ from its file, so no fault: "
+                         + "; ".join(self.within_tolerance))
         if self.dynamics_explain:
             lines.append("  the nominal machine through the physics plant explains the gap "
                          "as well as any effect: it is what D1 leaves out by design (air "
@@ -433,7 +443,7 @@ def material(base: Score, new: Score, noise_l_min: float, mean_l_min: float) -> 
 def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
              max_offset_s: float | None = None, effects=None,
              max_combination: int = MAX_COMBINATION, program=None,
-             dynamic: bool = True) -> Diagnosis:
+             dynamic: bool = True, progress=None) -> Diagnosis:
     """Diagnose the gap between ``machine``'s prediction and measured ``runs``.
 
     ``io``: per run a recorded I/O :class:`~plcpred.sequencer.Timeline` (or None: the
@@ -442,22 +452,28 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     120 s); ``effects``: names to try (default: all that apply); ``dynamic``: also score
     the nominal machine through the physics plant (:func:`_dynamic_reference`); where it
     explains part of the gap, each effect is also fitted beyond it, and the gap is
-    ``none`` where it explains it as well as the best effects."""
+    ``none`` where it explains it as well as the best effects. ``progress``
+    (:class:`~plcpred.progress.Progress`) shows the stage it is in."""
+    progress = progress_or_off(progress)
     machine = as_machine(machine)
     warnings = list(machine.warnings)
     request = _checked_request(machine, runs, io, offsets, effects, warnings)
+    progress.stage(f"predicting and aligning {len(runs)} log{'s' if len(runs) != 1 else ''}")
     aligned = _prepare_runs(machine, request, max_offset_s, program, warnings)
     g = _ground(machine, request, aligned, warnings)
     # the steps below lower judge.noise to what their best fits leave: each judges at
     # the noise known when it runs, so their order matters
     judge = _judge(g)
+    progress.stage("the nominal machine" + (" through the physics plant" if dynamic else ""))
     nominal = _fit_nominal(g, dynamic)
+    progress.stage(f"fitting {len(request.names)} effects")
     results = _fit_candidates(g, nominal, judge)
+    progress.stage("ranking the effects and choosing the verdict")
     results = _rank_candidates(results, g, nominal, judge)
     exhaust = _exhaust_pairs(results, g, nominal, judge)
     where = _locate(g, judge.noise)
     results, verdict = _choose_verdict(results, exhaust, g, nominal, judge, max_combination)
-    left = _judge_against_models(verdict, g, nominal, judge)
+    left = _judge_against_models(verdict, results, g, nominal, judge)
     return Diagnosis(machine, g.rds, g.base_score, nominal.heldout, judge.noise,
                      where.contexts, where.step_contexts, where.locations, results,
                      verdict.verdict, verdict.combination, g.fold_kind, warnings,
@@ -465,6 +481,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                      reference=nominal.reference, on_plant=verdict.on_plant,
                      dynamics_explain=verdict.dynamics_explain, flexed=nominal.flexed,
                      band_pct=nominal.band, within_band=verdict.within_band,
+                     within_tolerance=verdict.within_tolerance,
                      meter_noise_l_min=judge.meter_noise, flat_pairs=judge.flat_pairs,
                      left_l_min=left, attribution=where.attribution)
 
@@ -974,6 +991,8 @@ class _Verdict:
     alternatives: list[str] = field(default_factory=list)
     on_plant: bool = False          # the plant explains a real part of the gap
     within_band: bool = False       # the model's own accuracy explains it as well
+    # why the effects' values lie within a healthy machine's tolerance of its file
+    within_tolerance: list[str] = field(default_factory=list)
     dynamics_explain: bool = False  # the plant explains it as well as the effects
 
     def no_fault(self) -> None:
@@ -1069,8 +1088,8 @@ def _combine(best: EffectResult, results: list[EffectResult], g: _Ground,
     return best
 
 
-def _judge_against_models(verdict: _Verdict, g: _Ground, nominal: _Nominal,
-                          judge: _Judge) -> float:
+def _judge_against_models(verdict: _Verdict, results: list[EffectResult], g: _Ground,
+                          nominal: _Nominal, judge: _Judge) -> float:
     """The verdict held against what needs no fault: none where the nominal model
     flexed within its own accuracy, or the machine file through the plant, explains the
     gap as well; unexplained where a material residual is left that the effects do not
@@ -1082,10 +1101,9 @@ def _judge_against_models(verdict: _Verdict, g: _Ground, nominal: _Nominal,
         # explains as well (or the total lies within the band): no fault
         verdict.within_band = True
         verdict.no_fault()
-    left = _left_over(verdict.combination, nominal.flexed, nominal.heldout,
-                      judge.meter_noise)
-    unexplained = _unexplained_gap(left, verdict.combination, nominal.flexed,
-                                   nominal.heldout, judge.meter_noise, g.ctx["mean_l_min"])
+    # what is left is judged after the best explanation: a fault's, one within the
+    # file's tolerance, else the file flexed within the model's accuracy
+    explanation = verdict.combination
     if (verdict.combination is not None and verdict.on_plant
             and not judge.finding(nominal.reference.heldout_score,
                                   verdict.combination["heldout"])):
@@ -1093,7 +1111,22 @@ def _judge_against_models(verdict: _Verdict, g: _Ground, nominal: _Nominal,
         # effects do: D1's own limits, no fault (the effects stay ranked in the report)
         verdict.dynamics_explain = True
         verdict.no_fault()
-    if unexplained and not verdict.dynamics_explain:
+    if verdict.combination is not None:
+        why = _within_tolerance(verdict, results, g, nominal, judge)
+        if why:
+            # the effects only move the file's values as far as a healthy machine's
+            # own differ from its file: no fault, and the report says how far
+            verdict.within_tolerance = why
+            verdict.no_fault()
+    left = _left_over(explanation, nominal.flexed, nominal.heldout, judge.meter_noise)
+    # with no fault named and the total within the band, what is left is the shape of
+    # the model's own error (air a stroke takes later or sooner than D1 books it), which
+    # a healthy machine shows as well
+    healthy_total = verdict.combination is None and \
+        nominal.band[0] <= g.base_score.error_pct <= nominal.band[1]
+    if _unexplained_gap(left, explanation, nominal.flexed, nominal.heldout,
+                        judge.meter_noise, g.ctx["mean_l_min"]) \
+            and not verdict.dynamics_explain and not healthy_total:
         verdict.verdict = "unexplained"
     return left
 
@@ -1179,6 +1212,27 @@ def _band(mm: MachineModel, rds: list[RunData], bases: list) -> tuple[float, flo
         drive_nl += float(cells[mm.drives].sum()) if mm.drives else 0.0
         passive_nl += float(cells[mm.passives].sum()) if mm.passives else 0.0
     return band_pct(mm, bases[0], drive_nl, passive_nl)
+
+
+def _within_tolerance(verdict: _Verdict, results: list[EffectResult], g: _Ground,
+                      nominal: _Nominal, judge: _Judge) -> list[str]:
+    """Why the verdict's effects lie within a healthy machine's tolerance of its file
+    (:meth:`Effect.within_tolerance`); empty where they name a fault. An effect added
+    to a verdict within tolerance is a fault only where it is one on its own: a
+    finding, within its bounds, that beats the file flexed within its own accuracy."""
+    why, rest = [], []
+    for e, theta in verdict.combination["fit"].by_effect():
+        reason = e.within_tolerance(g.mm, theta, g.ctx)
+        if reason is None:
+            rest.append(e.name)
+        else:
+            why.append(f"{e.name}: {reason}")
+    if not why or verdict.verdict in rest:
+        return []
+    against = nominal.flexed.heldout_score if nominal.flexed is not None else nominal.heldout
+    alone = [r for r in results if r.name in rest and not r.at_bound
+             and judge.finding(against, r.heldout_score)]
+    return [] if alone else why
 
 
 def _beats_band(verdict: str, combination: dict, flexed: "EffectResult | None",
@@ -1570,8 +1624,6 @@ def write_fixed_machine(d: Diagnosis, path) -> list[str]:
     in the machine file's own keys, so that ``plcpred predict`` on it carries them.
     Returns what was changed. The file is checked by loading it before it is renamed
     into place."""
-
-
     path = Path(path)
     machine = d.machine
     data = read_machine_data(machine.path)
@@ -1592,7 +1644,7 @@ def write_fixed_machine(d: Diagnosis, path) -> list[str]:
                        if _through_plant(d.combination["fit"].effects) else
                        "fitted beyond the physics plant's reference of the nominal machine")
                       + ": predict (D1) on this file also books what D1 leaves out by design")
-    save_machine(data, machine, path, "\n".join(header))
+    save_machine(data, machine, path, "\n".join(header), by="plcpred diagnose")
     d.fixed_machine = str(path)
     return changes
 

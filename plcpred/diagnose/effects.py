@@ -21,7 +21,7 @@ from ..air.demand import sonic_conductance
 from ..physics.flow import flow_nl_min
 from ..physics.meter import REFERENCES, reference_factor
 from ..physics.units import P0_PA, T0_K, bar_g_to_pa, celsius_to_k
-from ..physics.volumes import held_air_nl, inner_dead_volumes_cm3
+from ..physics.volumes import held_air_nl, inner_dead_volumes_cm3, swept_areas_mm2
 from .fit_model import MachineModel, ModelParams
 
 # a diagnosed leak is written as an orifice-like restriction: ISO 6358 with b and m of a
@@ -43,6 +43,31 @@ MAX_TUBE_OVERSTATEMENT = 0.5
 # accuracy and a regulator's swing with the flow)
 LOGGED_SUPPLY_TOLERANCE_BAR = 0.15
 METER_LAG_FIT_MAX_S = 0.6   # thermal-mass meters respond in 0.1-0.6 s (docs/reference/physics.md: figures)
+
+# What a healthy machine may show against its own file: a file's values are catalogue,
+# drawing and commissioning figures, not measurements, so a fit that moves them no
+# further than this names no fault (Effect.within_tolerance).
+# A nozzle's conductance from a catalogue or an orifice and Cd: known to about 10 %, and
+# the pressure at it a few per cent below the supply while it flows
+PASSIVE_TOLERANCE_SHARE = 0.15
+# stroke times are set at commissioning by eye and stopwatch: +/-10 %
+STROKE_TOLERANCE_SHARE = 0.10
+# a valve's switching time differs between units and with coil temperature by about
+# 10 ms, and its spool takes 5-25 ms to open, which shifts the air by half of that
+DELAY_TOLERANCE_S = 0.025
+# a regulator's setting and its gauge: about 0.1 bar
+SUPPLY_TOLERANCE_BAR = 0.1
+# tubes are cut to length on site: a quarter either way, plus the volumes a file rarely
+# gives: the cylinder's end caps, ports and cushions and the fittings, up to this much
+# stroke's worth of bore beyond what the file says
+TUBE_TOLERANCE_SHARE = 0.25
+UNSTATED_DEAD_STROKE_MM = 2.0
+# a thermal-mass meter reads within 1-3 % of reading
+METER_GAIN_TOLERANCE = 0.03
+# a meter's zero offset and the leaks every machine has at its fittings: 1 % of the flow
+LEAK_TOLERANCE_SHARE = 0.01
+# a line's own volume gives a little air back after each stroke on any machine
+REFILL_TOLERANCE_FRACTION = 0.05
 
 
 @dataclass
@@ -102,6 +127,13 @@ class Effect:
         """Change the machine file's TOML data in place; return what was changed."""
         return []
 
+    def within_tolerance(self, mm: MachineModel, theta, ctx: dict) -> str | None:
+        """Where fitted values ``theta`` move the file's values no further than a
+        healthy machine's own differ from its file (catalogue conductances, stroke
+        times set by eye, tubes cut on site), why; else None (a fault, or an effect
+        no healthy machine shows)."""
+        return None
+
 
 def _supply_pa(machine) -> float:
     return bar_g_to_pa(machine.supply_bar_g, machine.atmosphere_kpa)
@@ -127,6 +159,13 @@ class Leak(Effect):
         q = p.copy()
         q.extra_leak_l_min = p.extra_leak_l_min + float(theta[0])
         return q
+
+    def within_tolerance(self, mm, theta, ctx):
+        limit = LEAK_TOLERANCE_SHARE * ctx["mean_l_min"]
+        if float(theta[0]) <= limit:
+            return (f"{float(theta[0]):.2g} NL/min always on is within a meter's zero offset "
+                    f"and a healthy machine's fittings ({limit:.2g} NL/min)")
+        return None
 
     def conductance(self, mm, flow_l_min: float) -> float:
         """(D2 inverted) the sonic conductance of a leak at the supply that flows
@@ -198,6 +237,12 @@ class PassiveFlow(Effect):
             q.passive_l_min[k] = p.passive_l_min[k] * f
         return q
 
+    def within_tolerance(self, mm, theta, ctx):
+        if all(abs(float(f) - 1.0) <= PASSIVE_TOLERANCE_SHARE for f in theta):
+            return (f"every nozzle within {PASSIVE_TOLERANCE_SHARE:.0%} of its rating "
+                    "(a catalogue's conductance, an orifice's Cd)")
+        return None
+
     def _C(self, mm, k) -> float:
         return sonic_conductance(mm.machine.consumers[mm.passives[k]])
 
@@ -245,6 +290,13 @@ class SupplyPressure(Effect):
             return [Param("supply_bar_g", "bar(g)", max(lo, logged - LOGGED_SUPPLY_TOLERANCE_BAR),
                           min(hi, logged + LOGGED_SUPPLY_TOLERANCE_BAR), logged)]
         return [Param("supply_bar_g", "bar(g)", *self._range(mm), mm.machine.supply_bar_g)]
+
+    def within_tolerance(self, mm, theta, ctx):
+        shift = float(theta[0]) - mm.machine.supply_bar_g
+        if abs(shift) <= SUPPLY_TOLERANCE_BAR:
+            return (f"{shift:+.2f} bar from the file's supply is within a regulator's "
+                    "setting and its gauge")
+        return None
 
     def apply(self, mm, p, theta):
         m = mm.machine
@@ -336,6 +388,18 @@ class DeadVolume(Effect):
                 return (f'{c.name}: {-v:.3g} cm^3 less than its {tube_cm3:.3g} cm^3 of '
                         "tube")
         return None
+
+    def within_tolerance(self, mm, theta, ctx):
+        for row, v in zip(mm.drives, theta):
+            c = mm.machine.consumers[row]
+            bore_mm2 = max(swept_areas_mm2(c.kind, c.bore_mm, c.rod_mm or 0.0))
+            allowed = (TUBE_TOLERANCE_SHARE * min(tube_volumes_cm3(c))
+                       + max(inner_dead_volumes_cm3(c))
+                       + bore_mm2 * UNSTATED_DEAD_STROKE_MM / 1000.0)
+            if abs(float(v)) > allowed:
+                return None
+        return (f"every drive's dead volume within {TUBE_TOLERANCE_SHARE:.0%} of its tubes "
+                "and a few mm of its bore (tubes cut on site, end caps and fittings)")
 
     def _nl_per_cm3(self, mm) -> float:
         m = mm.machine                                  # D1: V * P_s/P0 * T0/T_s
@@ -488,6 +552,12 @@ class SharedSupply(Effect):
         q.refill_fraction, q.refill_tau_s = float(theta[0]), float(theta[1])
         return q
 
+    def within_tolerance(self, mm, theta, ctx):
+        if float(theta[0]) <= REFILL_TOLERANCE_FRACTION:
+            return (f"{float(theta[0]):.0%} of each stroke refilled later is what any "
+                    "supply line's own volume gives back")
+        return None
+
     def physical(self, mm, theta):
         return {"refill_fraction": float(theta[0]), "refill_tau_s": float(theta[1])}
 
@@ -517,7 +587,6 @@ class ValveDelay(_Timing):
     drive's switching delay."""
     name, title = "valve_delay", "different valve switching delays"
 
-
     def params(self, mm, ctx):
         return [Param(f"{mm.models[r].name}.extra_delay_s", "s", -mm.models[r].delay_s, 0.5,
                       0.0, CLOSED_DELAY_GRID_S if self.closed_loop else DELAY_GRID_S,
@@ -530,6 +599,12 @@ class ValveDelay(_Timing):
             theta = [d for _, d in self._resequenced(mm, p, q, delays=theta)]
         q.delay_s = np.clip(p.delay_s + np.asarray(theta, dtype=float), 0.0, None)
         return q
+
+    def within_tolerance(self, mm, theta, ctx):
+        if all(abs(float(d)) <= DELAY_TOLERANCE_S for d in theta):
+            return (f"every valve within {DELAY_TOLERANCE_S * 1000:.0f} ms of the file's "
+                    "switching time (units and coil temperatures differ)")
+        return None
 
     def physical(self, mm, theta):
         return {mm.models[r].name: {"switch_delay_s": mm.models[r].delay_s + float(d)}
@@ -590,6 +665,12 @@ class StrokeTime(_Timing):
             q.exhaust_tau_s[rows] = np.maximum(q.exhaust_tau_s[rows],
                                                self._throttled_tau_s(mm, theta)[rows])
         return q
+
+    def within_tolerance(self, mm, theta, ctx):
+        if all(abs(float(f) - 1.0) <= STROKE_TOLERANCE_SHARE for f in theta):
+            return (f"every stroke time within {STROKE_TOLERANCE_SHARE:.0%} of the file's "
+                    "(set at commissioning by eye)")
+        return None
 
     def _throttled_tau_s(self, mm, theta) -> np.ndarray:
         """The exhaust time constant a slower stroke brings: strokes are slowed by the
@@ -659,6 +740,11 @@ class SensorLag(Effect):
     def physical(self, mm, theta):
         return {"tau_s": float(theta[0])}
 
+    def within_tolerance(self, mm, theta, ctx):
+        if float(theta[0]) <= METER_LAG_FIT_MAX_S:
+            return f"a meter lag of {float(theta[0]):.2g} s is a thermal-mass meter's own"
+        return None
+
     def to_machine(self, mm, data, theta):
         data.setdefault("meter", {})["tau_s"] = round(float(theta[0]), 6)
         return [f"[meter] tau_s = {theta[0]:.3g}"]
@@ -678,6 +764,12 @@ class MeterGain(Effect):
         q = p.copy()
         q.meter_gain = p.meter_gain * float(theta[0])
         return q
+
+    def within_tolerance(self, mm, theta, ctx):
+        if abs(float(theta[0]) - 1.0) <= METER_GAIN_TOLERANCE:
+            return (f"a meter gain of {float(theta[0]):.3f} is within a thermal-mass "
+                    f"meter's accuracy ({METER_GAIN_TOLERANCE:.0%} of reading)")
+        return None
 
     def physical(self, mm, theta):
         out = {"gain": float(theta[0])}

@@ -87,7 +87,6 @@ class PlantVariants:
     nominal D1 cells, as the reference's are) for it."""
 
     def __init__(self, machine, mm, rds, bases, program=None, compiled=None):
-
         self.machine = machine
         self.mm = mm
         self.rds = rds
@@ -107,7 +106,6 @@ class PlantVariants:
                     for rd, b in zip(rds, bases)]
 
     def machine_of(self, variant):
-
         data = copy.deepcopy(self.data)
         for name, values in variant:
             PLANT_FORMS[name].inner.to_machine(self.mm, data, np.asarray(values, float))
@@ -199,6 +197,9 @@ class ThroughPlant(Effect):
     def implausible(self, mm, theta):
         return self.inner.implausible(mm, self.quantise(mm, theta))
 
+    def within_tolerance(self, mm, theta, ctx):
+        return self.inner.within_tolerance(mm, self.quantise(mm, theta), ctx)
+
     def to_machine(self, mm, data, theta):
         return self.inner.to_machine(mm, data, np.asarray(self.quantise(mm, theta)))
 
@@ -213,7 +214,6 @@ class _SupplyThroughPlant(ThroughPlant):
 
 
 def _known_dead_cm3(mm, k: int) -> float:
-
     c = mm.machine.consumers[mm.drives[k]]
     known = min(tube_volumes_cm3(c)) + float(np.mean(inner_dead_volumes_cm3(c)))
     return max(MIN_DEAD_VOLUME_CM3, known)
