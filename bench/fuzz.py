@@ -16,6 +16,7 @@ Channels (the mutators are in tests/fuzzing.py; the seed makes a run repeatable)
     --flows N      N mutated flow logs and N mutated --io traces (headers, units, decimal
                    commas, NaN/inf/1e308, times out of order or far away, BOMs, junk):
                    diagnose MACHINE --measured M.csv [--io T.csv] --no-plant
+    --io N         the --io traces alone, N of them (default: as many as --flows)
     --twincat N    mutated copies of samples/twincat_project (XML structure, ST in CDATA,
                    <Compile Include> out of the folder, links, FIFOs, encodings, {{#N}}
                    markers, the task object): check / init / timeline / predict
@@ -62,15 +63,16 @@ import fuzzing as F  # noqa: E402
 # option: (channels it runs, default count)
 KINDS = {"programs": (["programs"], 10_000), "machines": (["machines"], 5_000),
          "commands": (["commands"], 1_000), "truths": (["truths"], 2_000),
-         "flows": (["flow logs", "io traces"], 2_000), "twincat": (["twincat"], 1_000),
-         "outs": (["outs"], 1_000)}
+         "flows": (["flow logs"], 2_000), "io": (["io traces"], 2_000),
+         "twincat": (["twincat"], 1_000), "outs": (["outs"], 1_000)}
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     for name, (channels, default) in KINDS.items():
         ap.add_argument(f"--{name}", type=int, default=None, metavar="N",
-                        help=f"{default} (0 with --differential or --only)")
+                        help="as many as --flows" if name == "io" else
+                        f"{default} (0 with --differential or --only)")
     ap.add_argument("--only", default=None, metavar="KIND,KIND",
                     help=f"run only these ({', '.join(KINDS)}); the others are 0")
     ap.add_argument("--seed", default="1")
@@ -96,7 +98,9 @@ def main() -> int:
         if unknown:
             ap.error(f"--only: unknown {', '.join(sorted(unknown))} (known: {', '.join(KINDS)})")
     for name, (_, default) in KINDS.items():
-        if getattr(args, name) is None:
+        if name == "io" and args.io is None and (only is None or "io" not in only):
+            args.io = args.flows        # (--flows runs the --io traces too)
+        elif getattr(args, name) is None:
             off = args.differential or (only is not None and name not in only)
             setattr(args, name, 0 if off else default)
     tmp = Path(tempfile.mkdtemp(prefix="plcpred-fuzz-"))

@@ -1,6 +1,6 @@
 """Mutated inputs for every channel plcpred reads, and a harness that runs each one in a
 forked child under a time and memory limit and sorts the outcome. Used by
-``tests/test_fuzz.py`` (a short deterministic run) and ``bench/fuzz.py`` (the long run).
+``tests/safety/test_fuzz.py`` (a short deterministic run) and ``bench/fuzz.py`` (the long run).
 
 Channels (``CHANNELS``): programs (ST, .seq, PLCopen; with type cycles, deep type
 constructors and initialisers, long EXTENDS chains), machine files, command lines, truth

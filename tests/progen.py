@@ -1,6 +1,6 @@
 """Seeded random PLC programs with matching machine files, and a differential runner that
 unfolds each one event-driven and scan by scan (the reference) and reports the first
-difference. Used by ``tests/test_differential.py`` (a few hundred programs) and
+difference. Used by ``tests/sequencer/test_differential.py`` (a few hundred programs) and
 ``bench/fuzz.py --differential N`` (the long run).
 
 A generated program is what engineers write for small pneumatic stations: scheduled
@@ -25,7 +25,7 @@ switches the program reads, nozzles, and a random mix of
 ``Case.features`` names the constructs a program holds (``toggle``, ``word-count``,
 ``two-tasks``, ...), so that differences can be grouped by what the programs hold.
 
-Every program parses, compiles and runs (``tests/test_differential.py`` checks it).
+Every program parses, compiles and runs (``tests/sequencer/test_differential.py`` checks it).
 
     case = generate(17)               # Case(seed, program, machine, horizon, features)
     result = run_case(case, tmpdir)   # Result(status "same"|"differ"|"error", detail, ...)

@@ -261,7 +261,7 @@ class Diagnosis:
         way = "instantaneous" if rd.run.sampling == "instant" else "interval means"
         lines = [f"  {rd.run.name}: {len(rd.end_s)} samples every "
                  f"{rd.run.interval_s:g} s ({way}), clock offset {rd.offset_s:+.3f} s"
-                 f"{_clock_reading(rd.run, rd.offset_s)}, "
+                 f"{clock_reading(rd.run, rd.offset_s)}, "
                  f"meter lag {rd.meter_tau_s:.2f} s, correlation {rd.correlation:.2f}"
                  f"{', edges from recorded I/O' if src else ''}"]
         logged = _logged_supply(rd.run)
@@ -914,7 +914,7 @@ def _rank_candidates(results: list[EffectResult], g: _Ground, nominal: _Nominal,
     clock and lag an effect found, the noise lowered to what the best fit leaves, ties
     broken by parsimony and plausibility, and a supply the logs' pressure shows off
     first among equals."""
-    better = _baseline_from_effects(nominal.fit, results + [nominal.reference] * (
+    better = baseline_from_effects(nominal.fit, results + [nominal.reference] * (
         nominal.reference is not None), g.mm, g.rds, g.bases, g.ctx)
     if better is not None:
         nominal.fit = better
@@ -925,7 +925,7 @@ def _rank_candidates(results: list[EffectResult], g: _Ground, nominal: _Nominal,
     # leaves
     if results:
         judge.noise = min(judge.noise, min(e.fit_score.rmse_l_min for e in results))
-    results = _tie_break(results, judge.noise, g.mm)
+    results = tie_break(results, judge.noise, g.mm)
     return _logged_supply_first(results, judge.noise, g.supply_logged_off)
 
 
@@ -1443,7 +1443,7 @@ def _evaluate(effects: list[Effect], mm, rds, bases, ctx, fold_masks) -> EffectR
                         dict(zip(fit.names, map(float, fit.theta))), physical, beyond)
 
 
-def _tie_break(results: list[EffectResult], noise: float, mm) -> list[EffectResult]:
+def tie_break(results: list[EffectResult], noise: float, mm) -> list[EffectResult]:
     """Among effects whose held-out error is as good as the best's (within one standard
     deviation of what noise does to a held-out MSE, or 1 % of RMSE), the one with the
     fewest parameters goes first (the lowest BIC among equals). Then, when the first's
@@ -1478,7 +1478,7 @@ def _implausible(result: EffectResult, mm) -> str | None:
     return None
 
 
-def _baseline_from_effects(base_all: FitResult, fitted: list[EffectResult], mm, rds,
+def baseline_from_effects(base_all: FitResult, fitted: list[EffectResult], mm, rds,
                            bases, ctx) -> FitResult | None:
     """The baseline fitted again from each clock adjustment and meter lag that an
     effect's fit ended at, where one fits all samples better than its own did; else
@@ -1649,7 +1649,7 @@ def write_fixed_machine(d: Diagnosis, path) -> list[str]:
     return changes
 
 
-def _clock_reading(run, offset_s: float) -> str:
+def clock_reading(run, offset_s: float) -> str:
     """Where the prediction's t = 0 falls on a log whose times are date-times or times
     of day (its offset in seconds since 1970 or midnight says little to a reader)."""
     fmt = run.source.get("time_format", "seconds")

@@ -730,7 +730,7 @@ def _sweep_timing(problem: _FitProblem, u0: np.ndarray) -> np.ndarray:
             best, best_ray = trial, ray
     u0 = best[1]
     if best_ray is not None:
-        u0 = _golden_refine(problem.cost, u0, best_ray, flat[best_ray[0]], lo, span,
+        u0 = golden_refine(problem.cost, u0, best_ray, flat[best_ray[0]], lo, span,
                             profiled=problem.profiled if plant else None)
     return u0
 
@@ -753,7 +753,7 @@ def _refine_timing(problem: _FitProblem, u0: np.ndarray) -> np.ndarray:
                 u0 = _profiled_sweep(problem.profiled, u0, ray, flat[ray[0]], lo, span,
                                      problem.profiled(u0))[1]
             else:
-                u0 = _golden_refine(problem.cost, u0, ray, flat[ray[0]], lo, span,
+                u0 = golden_refine(problem.cost, u0, ray, flat[ray[0]], lo, span,
                                     narrow=True)
     return u0
 
@@ -893,7 +893,7 @@ def _profiled_sweep(profiled, u0: np.ndarray, ray: list[int], param: Param, lo: 
     return best
 
 
-def _golden_refine(cost, u0: np.ndarray, ray: list[int], param: Param, lo: np.ndarray,
+def golden_refine(cost, u0: np.ndarray, ray: list[int], param: Param, lo: np.ndarray,
                    span: np.ndarray, narrow: bool = False, profiled=None) -> np.ndarray:
     """``u0`` with the parameters ``ray`` (set to one value together) refined by
     golden-section search between the grid values either side of their value (the

@@ -22,6 +22,7 @@ from __future__ import annotations
 import builtins
 import copy
 import hashlib
+import math
 import pickle
 import re
 import time as _time
@@ -364,7 +365,11 @@ _BUILTINS = {name: getattr(builtins, name) for name in (
     "__build_class__", "abs", "float", "int", "len", "max", "min", "range", "set", "tuple")}
 
 
-def _namespace(timers: list, sfcs: list) -> dict:
+def program_namespace(timers: list, sfcs: list) -> dict:
+    """The globals generated program code runs in: the restricted builtins and the
+    runtime helpers the compiler emits calls to, nothing else. Standard timers the
+    program creates are appended to ``timers`` (the executor schedules their expiries)
+    and SFC runtimes to ``sfcs``."""
     listing = [True]
 
     def _stdfb(name):
@@ -394,7 +399,7 @@ def _namespace(timers: list, sfcs: list) -> dict:
         "_opaque": _opaque, "_memcpy": _memcpy, "_memset": _memset, "_memcmp": _memcmp,
         "_chkidx": rtm.check_index, "_getbit": rtm.getbit, "_setbit": rtm.setbit,
         "_wrap": rtm.wrap, "_idiv": rtm.idiv, "_imod": rtm.imod, "_fdiv": rtm.fdiv,
-        "_fmod": __import__("math").fmod, "_tmul": rtm.tmul, "_tdiv": rtm.tdiv,
+        "_fmod": math.fmod, "_tmul": rtm.tmul, "_tdiv": rtm.tdiv,
         "_expt": rtm.expt, "_limit": rtm.limit, "_sel": rtm.sel, "_mux": rtm.mux,
         "_shl": rtm.shl, "_shr": rtm.shr, "_rol": rtm.rol, "_ror": rtm.ror,
         "_math": rtm.MATH, "_to_int": rtm.to_int, "_to_real": rtm.to_real,
@@ -422,7 +427,7 @@ class ProgramInstance:
         self.filename = f"<plcpred {self._file(program)}>"
         self.timers: list = []
         self.sfcs: list = []
-        self.ns = _namespace(self.timers, self.sfcs)
+        self.ns = program_namespace(self.timers, self.sfcs)
         lines = self.compiled.source.split("\n")
         starts = self.compiled.pieces
         for a, b in zip(starts, starts[1:] + (len(lines),)):

@@ -148,7 +148,7 @@ def test_a_tiled_timeline_gives_each_signal_its_edges_without_building_the_whole
     from pathlib import Path
 
     from plcpred import load_machine, unfold
-    pick = Path(__file__).resolve().parent.parent / "samples" / "pick_place.toml"
+    pick = Path(__file__).resolve().parents[2] / "samples" / "pick_place.toml"
     lazy = unfold(load_machine(pick), "2h")
     built = unfold(load_machine(pick), "2h")
     assert lazy.tiled is not None
@@ -167,7 +167,7 @@ def test_demand_csv_times_are_exact_decimals_at_any_horizon():
     assert text == "0,0.000000\n0.25,0.333333\n0.5,0.000000\n0.75,0.333333\n"
 
 
-SAMPLES = __import__("pathlib").Path(__file__).resolve().parent.parent / "samples"
+SAMPLES = __import__("pathlib").Path(__file__).resolve().parents[2] / "samples"
 
 
 @pytest.mark.parametrize("name", ["pick_place", "sorter", "press"])

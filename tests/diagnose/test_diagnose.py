@@ -30,7 +30,7 @@ from plcpred.diagnose.noise import noise_level_l_min
 from plcpred.machine import machine_from_data, read_machine_data
 from plcpred.physics.meter import first_order_lag
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 RIG = ROOT / "samples" / "prototype_rig" / "rig.toml"
 RIG_NOLEAK = ROOT / "samples" / "prototype_rig" / "rig_noleak.toml"
 PICK = ROOT / "samples" / "pick_place.toml"
@@ -133,9 +133,9 @@ def test_logger_date_times(tmp_path, times, steps):
     ("%H:%M:%S.%f", 47100.25, "t = 0 at 13:05:00.250 on the log's clock"),
 ])
 def test_the_report_places_t0_on_a_date_time_logs_clock(fmt, offset_s, text):
-    from plcpred.diagnose.core import _clock_reading
+    from plcpred.diagnose.core import clock_reading
     run = MeasuredRun("log.csv", np.arange(3.0), np.ones(3), source={"time_format": fmt})
-    reading = _clock_reading(run, offset_s)
+    reading = clock_reading(run, offset_s)
     assert (text in reading) if text else reading == ""
 
 
@@ -447,7 +447,7 @@ def test_the_baseline_takes_a_clock_an_effect_found():
     them: here a baseline started 0.3 s off against logs at 1 Hz."""
     from types import SimpleNamespace
 
-    from plcpred.diagnose.core import _baseline_from_effects
+    from plcpred.diagnose.core import baseline_from_effects
     from plcpred.diagnose.fit import fit_effects
 
     runs = two_runs(RIG, 30, 3.0, rate_hz=1.0, tau_s=0.3, noise=0.5)
@@ -466,11 +466,11 @@ def test_the_baseline_takes_a_clock_an_effect_found():
                                                 theta=np.append(right.theta, 1e-12)))
     lagless = SimpleNamespace(fit=SimpleNamespace(names=["tau_s", "clock_adjust_s"],
                                                   theta=np.array([0.3, 0.0])))
-    better = _baseline_from_effects(wrong, [lagless, found], mm, rds, bases, ctx)
+    better = baseline_from_effects(wrong, [lagless, found], mm, rds, bases, ctx)
     assert better is not None and better.cost == pytest.approx(right.cost, rel=0.05)
     assert better.theta == pytest.approx(right.theta, abs=0.02)
     # nothing better to start from: the baseline stays
-    assert _baseline_from_effects(right, [found], mm, rds, bases, ctx) is None
+    assert baseline_from_effects(right, [found], mm, rds, bases, ctx) is None
 
 
 def test_a_combination_the_plant_cannot_run_is_left_out_with_a_warning(monkeypatch):
@@ -919,7 +919,7 @@ def test_slower_strokes_on_a_timer_are_cut_short_and_found(rig_model):
 
 def test_golden_refinement_finds_a_minimum_between_grid_values():
     from plcpred.diagnose.effects import Param
-    from plcpred.diagnose.fit import _golden_refine
+    from plcpred.diagnose.fit import golden_refine
 
     p = Param("f", "", 0.2, 5.0, 1.0, (0.5, 1.0, 1.4, 2.0, 2.8), discrete=True)
     lo, span = np.array([0.2]), np.array([4.8])
@@ -930,7 +930,7 @@ def test_golden_refinement_finds_a_minimum_between_grid_values():
         calls.append(x)
         return (x - 1.63) ** 2
 
-    u = _golden_refine(cost, np.array([(1.4 - 0.2) / 4.8]), [0], p, lo, span)
+    u = golden_refine(cost, np.array([(1.4 - 0.2) / 4.8]), [0], p, lo, span)
     assert lo[0] + u[0] * span[0] == pytest.approx(1.63, abs=0.03)
     assert 1.0 <= min(calls) and max(calls) <= 2.0       # between the grid neighbours
     assert len(calls) <= 10                               # a few sequencer runs, not more
@@ -1012,7 +1012,7 @@ def test_a_dead_volume_that_takes_away_most_of_the_tube_is_implausible(rig_model
 
 
 def test_the_verdict_prefers_a_plausible_effect_the_data_cannot_tell_apart(rig_model):
-    from plcpred.diagnose.core import EffectResult, _tie_break
+    from plcpred.diagnose.core import EffectResult, tie_break
     from plcpred.diagnose.fit import FitResult, Score
 
     m, mm, _ = rig_model
@@ -1031,14 +1031,14 @@ def test_the_verdict_prefers_a_plausible_effect_the_data_cannot_tell_apart(rig_m
     exhaust = result("incomplete_exhaust", [8.0, 0.3] + [0.0, 0.0] * 2, 1.005)
     leak = result("leak", [1.0], 3.0)
     # as good on held-out samples: the plausible one first
-    assert [r.name for r in _tie_break([shorter_tube, exhaust, leak], 0.5, mm)] == [
+    assert [r.name for r in tie_break([shorter_tube, exhaust, leak], 0.5, mm)] == [
         "incomplete_exhaust", "dead_volume", "leak"]
     # clearly worse on held-out samples: the data decide, not plausibility
     worse = result("incomplete_exhaust", [8.0, 0.3] + [0.0, 0.0] * 2, 2.0)
-    assert _tie_break([shorter_tube, worse, leak], 0.5, mm)[0].name == "dead_volume"
+    assert tie_break([shorter_tube, worse, leak], 0.5, mm)[0].name == "dead_volume"
     # a plausible dead volume stays first
     longer_tube = result("dead_volume", [5.0, 0.0, 0.0], 1.00)
-    assert _tie_break([longer_tube, exhaust], 0.5, mm)[0].name == "dead_volume"
+    assert tie_break([longer_tube, exhaust], 0.5, mm)[0].name == "dead_volume"
 
 
 # ---------------------------------------------------------------------- timing_params
@@ -1091,7 +1091,7 @@ def test_a_slow_log_trades_meter_lag_for_clock_and_still_finds_nothing():
 
 
 def test_fewer_parameters_win_when_held_out_samples_cannot_tell(rig_model):
-    from plcpred.diagnose.core import EffectResult, _tie_break
+    from plcpred.diagnose.core import EffectResult, tie_break
     from plcpred.diagnose.fit import FitResult, Score
 
     m, mm, _ = rig_model
@@ -1108,9 +1108,9 @@ def test_fewer_parameters_win_when_held_out_samples_cannot_tell(rig_model):
     knives = result("passive_flow", 4, 430.0, 2.92)
     leak = result("leak", 1, 457.0, 3.00)
     assert 3.0 ** 2 - 2.92 ** 2 < 3.0 ** 2 * math.sqrt(2 / 120)
-    assert [r.name for r in _tie_break([knives, leak], 3.0, mm)] == ["leak", "passive_flow"]
+    assert [r.name for r in tie_break([knives, leak], 3.0, mm)] == ["leak", "passive_flow"]
     # by more than that: the data decide
-    assert _tie_break([knives, result("leak", 1, 900.0, 4.0)], 3.0, mm)[0].name == \
+    assert tie_break([knives, result("leak", 1, 900.0, 4.0)], 3.0, mm)[0].name == \
         "passive_flow"
 
 

@@ -9,7 +9,7 @@ from plcpred.parser import ProgramError, load_program, parse_st
 from plcpred.parser.check import check_program
 from plcpred.sequencer.executor import ProgramInstance
 
-BNR = Path(__file__).resolve().parent / "data" / "bnr"
+BNR = Path(__file__).resolve().parents[1] / "data" / "bnr"
 MS = 1_000_000
 
 

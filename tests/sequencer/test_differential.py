@@ -18,7 +18,7 @@ import progen
 from plcpred.machine import load_machine
 from plcpred.sequencer import Signal, Timeline, unfold
 
-SAMPLES = Path(__file__).resolve().parent.parent / "samples"
+SAMPLES = Path(__file__).resolve().parents[2] / "samples"
 MACHINES = sorted(SAMPLES.glob("*.toml")) + sorted((SAMPLES / "prototype_rig").glob("*.toml"))
 
 N_PROGRAMS = 300

@@ -12,7 +12,7 @@ import pytest
 from plcpred.cli import main
 from plcpred.progress import OFF, Progress, is_terminal, progress_or_off
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 SAMPLES = ROOT / "samples"
 PICK = SAMPLES / "pick_place.toml"
 RIG = SAMPLES / "prototype_rig" / "rig.toml"

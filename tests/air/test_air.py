@@ -25,7 +25,7 @@ from plcpred.physics.units import P0_PA, P_ATM_PA
 from plcpred.physics.volumes import consumer_stroke_volumes_nl
 from plcpred.sequencer.timeline import Signal, Timeline
 
-SAMPLES = Path(__file__).resolve().parent.parent / "samples"
+SAMPLES = Path(__file__).resolve().parents[2] / "samples"
 RIG = SAMPLES / "prototype_rig" / "rig.toml"
 S = 10**9
 
@@ -437,5 +437,7 @@ def test_cell_volumes_equal_the_differences_of_the_exact_cumulative():
         start[: n // 3] = edges[rng.integers(0, len(edges), n // 3)]
         dur = np.where(rng.random(n) < 0.3, 0.0, rng.uniform(0, 5, n))
         amount = rng.uniform(0, 3, n)
-        assert rectangles_cell_nl(edges, start, dur, amount) == pytest.approx(
-            np.diff(rectangles_cumulative_nl(edges, start, dur, amount)), rel=1e-9, abs=1e-9)
+        # (assert_allclose: pytest.approx compares element by element in Python)
+        np.testing.assert_allclose(
+            rectangles_cell_nl(edges, start, dur, amount),
+            np.diff(rectangles_cumulative_nl(edges, start, dur, amount)), rtol=1e-9, atol=1e-9)

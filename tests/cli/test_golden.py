@@ -39,9 +39,9 @@ compared as written):
 To accept new outputs (only when a change of behaviour is intended), rewrite the stored
 files and look at ``git diff tests/data/golden``::
 
-    PLCPRED_UPDATE_GOLDEN=1 python -m pytest tests/test_golden.py -n0
+    PLCPRED_UPDATE_GOLDEN=1 python -m pytest tests/cli/test_golden.py -n0
 
-(or ``'tests/test_golden.py::test_golden[predict/press]'`` for one case; a mismatch
+(or ``'tests/cli/test_golden.py::test_golden[predict/press]'`` for one case; a mismatch
 prints this command for its case). In that mode every case is rewritten and reported as
 skipped, saying which files it wrote or removed, and stored cases that no longer exist
 are removed. Some stored lines end in spaces (emulate's table pads its ``(hidden)`` row):
@@ -63,16 +63,16 @@ import pytest
 
 from plcpred.cli import main
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 GOLDEN = ROOT / "tests" / "data" / "golden"
 UPDATE_ENV = "PLCPRED_UPDATE_GOLDEN"
 UPDATE = os.environ.get(UPDATE_ENV, "") not in ("", "0")
-REGENERATE = f"{UPDATE_ENV}=1 python -m pytest tests/test_golden.py -n0"
+REGENERATE = f"{UPDATE_ENV}=1 python -m pytest tests/cli/test_golden.py -n0"
 
 
 def _regenerate(case: str) -> str:
     """The command that rewrites one case's stored files."""
-    return f"{UPDATE_ENV}=1 python -m pytest 'tests/test_golden.py::test_golden[{case}]' -n0"
+    return f"{UPDATE_ENV}=1 python -m pytest 'tests/cli/test_golden.py::test_golden[{case}]' -n0"
 
 
 # the samples, as paths relative to the repository root

@@ -24,7 +24,7 @@ from plcpred.parser.plcopen import parse_plcopen
 from plcpred.parser.seq import parse_seq
 from plcpred.parser.st import parse_st
 from plcpred.sequencer.compiler import compile_program
-from plcpred.sequencer.executor import ProgramInstance, _namespace
+from plcpred.sequencer.executor import ProgramInstance, program_namespace
 from conftest import ROOT
 
 HOSTILE = ROOT / "tests" / "data" / "hostile"
@@ -250,7 +250,7 @@ def test_compiler_rejects_unvalidated_names_in_hand_built_ir():
 
 
 def test_generated_code_has_only_the_builtins_it_needs():
-    ns = _namespace([], [])
+    ns = program_namespace([], [])
     allowed = set(ns["__builtins__"])
     for dangerous in ("exec", "eval", "compile", "open", "__import__", "getattr",
                       "setattr", "globals", "vars", "breakpoint", "input", "type", "object"):

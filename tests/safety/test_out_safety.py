@@ -17,7 +17,7 @@ from plcpred import output
 from plcpred.output import (MANIFEST, OutputError, check_out_dir, clean_abandoned,
                             output_dir)
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 PRESS = ROOT / "samples" / "press.toml"
 
 

@@ -18,7 +18,7 @@ from plcpred.machine import MachineError, load_machine
 from plcpred.plant import emulate
 from plcpred.sequencer.timeline import NS
 
-SAMPLES = Path(__file__).resolve().parent.parent / "samples"
+SAMPLES = Path(__file__).resolve().parents[2] / "samples"
 PICK = SAMPLES / "pick_place.toml"
 
 

@@ -14,7 +14,7 @@ from plcpred.machine import load_machine
 from plcpred.sequencer import parse_horizon
 from plcpred.sequencer.executor import Sequencer
 
-SAMPLES = Path(__file__).resolve().parent.parent / "samples"
+SAMPLES = Path(__file__).resolve().parents[2] / "samples"
 
 COUNTS = {
     "step": ("nShown : UDINT;", "nShown := nShown + 1;"),

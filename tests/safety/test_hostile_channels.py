@@ -32,7 +32,7 @@ from plcpred.machine import load_machine
 from plcpred.sequencer import Timeline, parse_horizon, unfold
 from plcpred.sequencer.timeline import MAX_HORIZON_NS, NS, HorizonError
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 PICK = ROOT / "samples" / "pick_place.toml"
 LOG = "time_s,flow_l_min,supply_bar_g\n" + "".join(
     f"{0.1 * k:.1f},{3.5 + (k % 7)},6.0\n" for k in range(1, 60))

@@ -205,7 +205,7 @@ def test_the_docs_key_tables_are_the_schemas():
     from pathlib import Path
 
     from plcpred.machine import schema
-    doc = (Path(__file__).resolve().parent.parent / "docs" / "reference"
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "reference"
            / "machine-file.md").read_text()
     assert schema.with_tables(doc) == doc
     changed = schema.with_tables(doc.replace("| `bore_mm` | required |", "| `bore_mm` | 7 |"))
@@ -470,7 +470,7 @@ def test_the_errors_and_the_warning_the_docs_show_are_what_plcpred_says(tmp_path
     """docs/reference/machine-file.md's error lines, made from its small example."""
     import re
     from pathlib import Path
-    doc = (Path(__file__).resolve().parent.parent / "docs" / "reference"
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "reference"
            / "machine-file.md").read_text()
     example = doc.split("## A small example", 1)[1].split("```toml\n", 1)[1].split("```")[0]
     shown = doc.split("## Errors and warnings", 1)[1].split("```\n")

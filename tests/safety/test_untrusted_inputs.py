@@ -19,7 +19,7 @@ from plcpred.errors import PlcpredError
 from plcpred.machine import MachineError, load_machine
 from plcpred.parser import ProgramError, ir, load_program
 
-SAMPLES = Path(__file__).resolve().parent.parent / "samples"
+SAMPLES = Path(__file__).resolve().parents[2] / "samples"
 SORTER = (SAMPLES / "openplc_sorter.st").read_text()
 
 

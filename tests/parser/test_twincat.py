@@ -12,7 +12,7 @@ from plcpred.parser.twincat import parse_twincat
 from plcpred.sequencer import ExecutionError, unfold
 from plcpred.sequencer.executor import ProgramInstance
 
-SAMPLES = Path(__file__).resolve().parent.parent / "samples"
+SAMPLES = Path(__file__).resolve().parents[2] / "samples"
 PROJECT = SAMPLES / "twincat_project" / "ClampStation"
 HEAD = '<?xml version="1.0" encoding="utf-8"?>\n<TcPlcObject Version="1.1.0.1">\n'
 

@@ -19,7 +19,7 @@ from plcpred.plant.replay import (
 )
 from plcpred.sequencer import unfold
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 PICK = ROOT / "samples" / "pick_place.toml"
 DT_S = 0.01
 

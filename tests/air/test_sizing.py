@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import plcpred_in_process
 
 from plcpred import predict
 from plcpred.air import demand_profile
@@ -15,7 +16,7 @@ from plcpred.air.demand import ConsumerModel
 from plcpred.air.sizing import receiver_deficit, size
 from plcpred.sequencer.timeline import Signal, Timeline
 
-SAMPLES = Path(__file__).resolve().parent.parent / "samples"
+SAMPLES = Path(__file__).resolve().parents[2] / "samples"
 RIG = SAMPLES / "prototype_rig" / "rig.toml"
 S = 10**9
 
@@ -88,8 +89,7 @@ def test_idle_share_counts_air_while_no_cylinder_moves():
 
 
 def run(*args):
-    return subprocess.run(check=False, args=[sys.executable, "-m", "plcpred.cli", *map(str, args)],
-                          capture_output=True, text=True)
+    return plcpred_in_process(*args)
 
 
 def test_size_writes_the_reports(tmp_path):

@@ -51,7 +51,7 @@ def test_every_command_and_option_is_in_docs_cli():
     from pathlib import Path
 
     from plcpred.cli import build_parser
-    doc = (Path(__file__).resolve().parent.parent / "docs" / "reference" / "cli.md").read_text()
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "reference" / "cli.md").read_text()
     sub = [a for a in build_parser()._actions if a.__class__.__name__ == "_SubParsersAction"]
     for name, parser in sub[0].choices.items():
         assert f"## `plcpred {name}`" in doc, name
@@ -77,7 +77,7 @@ def test_summary_json_holds_the_peaks_the_console_prints(tmp_path, capsys):
     import json
     import re
     from pathlib import Path
-    pick = Path(__file__).resolve().parent.parent / "samples" / "pick_place.toml"
+    pick = Path(__file__).resolve().parents[2] / "samples" / "pick_place.toml"
     assert main(["predict", str(pick), "--horizon", "2m", "--out", str(tmp_path / "o"),
                  "--no-plot"]) == 0
     printed = capsys.readouterr().out
@@ -95,7 +95,7 @@ def test_no_timeline_leaves_out_timeline_csv_and_the_old_runs_one(tmp_path, caps
     the new manifest does not list it. A file of the user's stays."""
     import json
     from pathlib import Path
-    pick = str(Path(__file__).resolve().parent.parent / "samples" / "pick_place.toml")
+    pick = str(Path(__file__).resolve().parents[2] / "samples" / "pick_place.toml")
     out = tmp_path / "o"
     assert main(["predict", pick, "--horizon", "20s", "--out", str(out), "--no-plot"]) == 0
     assert (out / "timeline.csv").exists()
@@ -112,7 +112,7 @@ def test_no_timeline_leaves_out_timeline_csv_and_the_old_runs_one(tmp_path, caps
 def test_identify_json_dash_prints_the_json_alone(tmp_path, capsys):
     import json
     from pathlib import Path
-    bench = Path(__file__).resolve().parent / "data" / "identify" / "bench_plain.csv"
+    bench = Path(__file__).resolve().parents[1] / "data" / "identify" / "bench_plain.csv"
     assert main(["identify", "flow", str(bench), "--json", "-"]) == 0
     captured = capsys.readouterr()
     assert json.loads(captured.out)["n_points"] == 24
@@ -125,7 +125,7 @@ def test_identify_json_dash_prints_the_json_alone(tmp_path, capsys):
 
 # ---------------------------------------------------------------- docs/reference/cli.md
 
-CLI_MD = __import__("pathlib").Path(__file__).resolve().parent.parent / "docs" / "reference" \
+CLI_MD = __import__("pathlib").Path(__file__).resolve().parents[2] / "docs" / "reference" \
     / "cli.md"
 UPDATE_CLI_MD = "PLCPRED_UPDATE_CLI_MD"     # =1: rewrite cli.md's help blocks, then look
 
@@ -150,7 +150,7 @@ def _help_blocks(doc: str) -> dict:
 
 def test_docs_cli_is_the_help_texts(monkeypatch):
     """Every command's section of docs/reference/cli.md holds its --help, word for word
-    (PLCPRED_UPDATE_CLI_MD=1 python -m pytest tests/test_cli.py -n0 -k docs_cli rewrites
+    (PLCPRED_UPDATE_CLI_MD=1 python -m pytest tests/cli/test_cli.py -n0 -k docs_cli rewrites
     them; look at git diff docs/reference/cli.md)."""
     import os
     helps = _help_texts(monkeypatch)
@@ -166,7 +166,7 @@ def test_docs_cli_is_the_help_texts(monkeypatch):
         "of commands that are gone)"
     stale = [name for name, (start, end) in blocks.items() if doc[start:end] != helps[name]]
     assert not stale, (f"docs/reference/cli.md differs from --help for {', '.join(stale)}: "
-                       f"{UPDATE_CLI_MD}=1 python -m pytest tests/test_cli.py -n0 -k docs_cli")
+                       f"{UPDATE_CLI_MD}=1 python -m pytest tests/cli/test_cli.py -n0 -k docs_cli")
 
 
 def test_compare_prints_the_machine_files_warnings(tmp_path, samples_dir, capsys):

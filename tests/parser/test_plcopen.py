@@ -180,7 +180,7 @@ def test_missing_attribute_is_reported_at_its_element():
 
 def test_beremiz_style_export_with_layout_data_and_uppercase_string():
     from pathlib import Path
-    prog = load_program(Path(__file__).parent / "data" / "beremiz_sfc.xml")
+    prog = load_program(Path(__file__).resolve().parents[1] / "data" / "beremiz_sfc.xml")
     pou = prog.pous[0]
     sfc = pou.body
     assert [(t.sources, t.targets) for t in sfc.transitions] == [(["Init"], ["Work"]),

@@ -29,7 +29,7 @@ from plcpred.plant.replay import (
 from plcpred.sequencer import unfold
 from plcpred.sequencer.timeline import Timeline
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / "tests" / "data" / "plant"
 RIG = ROOT / "samples" / "prototype_rig" / "rig.toml"
 PICK = ROOT / "samples" / "pick_place.toml"

@@ -14,7 +14,7 @@ from plcpred.diagnose import MeasuredDataError, read_measured
 from plcpred.diagnose.io import FLOW_UNITS, PRESSURE_UNITS
 from plcpred.identify import DataColumns, IdentifyError, identify_steady, read_flow_data
 
-DATA = Path(__file__).resolve().parent / "data"
+DATA = Path(__file__).resolve().parents[1] / "data"
 LOGS = DATA / "logs"
 M3H = 1000.0 / 60.0             # l/min per m3/h
 PSI_BAR = 0.0689476

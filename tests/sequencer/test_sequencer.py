@@ -15,7 +15,7 @@ from plcpred.machine import Consumer, InputSchedule, Machine, load_machine
 from plcpred.parser import parse_st
 from plcpred.sequencer import Sequencer, parse_horizon
 
-SAMPLES = Path(__file__).resolve().parent.parent / "samples"
+SAMPLES = Path(__file__).resolve().parents[2] / "samples"
 MACHINES = sorted(SAMPLES.glob("*.toml")) + sorted((SAMPLES / "prototype_rig").glob("*.toml"))
 
 
