@@ -47,11 +47,16 @@ import stat
 import sys
 import tempfile
 import time
-import uuid
 from contextlib import contextmanager
 from pathlib import Path
 
 from .errors import PlcpredError
+
+
+def _random_hex(digits: int) -> str:
+    """A random name part (the uuid module would cost every command 10 ms to import)."""
+    return os.urandom((digits + 1) // 2).hex()[:digits]
+
 
 try:
     import fcntl
@@ -215,7 +220,7 @@ def output_dir(path, command: str = "", warn=None):
         lock_fd, staging = _new_staging(out)
     except OSError as e:
         raise OutputError(f"--out {path}: {e.strerror or e}") from None
-    run_id = uuid.uuid4().hex
+    run_id = _random_hex(32)
     try:
         yield staging
         _write_manifest(staging, run_id, command)
@@ -247,7 +252,7 @@ def _new_staging(out: Path) -> tuple[int, Path]:
     try:
         if fcntl is not None:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        staging = out.parent / f"{_STAGING_PREFIX}{out.name}-{uuid.uuid4().hex[:12]}"
+        staging = out.parent / f"{_STAGING_PREFIX}{out.name}-{_random_hex(12)}"
         os.rename(tmp, _lock_of(staging))
         staging.mkdir(mode=0o777)          # the umask applies, as it will to --out
     except BaseException:

@@ -8,94 +8,32 @@ semantics and a plant I/O model.
 * :mod:`~plcpred.sequencer.stdfb` - the IEC 61131-3 standard function blocks
 * :mod:`~plcpred.sequencer.plant` - cylinder end switches following their valves
 """
-import numpy as np
-
-from ..machine import Machine, check_against_program, load_machine
-from .compiler import CompileError, compile_program
-from .executor import Sequencer, SequencerError, observed_names
-from .runtime import ExecutionError, Watchdog
-from .timeline import DEFAULT_MAX_CHANGES, Signal, Timeline, TimelineTooLarge, parse_horizon
+# Each name is imported from its module on first use (PEP 562): the compiler's package
+# is imported by `plcpred check`, which must not wait for numpy, the machine file's
+# reader and the executor (the start-up benchmark, bench/startup.py).
+_LAZY = {
+    "CompileError": ".compiler", "compile_program": ".compiler",
+    "Sequencer": ".executor", "SequencerError": ".executor", "observed_names": ".executor",
+    "ExecutionError": ".runtime", "Watchdog": ".runtime",
+    "DEFAULT_MAX_CHANGES": ".timeline", "Signal": ".timeline", "Timeline": ".timeline",
+    "TimelineTooLarge": ".timeline", "parse_horizon": ".timeline",
+    "lint_timeline": ".unfolding", "unfold": ".unfolding", "valves_moved": ".unfolding",
+}
 
 __all__ = ["CompileError", "ExecutionError", "Sequencer", "SequencerError", "Signal",
            "Timeline", "TimelineTooLarge", "Watchdog", "compile_program", "lint_timeline",
            "observed_names", "parse_horizon", "unfold", "valves_moved"]
 
 
-def unfold(machine, horizon="60s", scan_stepping: bool = False, tiling: bool = True,
-           program=None, max_events: int = DEFAULT_MAX_CHANGES,
-           replay: bool = True, compiled=None) -> Timeline:
-    """Run ``machine``'s program (or ``program``, an IR or a path, instead) over
-    ``horizon`` (``"90s"``, ``"T#1m30s"``, ``"8h"`` or seconds) and return its timeline.
-    ``tiling`` and ``replay`` (repeating states and parts copied instead of executed,
-    :meth:`Sequencer.run`) can be turned off to check them against full execution.
-    ``compiled``: :func:`compile_program` of the IR ``program``, for callers that run
-    one program many times (the diagnosis' timing variants).
+def __getattr__(name: str):
+    if name in _LAZY:
+        import importlib
 
-    Raises :class:`~plcpred.parser.ProgramError` (program text), :class:`CompileError`
-    (constructs the executor cannot run), :class:`ExecutionError` (run-time faults such as
-    a watchdog) or :class:`~plcpred.machine.MachineError` (machine file)."""
-
-    if not isinstance(machine, Machine):
-        machine = load_machine(machine)
-    horizon_ns = parse_horizon(horizon)
-    if program is None or not hasattr(program, "pous"):
-        program = machine.read_program(program)
-    check_against_program(machine, program)
-    timeline = Sequencer(program, machine, compiled=compiled).run(
-        horizon_ns, scan_stepping=scan_stepping, tiling=tiling, max_events=max_events,
-        replay=replay)
-    machine.warnings.extend(lint_timeline(machine, timeline))
-    return timeline
+        value = getattr(importlib.import_module(_LAZY[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
-def valves_moved(machine, timeline) -> bool | None:
-    """Whether any consumer's valve command ever left its rest in the run (None: the
-    machine has no valves at all). Checked on the executed part of a tiled run."""
-    return _valve_lint(machine, timeline)[0]
-
-
-def lint_timeline(machine, timeline) -> list[str]:
-    """Warnings a run gives about its machine: no valve output ever changed (nothing
-    moved: an input nobody drives? a program waiting for something?), or both solenoids
-    of a bistable valve on at once (the valve keeps its state; the wiring or the program
-    is wrong). A tiled run is checked on the part executed, which the rest repeats."""
-    moved, out = _valve_lint(machine, timeline)
-    if moved is False:
-        out.append(f"{machine.path}: no valve output changed over {timeline.horizon_s:g} s: "
-                   "nothing moved (an input nobody drives? a program waiting for something?)")
-    return out
-
-
-def _valve_lint(machine, timeline) -> tuple[bool | None, list[str]]:
-    file = str(machine.path)
-    names = timeline.info.get("machine_signals", {})
-    known = {sig.name for sig in timeline.signals}
-    out, moved, any_valve = [], False, False
-    for c in machine.consumers:
-        series = []
-        for v in c.valve:
-            name = names.get(v, v)
-            if name not in known:
-                break
-            series.append(timeline.executed_edge_times_ns(name))
-        else:
-            if not series:
-                continue
-            any_valve = True
-            # a change after the first scan, or a first scan that already commands the
-            # consumer away from its rest (a cylinder's initial position, a nozzle off)
-            rest = c.initial == "extended" if c.is_cylinder else False
-            first = [bool(v[0]) if len(v) else False for _, v in series]
-            away = first[0] != rest if len(series) == 1 else (
-                first[0] and not rest) or (first[1] and rest)
-            moved = moved or away or any(np.any(t > 0) for t, _ in series)
-            if len(series) == 2:
-                times = np.union1d(series[0][0], series[1][0])
-                on = [v[np.maximum(np.searchsorted(t, times, side="right") - 1, 0)] != 0
-                      for t, v in series]
-                both = times[on[0] & on[1]]
-                if both.size:
-                    out.append(f'{file}: consumer "{c.name}": both solenoids of its bistable '
-                               f"valve ({c.valve[0]}, {c.valve[1]}) are on at "
-                               f"{both[0] / 1e9:g} s; the valve keeps its state")
-    return (moved if any_valve else None), out
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
