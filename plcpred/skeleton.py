@@ -4,22 +4,44 @@ The program says which signals it reads and writes and how often its task runs; 
 say what drives its inputs or which air consumer each output switches. So the file it
 writes loads and runs as it is (the program alone, nothing scheduled), and lists every
 input as an ``[[input]]`` and every BOOL output as a ``[[consumer]]`` to uncomment and
-fill in, with the keys each needs (see docs/reference/machine-file.md).
+fill in, with the keys each needs (see docs/reference/machine-file.md). An input whose
+name reads as an end switch of the drive an output's name names (``A_RET`` of ``Y_A``,
+``xZUp`` of ``qZ``, ``bClampWork`` of ``bClampValve``) is put in that consumer's
+``switches`` instead, when the program reads it.
 """
 from __future__ import annotations
 
 import datetime
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
 from .parser import ir
+from .parser.check import Checker
 
 DEFAULT_SCAN_MS = 10.0
 DEFAULT_SUPPLY_BAR_G = 6.0
-# words that name an end-position sensor in common naming conventions
-_SWITCH_WORDS = ("home", "work", "ext", "ret", "out", "in_pos", "up", "down", "open",
-                 "closed", "end", "pos")
+# the last word of an end switch's name and the end it reports, in common naming
+# conventions (English and German; a vertical drive's "up" is its rest position, a
+# gripper's or clamp's "closed" its working one)
+_RETRACTED_WORDS = ("ret", "retr", "retracted", "home", "back", "up", "open", "opened", "in",
+                    "rear", "rest", "eingefahren", "oben", "hinten", "offen", "grund")
+_EXTENDED_WORDS = ("ext", "extd", "extended", "work", "out", "front", "down", "closed",
+                   "close", "end", "ausgefahren", "unten", "vorne", "vorn", "geschlossen",
+                   "fwd", "forward")
+_END_OF = {w: "retracted" for w in _RETRACTED_WORDS} | {w: "extended" for w in _EXTENDED_WORDS}
+# a first word that only says what kind of signal it is (IEC/CODESYS prefixes x, b, q, i,
+# o; Y for a valve solenoid, S and B for sensors on schematics) and a last word that
+# says "valve"
+_PREFIXES = ("x", "b", "q", "i", "o", "y", "s", "di", "do")
+_VALVE_WORDS = ("valve", "vlv", "ventil", "sol", "solenoid", "coil", "cmd", "y")
+# Festo/DIN schematic names: sensors 1B1/1S1 (retracted) and 1B2/1S2 (extended) of
+# drive 1A, its solenoid 1Y1 (or 1M1)
+_SCHEMATIC_SENSOR = re.compile(r"(\d+)[BS]([12])", re.ASCII)
+_SCHEMATIC_VALVE = re.compile(r"(\d+)[YM]1", re.ASCII)
+_HUNGARIAN = re.compile(r"^[a-z]{1,2}(?=[A-Z])", re.ASCII)
+_WORD = re.compile(r"[A-Z]+(?=[A-Z][a-z])|[A-Z]?[a-z]+|[A-Z]+|\d+", re.ASCII)
 
 
 @dataclass
@@ -42,7 +64,7 @@ def program_signals(program: ir.Program) -> tuple[list[Signal], list[Signal]]:
             addr = (d.address or "").upper()
             is_in = addr.startswith("%I") or (b.kind == "VAR_INPUT" and not addr)
             is_out = addr.startswith("%Q") or (b.kind == "VAR_OUTPUT" and not addr)
-            if not (is_in or is_out) or d.name.upper() in seen or "*" in addr:
+            if not (is_in or is_out) or d.name.upper() in seen:
                 continue
             seen.add(d.name.upper())
             type_name = d.type.name if isinstance(d.type, ir.NamedType) else "?"
@@ -74,9 +96,86 @@ def _toml_string(text: str) -> str:
     return '"' + "".join(out) + '"'
 
 
+def _words(name: str) -> list[str]:
+    """The words of a signal name, lower case, without a type prefix in lower case
+    (``x``, ``b``, ``q``, ``fb`` before a capital): split at ``_``, between a lower and an
+    upper case letter, and before the last capital of a run (``xZDown`` -> z, down)."""
+    name = _HUNGARIAN.sub("", name)
+    return [w.lower() for part in re.split(r"[^A-Za-z0-9]+", name) for w in _WORD.findall(part)]
+
+
+def _stem(words: list[str], drop_last=()) -> list[str]:
+    """``words`` without a leading type prefix (``Y_A``, ``S_A_RET``; when more follow)
+    and a trailing word of ``drop_last`` (when more precede)."""
+    if len(words) > 1 and words[0] in _PREFIXES:
+        words = words[1:]
+    if len(words) > 1 and words[-1] in drop_last:
+        words = words[:-1]
+    return words
+
+
+def _switch_end(name: str) -> tuple[str, str] | None:
+    """(the drive's stem, "retracted" or "extended") when ``name`` reads as an end switch:
+    its last word names an end position (``A_RET``, ``xZUp``, ``bClampWork``,
+    ``ejector_home``); the stem is "" for a name that is nothing but the end
+    (``xExtended``)."""
+    words = _words(name)
+    if not words or words[-1] not in _END_OF:
+        return None
+    return "".join(_stem(words[:-1])), _END_OF[words[-1]]
+
+
 def _looks_like_switch(name: str) -> bool:
-    low = name.lower()
-    return any(w in low for w in _SWITCH_WORDS)
+    """Whether the name reads as an end switch's, "in" and "out" aside (``part_in``)."""
+    words = _words(name)
+    return (_switch_end(name) is not None and words[-1] not in ("in", "out")) \
+        or _SCHEMATIC_SENSOR.fullmatch(name) is not None
+
+
+def end_switches(inputs: list[Signal], outputs: list[Signal]) -> dict[str, dict[str, str]]:
+    """Output name -> {"retracted": input, "extended": input}: the BOOL inputs whose names
+    read as the end switches of the drive a BOOL output's name names (``Y_A``: ``A_RET``,
+    ``A_EXT``; ``qZ``: ``xZUp``, ``xZDown``; ``bClampValve``: ``bClampHome``,
+    ``bClampWork``; ``eject_valve``: ``ejector_out``; ``1Y1``: ``1B1``, ``1B2``). A
+    switch whose name fits two outputs equally well, or an end two switches claim, is
+    left out: the file says it, not a guess."""
+    outs = [s for s in outputs if s.type_name == "BOOL"]
+    stems = {s.name: "".join(_stem(_words(s.name), _VALVE_WORDS)) for s in outs}
+    claims: dict[tuple[str, str], list[str]] = {}
+    for s in inputs:
+        if s.type_name != "BOOL":
+            continue
+        m = _SCHEMATIC_SENSOR.fullmatch(s.name)
+        if m:
+            end = "retracted" if m.group(2) == "1" else "extended"
+            fits = [o.name for o in outs if (v := _SCHEMATIC_VALVE.fullmatch(o.name))
+                    and v.group(1) == m.group(1)]
+        else:
+            found = _switch_end(s.name)
+            if found is None:
+                continue
+            stem, end = found
+            fits = _fitting_outputs(stem, stems) if stem else [o.name for o in outs]
+        if len(fits) == 1:
+            claims.setdefault((fits[0], end), []).append(s.name)
+    out: dict[str, dict[str, str]] = {}
+    for (valve, end), names in claims.items():
+        if len(names) == 1:
+            out.setdefault(valve, {})[end] = names[0]
+    return {o.name: dict(sorted(out[o.name].items(), key=lambda kv: kv[0] != "retracted"))
+            for o in outs if o.name in out}
+
+
+def _fitting_outputs(stem: str, stems: dict[str, str]) -> list[str]:
+    """The outputs whose stem is ``stem``, else the one whose stem and ``stem`` begin one
+    with the other (``eject``, ``ejector``; three letters at least) most closely."""
+    exact = [name for name, s in stems.items() if s == stem]
+    if exact:
+        return exact
+    near = [(abs(len(s) - len(stem)), name) for name, s in stems.items()
+            if min(len(s), len(stem)) >= 3 and (s.startswith(stem) or stem.startswith(s))]
+    best = min((d for d, _ in near), default=None)
+    return [name for d, name in near if d == best]
 
 
 _INPUTS_HEAD = [
@@ -93,7 +192,14 @@ _CONSUMERS_HEAD = [
 ]
 
 
-def _input_block(s: Signal) -> list[str]:
+def _input_block(s: Signal, switch_of: dict[str, tuple[str, str, bool]]) -> list[str]:
+    if s.name in switch_of:
+        valve, end, read = switch_of[s.name]
+        if read:
+            return [(f"# {s.name}{_at(s)}: the {end} end switch of {valve} (in its "
+                     "`switches` below)")]
+        return [(f"# {s.name}{_at(s)}: the {end} end switch of {valve} by its name, never "
+                 "read by the program (nothing to fill in)")]
     hint = "  (an end switch? see `switches` below)" if _looks_like_switch(s.name) else ""
     return [f"# {s.name}{_at(s)}{hint}", "# [[input]]", f"# signal = {_toml_string(s.name)}",
             "# period_s = 10.0       # FILL IN: every how many seconds it comes",
@@ -101,14 +207,20 @@ def _input_block(s: Signal) -> list[str]:
             "# pulse_ms = 200        # how long it stays TRUE"]
 
 
-def _consumer_block(s: Signal) -> list[str]:
+def _consumer_block(s: Signal, switches: dict[str, dict[str, str]]) -> list[str]:
+    found = switches.get(s.name)
+    if found:
+        pairs = ", ".join(f"{end} = {_toml_string(name)}" for end, name in found.items())
+        switch_line = f"# switches = {{ {pairs} }}   # found by their names"
+    else:
+        switch_line = "# switches = { retracted = \"...\", extended = \"...\" }"
     return [f"# {s.name}{_at(s)}", "# [[consumer]]", f"# name = {_toml_string(s.name)}",
             "# kind = \"double_acting\"   # or single_acting, rodless, nozzle, ...",
             f"# valve = {_toml_string(s.name)}",
             "# bore_mm = 32", "# rod_mm = 12", "# stroke_mm = 100",
             "# tube_id_mm = 4", "# tube_length_m = [1.0, 1.0]",
             "# stroke_time_s = [0.5, 0.5]   # extend, retract",
-            "# switches = { retracted = \"...\", extended = \"...\" }",
+            switch_line,
             "#   (a nozzle instead: kind = \"nozzle\", orifice_mm = 1.5, Cd = 0.8)"]
 
 
@@ -162,14 +274,22 @@ def machine_skeleton(program: ir.Program, program_path: Path, out_path: Path | N
         "# FILL IN: the supply pressure at the machine",
         "",
     ]
-    lines += _blocks(_INPUTS_HEAD, [s for s in inputs if s.type_name == "BOOL"], _input_block)
+    # a switch the program never reads is left out of `switches` (it would draw a warning)
+    read = Checker(program).run().program_usage.read
+    named = end_switches(inputs, outputs)
+    switch_of = {name: (valve, end, name.upper() in read) for valve, found in named.items()
+                 for end, name in found.items()}
+    switches = {valve: kept for valve, found in named.items()
+                if (kept := {e: n for e, n in found.items() if n.upper() in read})}
+    lines += _blocks(_INPUTS_HEAD, [s for s in inputs if s.type_name == "BOOL"],
+                     lambda s: _input_block(s, switch_of))
     other_in = [s for s in inputs if s.type_name != "BOOL"]
     if other_in:
         lines.append("# Other inputs (kept at their initial values unless scheduled): "
                      + ", ".join(f"{s.name} ({s.type_name})" for s in other_in))
         lines.append("")
     lines += _blocks(_CONSUMERS_HEAD, [s for s in outputs if s.type_name == "BOOL"],
-                     _consumer_block)
+                     lambda s: _consumer_block(s, switches))
     other_out = [s for s in outputs if s.type_name != "BOOL"]
     if other_out:
         lines.append("# Other outputs: " + ", ".join(f"{s.name} ({s.type_name})"

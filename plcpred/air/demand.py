@@ -32,16 +32,20 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import PlcpredError
 from ..machine import CYLINDER_KINDS
-from ..output import SHOWN_CONSUMERS
+from ..output import SHOWN_CONSUMERS, csv_column_name
 from ..physics.flow import flow_nl_min, orifice_conductance
 from ..physics.units import bar_g_to_pa, celsius_to_k
 from ..physics.volumes import consumer_stroke_volumes_nl, dead_fill_volumes_nl, swept_volumes_nl
 from ..sequencer.timeline import NS
+
+if TYPE_CHECKING:  # pandas is imported where a DataFrame is built
+    import pandas as pd
 
 
 @dataclass
@@ -865,6 +869,27 @@ class DemandProfile:
         top = sorted(np.argsort(-self.consumer_nl, kind="stable")[:shown].tolist())
         rest = sorted(set(range(n)) - set(top))
         return [(self.names[i], [i]) for i in top] + [(f"other ({len(rest)})", rest)]
+
+    def to_frame(self, consumers: bool = True) -> pd.DataFrame:
+        """The demand on the profile's grid as a pandas DataFrame: indexed by ``time_s``
+        (the start of each cell of ``dt_s``), a ``total_l_min`` column and, unless
+        ``consumers`` is false, one ``<consumer>_l_min`` column per consumer in
+        machine-file order, named as in ``demand.csv`` (letters, digits and ``_-.``,
+        anything else ``_``); each is the mean flow in NL/min over the cell. Every
+        consumer's column is dense (consumers x cells floats): for a long horizon on a
+        fine grid, predict with a coarser ``dt`` or ask for the total alone."""
+        # pandas is imported here: it is heavy (half a second), and most runs never need it
+        import pandas as pd
+
+        data = {"total_l_min": self.total_flow_l_min}
+        if consumers:
+            flows = self.flow_l_min
+            for i, name in enumerate(self.names):
+                column = csv_column_name(name) + "_l_min"
+                while column in data:                   # two names the same once cleaned
+                    column = column[:-len("_l_min")] + "_" + "_l_min"
+                data[column] = flows[i]
+        return pd.DataFrame(data, index=pd.Index(self.time_s, name="time_s"))
 
     # ------------------------------------------------------------------ files
     def summary(self) -> dict:

@@ -32,7 +32,8 @@ def cmd_emulate(args) -> int:
         with output_dir(out, command_line(args)) as staging:
             written = [out / f.name for f in write_emulation(em, staging,
                                                              plot=not args.no_plot,
-                                                             progress=progress)]
+                                                             progress=progress,
+                                                             predicted=predicted)]
     for w in em.machine.warnings:
         print(f"warning: {w}", file=sys.stderr)
     print(f"{em.machine.name}: emulated {horizon_s:g} s at {em.machine.supply_bar_g:g} bar(g)"

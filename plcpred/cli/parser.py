@@ -302,7 +302,7 @@ def _add_identify(sub) -> None:
                                    "of a valve, nozzle, circuit or leak from steady-flow "
                                    "points (p_up_bar_g, p_down_bar_g, flow_l_min) or a tank's "
                                    "pressure curve (time_s, p_bar_g with --volume-l). Prints "
-                                   "them with 95 %% confidence intervals.")
+                                   "them with 95 % confidence intervals.")
     p.add_argument("what", choices=("flow",), help="what to identify (flow)")
     p.add_argument("data", metavar="DATA.csv", help="the test data (CSV)")
     p.add_argument("--method", choices=("improved", "iso6358"), default="improved",

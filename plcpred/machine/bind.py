@@ -122,8 +122,14 @@ def check_against_program(machine: Machine, program) -> list[str]:
     if machine.cycle_signal:
         # counted, not a consumer: an output that drives none is no surprise here
         driven.add(require("[machine]", "cycle_signal", machine.cycle_signal))
+    for sig in machine.no_air:      # said to switch no air: no surprise either
+        driven.add(require("[machine]", "no_air", sig))
+    declared = {}               # upper case -> as the program spells it (the first)
+    for name in spelled:
+        declared.setdefault(name.upper(), name)
     for out in sorted(outputs - driven):
-        warnings.append(f"{file}: output '{out}' of {program_file} drives no consumer")
+        warnings.append(f"{file}: output '{declared.get(out, out)}' of {program_file} drives "
+                        "no consumer")
     for key in sorted((set(inputs) & set(read)) - fed):
         warnings.append(f"{file}: input '{inputs[key]}' is read by {program_file} but nothing "
                         "drives it (no [[input]] schedule, no switch): it keeps its initial "

@@ -656,6 +656,10 @@ def _machine_table(table: dict, path: Path, roots, notes: list) -> Machine:
     )
     if "cycle_signal" in table:
         machine.cycle_signal = _signal_name(r, "cycle_signal", table["cycle_signal"])
+    no_air = table.get("no_air", [])
+    if not isinstance(no_air, list) or len(no_air) > 100_000:
+        raise r.error('no_air must be a list of outputs, like ["qLamp"]', "no_air")
+    machine.no_air = [_signal_name(r, "no_air", v) for v in no_air]
     if machine.ambient_c <= -ZERO_C_K:
         raise r.error("ambient_c must be above absolute zero", "ambient_c")
     libraries = table.get("libraries", [])

@@ -187,6 +187,8 @@ class Machine:
     lines: list[Line] = field(default_factory=list)
     # a BOOL that rises (or a counter that counts up) once per machine cycle or part
     cycle_signal: str | None = None
+    # outputs that switch no air (a lamp, a motor): no "drives no consumer" warning
+    no_air: list[str] = field(default_factory=list)
     # declarations of vendor libraries the program uses (files or folders)
     library_paths: list[Path] = field(default_factory=list)
     # the folders its program and libraries may be read from: the machine file's, and

@@ -69,6 +69,9 @@ SECTIONS = (
              ' it, and `compare` gates air per cycle and the throughput. Without it, a'
              ' machine whose state repeats has as many cycles per repeating period as '
              'its least often switched valve switches on')),
+        Row(('no_air',), 'signals', '`[]`',
+            ('outputs of the program that switch no air (a lamp, a horn, a motor): named '
+             'here, they draw no "drives no consumer" warning')),
     )),
     Section('input', '## `[[input]]`: inputs the world drives', (
         Row(('signal',), 'signal', 'required',

@@ -132,10 +132,11 @@ def write_plant(emulation, path, table=None) -> None:
 
 
 def write_emulation(emulation, directory, plot: bool = True,
-                    progress: Progress | None = None) -> list[Path]:
+                    progress: Progress | None = None, predicted=None) -> list[Path]:
     """``measured.csv``, ``timeline.csv``, ``plant.csv`` and ``emulate.png`` of an
     :class:`~plcpred.plant.Emulation` in ``directory``; ``progress`` shows which is
-    being written."""
+    being written; ``predicted`` (the prediction's DemandProfile of the same horizon)
+    is drawn with it."""
     progress = progress_or_off(progress)
     directory = Path(directory)
     files = [directory / "measured.csv", directory / "timeline.csv",
@@ -149,5 +150,5 @@ def write_emulation(emulation, directory, plot: bool = True,
     if plot:
         progress.stage("drawing emulate.png")
         files.append(directory / "emulate.png")
-        plot_emulation(emulation, files[-1], table)
+        plot_emulation(emulation, files[-1], table, predicted=predicted)
     return files

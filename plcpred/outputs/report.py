@@ -5,6 +5,7 @@ from __future__ import annotations
 import base64
 import datetime
 import html
+import io
 import os
 import re
 import tempfile
@@ -15,8 +16,15 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
-from ..air.cycles import arrival_period_s
-from ..air.sizing import receiver_deficit
+from ..air.cycles import arrival_period_s, cycles_of
+from ..air.sizing import (
+    DEFAULT_PRICE,
+    production_hours,
+    receiver_deficit,
+    specific_energy_kwh_per_nm3,
+)
+from ..diagnose.io import TIME_OF_DAY_FORMATS
+from ..machine import HOURS_PER_YEAR
 from ..output import SHOWN_CONSUMERS, atomic_write_text, write_json
 
 # a plotted point per pixel column of the 11-inch, 110 dpi figures (more are not seen,
@@ -220,41 +228,134 @@ def _cycle_window(profile, sizing) -> tuple[float, float, str]:
 def plot_sizing(profile, sizing, path, title="Sizing") -> None:
     """Four views of the total demand against the mean and the design flow: one cycle at
     the grid's full resolution, stacked by consumer (leaks as the base layer); the
-    load-duration curve (the flow exceeded for a share of the time); the trend over the
-    horizon as min, mean and max per bin (a long horizon is not drawn cell by cell); the
-    receiver's deficit over the design flow."""
+    load-duration curve (the flow exceeded for a share of the time); the air of each
+    cycle (or minute) over the horizon, which shows a machine that changes; how the
+    receiver's largest deficit per cycle is spread, the largest (which sizes it)
+    marked."""
     plt = pyplot()
     total = profile.total_flow_l_min
     _, _, deficit = receiver_deficit(total, profile.dt_s, sizing.design_flow_l_min)
-    # trend bins of whole cycles where there is one: a bin then never cuts a cycle in a
-    # different place from its neighbour (the moire a long horizon otherwise shows)
-    k = whole_periods(_bin_width(len(total)), sizing.cycle_s, profile.dt_s, len(total))
-    mean_b = _bins(total, k)
-    bins = _SizingBins(k, np.arange(len(mean_b)) * profile.dt_s * k,
-                       _bins(total, k, np.min), mean_b, _bins(total, k, np.max),
-                       _bins(deficit, k, np.max))
+    w = sizing_windows(profile, sizing, deficit)
     fig, axes = plt.subplots(2, 2, figsize=(12, 8), dpi=100,
                              gridspec_kw={"width_ratios": [3, 2], "height_ratios": [1, 1]})
     (ax_cycle, ax_ldc), (ax_trend, ax_def) = axes
     _draw_cycle(ax_cycle, profile, sizing, title)
     _draw_load_duration(ax_ldc, total, sizing)
-    scale, unit = _time_axis(profile.horizon_s)
-    _draw_trend(ax_trend, profile, sizing, bins, scale, unit)
-    _draw_deficit(ax_def, profile, sizing, bins, scale, unit)
+    _draw_air_per_window(ax_trend, profile, sizing, w)
+    _draw_deficits(ax_def, sizing, w)
     fig.tight_layout()
     save_fig(fig, path)
 
 
 @dataclass
-class _SizingBins:
-    """The horizon in bins of ``k`` cells: their start times and the total flow's min,
-    mean and max in each, and the receiver's largest deficit."""
-    k: int
+class SizingWindows:
+    """The horizon cut into windows of one steady cycle (else of a minute, or a
+    twentieth of a short horizon) from 0: each one's start, air (NL, exact: they add
+    up to the horizon's total), whether it is whole (the last may be cut by the
+    horizon) and the receiver's largest deficit over the design flow in it (NL)."""
+    what: str                       # "cycle", "minute" or "window"
+    width_s: float
     start_s: np.ndarray
-    min_l_min: np.ndarray
-    mean_l_min: np.ndarray
-    max_l_min: np.ndarray
+    nl: np.ndarray
+    whole: np.ndarray
     deficit_nl: np.ndarray
+
+
+def sizing_windows(profile, sizing, deficit) -> SizingWindows:
+    """:class:`SizingWindows` of a profile, ``deficit`` the receiver's deficit at the
+    end of each grid cell (:func:`~plcpred.air.sizing.receiver_deficit`)."""
+    horizon = profile.horizon_s
+    if sizing.cycle_s and sizing.cycle_s < horizon:
+        width, what = float(sizing.cycle_s), "cycle"
+    elif horizon >= 600:
+        width, what = 60.0, "minute"
+    else:
+        width, what = max(profile.dt_s, horizon / 20), "window"
+    edges = np.append(np.arange(0.0, horizon - 1e-9 * horizon, width), horizon)
+    nl = np.diff(profile.cumulative_nl_at(edges))
+    whole = np.diff(edges) >= width * (1 - 1e-6)
+    # each window's cells: those whose end lies in it (the deficit is at cell ends)
+    cell_end = profile.edges_s[1:]
+    first = np.minimum(np.searchsorted(cell_end, edges[:-1], side="right"),
+                       len(deficit) - 1)
+    deficit_nl = np.maximum.reduceat(np.asarray(deficit, dtype=float), first)
+    return SizingWindows(what, width, edges[:-1], nl, whole, deficit_nl)
+
+
+def _noun(w: SizingWindows, plural: bool = False) -> str:
+    """What a window is, for labels: "cycle", "minute", "window of 1 s"."""
+    s = "s" if plural else ""
+    return f"window{s} of {w.width_s:.3g} s" if w.what == "window" else w.what + s
+
+
+def window_layers(profile, w: SizingWindows, k: int):
+    """The whole windows in groups of ``k``: the groups' edges (s), the layers of
+    :func:`_layers` and each layer's mean air per window in each group (NL; for windows
+    that are not cycles its mean flow, NL/min), one row per layer."""
+    n = int(w.whole.sum())
+    edges = np.append(w.start_s[:n], w.start_s[n - 1] + w.width_s if n else 0.0)
+    groups = edges[::k]
+    if groups[-1] < edges[-1]:
+        groups = np.append(groups, edges[-1])
+    layers, flows = _layers(profile, SHOWN_CONSUMERS, groups)
+    return groups, layers, (flows * w.width_s / 60.0 if w.what == "cycle" else flows)
+
+
+def _draw_air_per_window(ax, profile, sizing, w: SizingWindows) -> None:
+    """The air of each whole window over the horizon, stacked by consumer (in groups of
+    windows, their mean, and the band of the windows' least and greatest total, where
+    there are more windows than pixels)."""
+    scale, unit = _time_axis(profile.horizon_s)
+    per_cycle = w.what == "cycle"
+    values = w.nl[w.whole] if per_cycle else w.nl[w.whole] / w.width_s * 60.0
+    ax.set_xlim(0, profile.horizon_s * scale)
+    ax.set_xlabel(f"time ({unit})")
+    ax.set_ylabel("air per cycle (NL)" if per_cycle else "mean flow (NL/min)")
+    ax.grid(True, alpha=0.3)
+    if not len(values):
+        return
+    k = _bin_width(len(values))
+    groups, layers, stacks = window_layers(profile, w, k)
+    if layers:
+        ax.stackplot(groups * scale, np.column_stack([stacks, stacks[:, -1:]]), step="post",
+                     alpha=0.85, labels=[_plain(label) for label, _, _ in layers])
+    if k > 1:
+        env = envelope(w.start_s[w.whole], values, k)
+        ax.fill_between(env.t_s * scale, env.lo, env.hi, step="post", color="black",
+                        alpha=0.15, lw=0, label=f"least to greatest of {k} "
+                        f"{_noun(w, plural=True)}")
+    if per_cycle and sizing.nl_per_cycle:
+        ax.axhline(sizing.nl_per_cycle, color="black", ls="--", lw=0.8,
+                   label=f"steady {sizing.nl_per_cycle:.3f} NL per cycle")
+    elif not per_cycle:
+        ax.axhline(sizing.mean_l_min, color="black", ls="--", lw=1,
+                   label=f"mean {sizing.mean_l_min:.1f} NL/min")
+    spread = (values.max() - values.min()) / max(abs(values.mean()), 1e-12)
+    ax.set_title(f"each {_noun(w)} over the horizon: {len(values)} whole, they differ by "
+                 f"{100 * spread:.1f} % ({values.min():.3g} to {values.max():.3g})",
+                 fontsize=10)
+    ax.set_ylim(0, values.max() * 1.3 if values.max() > 0 else 1)
+    h, lab = ax.get_legend_handles_labels()
+    ax.legend(h[::-1], lab[::-1], loc="upper right", fontsize=7, framealpha=0.9,
+              ncol=2)
+
+
+def _draw_deficits(ax, sizing, w: SizingWindows) -> None:
+    """How many windows reach each largest deficit, the horizon's largest marked."""
+    d = w.deficit_nl
+    top = max(float(d.max()) if len(d) else 0.0, sizing.deficit_nl, 1e-9)
+    # from 0, so cycles that all reach the same deficit read as one bar at its size
+    ax.hist(d, bins=np.linspace(0.0, top * 1.05, 43), color="#fdae6b", edgecolor="#e6550d",
+            lw=0.5, label=f"{len(d)} {_noun(w, plural=True)}")
+    ax.set_xlim(0, top * 1.1)
+    ax.axvline(sizing.deficit_nl, color="#d62728", lw=1.3,
+               label=f"largest {sizing.deficit_nl:.3g} NL at {sizing.deficit_at_s:g} s")
+    ax.set_xlabel(f"largest deficit over the design flow in a {_noun(w)} (NL)")
+    ax.set_ylabel(_noun(w, plural=True))
+    ax.grid(True, alpha=0.3)
+    ax.legend(loc="upper left", fontsize=8)
+    ax.set_title(f"receiver {sizing.receiver_l:.1f} L for {sizing.band_bar:g} bar covers "
+                 f"the largest", fontsize=10)
 
 
 def _levels(ax, sizing) -> None:
@@ -295,34 +396,6 @@ def _draw_load_duration(ax, total, sizing) -> None:
     ax.set_ylabel("flow (NL/min)")
     ax.set_title("load-duration curve", fontsize=10)
     ax.legend(loc="upper right", fontsize=8)
-
-
-def _draw_trend(ax, profile, sizing, bins: _SizingBins, scale: float, unit: str) -> None:
-    """Min, mean and max per bin over the horizon."""
-    span = profile.dt_s * bins.k
-    ax.fill_between(bins.start_s * scale, bins.min_l_min, bins.max_l_min, step="post",
-                    color="#c6dbef", label=f"min to max per {span:g} s")
-    ax.step(bins.start_s * scale, bins.mean_l_min, where="post", color="#3182bd", lw=1.0,
-            label=f"mean per {span:g} s")
-    _levels(ax, sizing)
-    ax.set_xlim(0, profile.horizon_s * scale)
-    ax.set_xlabel(f"time ({unit})")
-    ax.set_ylabel("flow (NL/min)")
-    ax.set_title("over the horizon", fontsize=10)
-    ax.legend(loc="upper right", fontsize=8)
-
-
-def _draw_deficit(ax, profile, sizing, bins: _SizingBins, scale: float, unit: str) -> None:
-    """The receiver's deficit over the design flow, its largest marked."""
-    ax.fill_between(bins.start_s * scale, 0, bins.deficit_nl, step="post", color="#fdae6b")
-    ax.axvline(sizing.deficit_at_s * scale, color="#d62728", lw=1)
-    ax.set_ylabel("deficit over design flow (NL)")
-    ax.set_xlabel(f"time ({unit})")
-    ax.set_xlim(0, profile.horizon_s * scale)
-    ax.set_ylim(bottom=0)
-    ax.grid(True, alpha=0.3)
-    ax.set_title(f"largest {sizing.deficit_nl:.2f} NL -> receiver "
-                 f"{sizing.receiver_l:.1f} L for {sizing.band_bar:g} bar", fontsize=10)
 
 
 def sizing_assumptions(machine, s, today=None) -> list[tuple[str, str]]:
@@ -511,111 +584,657 @@ def write_sizing_report(result, sizing, out_dir) -> list[Path]:
 
 # ---------------------------------------------------------------------- diagnosis report
 
-def plot_diagnosis(d, path) -> None:
-    """``diagnose.png``: per run, the measured, predicted and corrected meter readings
-    against the logger's clock with the located windows shaded; the cumulative NL of
-    all three; the residual per context."""
-    plt = pyplot()
+SIGN_NOTE = ("gap and residual = measured - predicted: positive where the machine draws "
+             "more air than its file predicts")
 
-    runs = d.runs
-    fig, axes = plt.subplots(len(runs) + 2, 1, figsize=(11, 3.0 * (len(runs) + 2)),
-                             constrained_layout=True)
-    best = d.best_params()
+
+def logger_axis(rd) -> tuple[np.ndarray, float, str]:
+    """(the run's reading ends on the logger's clock, the origin subtracted from the
+    clock's readings, the axis label): seconds as the log's time column has them, or,
+    for a log stamped with dates or times of day, seconds after its first reading (a
+    clock of 1.7e9 s says nothing to a reader)."""
+    t = np.asarray(rd.end_s, dtype=float) + rd.offset_s
+    source = rd.run.source
+    fmt = source.get("time_format", "seconds")
+    col = source.get("time_column", "time")
+    if fmt == "seconds" or not len(t):
+        return t, 0.0, f"the logger's clock: its '{col}' column (s)"
+    origin = float(np.floor(t[0] - rd.weight_s[0]))
+    try:
+        at = datetime.datetime(1970, 1, 1) + datetime.timedelta(seconds=origin)
+        day = "" if fmt in TIME_OF_DAY_FORMATS else "%Y-%m-%d "
+        text = at.strftime(day + "%H:%M:%S")
+    except (OverflowError, ValueError):
+        text = f"{origin:g} s"
+    return t - origin, origin, f"the logger's clock: s after {text} (its '{col}' column)"
+
+
+def _draw_readings(ax, d, rd, base, fixed, corrected_label) -> None:
+    """A run's meter readings, measured, predicted and corrected, on the logger's clock,
+    the located gap's windows shaded; each reading a step over its interval."""
+    t, origin, label = logger_axis(rd)
+    ax.step(t, rd.measured_l_min, where="pre", color="black", lw=1.0, label="measured")
+    ax.step(t, rd.readings(base), where="pre", color="tab:blue", lw=1.0, label="predicted")
+    if corrected_label:
+        ax.step(t, rd.readings(fixed), where="pre", color="tab:red", lw=1.0, ls="--",
+                label=_plain(corrected_label))
     named = {c.context for c in d.contexts if c.stands_out}
-    corrected_label = ("corrected (" + " + ".join(d.combination["effects"]) + ")"
-                       if d.combination else None)
-    for ax, rd, base, fixed in zip(axes, runs, d.bases, best):
-        t = rd.end_s + rd.offset_s
-        ax.plot(t, rd.measured_l_min, color="black", lw=1.0, label="measured")
-        ax.plot(t, rd.readings(base), color="tab:blue", lw=1.0, label="predicted")
-        if corrected_label:
-            ax.plot(t, rd.readings(fixed), color="tab:red", lw=1.0, ls="--",
-                    label=_plain(corrected_label))
-        for loc in d.locations[:30]:
-            if loc.get("run") == rd.run.name and loc["context"] in named:
-                ax.axvspan(loc["start_s"], loc["end_s"], color="orange", alpha=0.15, lw=0)
-        ax.set_ylabel("NL/min")
-        ax.set_title(_plain(f"{rd.run.name}: meter readings (shaded: located gap)"),
-                     fontsize=10)
-        ax.legend(loc="upper right", fontsize=8)
-    ax = axes[-2]
+    shaded = False
+    for loc in d.locations[:30]:
+        if loc.get("run") == rd.run.name and loc["context"] in named:
+            ax.axvspan(loc["start_s"] - origin, loc["end_s"] - origin, color="orange",
+                       alpha=0.15, lw=0, label=None if shaded else "located gap")
+            shaded = True
+    ax.set_ylabel("flow (NL/min)")
+    ax.set_xlabel(_plain(label))
+    ax.set_ylim(bottom=0)
+    ax.grid(True, alpha=0.3)
+    ax.set_title(_plain(f"{rd.run.name}: meter readings"), fontsize=10)
+    ax.legend(loc="upper right", fontsize=8)
+
+
+def _draw_cumulative(ax, d, corrected_label) -> None:
+    """Cumulative air of every run one after another: measured, predicted, corrected."""
     offset = 0.0
-    for rd, base, fixed in zip(runs, d.bases, best):
-        t = rd.end_s + offset
+    for n, (rd, base, fixed) in enumerate(zip(d.runs, d.bases, d.best_params())):
+        # from the first reading's start, at nothing drawn yet
+        t = np.concatenate([[0.0], rd.end_s - rd.end_s[0] + rd.weight_s[0]]) + offset
         w = rd.weight_s / 60.0
-        ax.plot(t, np.cumsum(rd.measured_l_min * w), color="black", lw=1.0)
-        ax.plot(t, np.cumsum(rd.readings(base) * w), color="tab:blue", lw=1.0)
+
+        def cum(flow, w=w):
+            return np.concatenate([[0.0], np.cumsum(flow * w)])
+        first = n == 0
+        ax.plot(t, cum(rd.measured_l_min), color="black", lw=1.0,
+                label="measured" if first else None)
+        ax.plot(t, cum(rd.readings(base)), color="tab:blue", lw=1.0,
+                label="predicted" if first else None)
         if corrected_label:
-            ax.plot(t, np.cumsum(rd.readings(fixed) * w), color="tab:red", lw=1.0, ls="--")
+            ax.plot(t, cum(rd.readings(fixed)), color="tab:red", lw=1.0, ls="--",
+                    label=_plain(corrected_label) if first else None)
         offset = t[-1]
-    ax.set_ylabel("NL")
-    ax.set_xlabel("time in the prediction, s (runs one after another)")
-    ax.set_title("cumulative air: measured (black), predicted (blue), corrected (red)",
-                 fontsize=10)
-    ax = axes[-1]
+    ax.set_ylabel("cumulative air (NL)")
+    ax.set_xlabel("logged time (s; runs one after another)")
+    ax.grid(True, alpha=0.3)
+    ax.set_title("cumulative air", fontsize=10)
+    ax.legend(loc="upper left", fontsize=8)
+
+
+def _draw_contexts(ax, d) -> None:
+    """The residual per context (what the machine was doing), +/- 3 sigma of noise."""
     ctx = d.contexts[:12]
     ax.barh([_plain(c.context) for c in ctx][::-1], [c.residual_nl for c in ctx][::-1],
             xerr=[3 * c.uncertainty_nl for c in ctx][::-1],
             color=["tab:orange" if c.stands_out else "lightgray" for c in ctx][::-1])
     ax.axvline(0, color="black", lw=0.8)
-    ax.set_xlabel("residual NL (measured - predicted); bars +/- 3 sigma of noise")
-    ax.set_title(_plain(f"where the gap lies; verdict: {d.verdict}"), fontsize=10)
+    ax.grid(True, axis="x", alpha=0.3)
+    ax.set_xlabel("residual (NL), measured - predicted; bars +/- 3 sigma of noise")
+    ax.set_title("by what the machine was doing (orange: stands out of the noise)",
+                 fontsize=10)
+
+
+def _draw_attribution(ax, d) -> None:
+    """The residual fitted to each consumer's own predicted air (and an always-on flow)."""
+    rows = d.attribution[:8]
+    if not rows:
+        ax.text(0.5, 0.5, "no attribution by consumer", ha="center", transform=ax.transAxes)
+        ax.set_axis_off()
+        return
+    ax.barh([_plain(a["consumer"]) for a in rows][::-1],
+            [a["residual_nl"] for a in rows][::-1], color="tab:purple")
+    ax.axvline(0, color="black", lw=0.8)
+    ax.grid(True, axis="x", alpha=0.3)
+    ax.set_xlabel("residual (NL), measured - predicted")
+    ax.set_title("by consumer (fitted to each one's own predicted air)", fontsize=10)
+
+
+def _corrected_label(d) -> str | None:
+    return ("corrected (" + " + ".join(d.combination["effects"]) + ")"
+            if d.combination else None)
+
+
+def plot_diagnosis(d, path) -> None:
+    """``diagnose.png``: per run, the measured, predicted and corrected meter readings
+    on the logger's clock with the located windows shaded; the cumulative air; the
+    residual (measured - predicted) per context and per consumer."""
+    plt = pyplot()
+    runs = d.runs
+    fig = plt.figure(figsize=(11, 3.0 * (len(runs) + 2)), constrained_layout=True)
+    grid = fig.add_gridspec(len(runs) + 2, 2)
+    label = _corrected_label(d)
+    for n, (rd, base, fixed) in enumerate(zip(runs, d.bases, d.best_params())):
+        _draw_readings(fig.add_subplot(grid[n, :]), d, rd, base, fixed, label)
+    _draw_cumulative(fig.add_subplot(grid[len(runs), :]), d, label)
+    _draw_contexts(fig.add_subplot(grid[-1, 0]), d)
+    _draw_attribution(fig.add_subplot(grid[-1, 1]), d)
+    fig.suptitle(_plain(f"{d.machine.name}: verdict {d.verdict}; {SIGN_NOTE}"), fontsize=10)
     save_fig(fig, path)
 
 
-def diagnosis_html(d, png: bytes | None) -> str:
-    """``diagnose.html``: the printed report and the plot in one self-contained page."""
+def diagnosis_figures(d) -> dict[str, bytes]:
+    """The report's pictures as PNG bytes: "where" (the residual by context and by
+    consumer) and "readings" (each run on the logger's clock, the cumulative air)."""
+    plt = pyplot()
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 0.45 * max(len(d.contexts[:12]),
+                                                                len(d.attribution[:8]), 4)
+                                                + 1.4), constrained_layout=True)
+    _draw_contexts(a1, d)
+    _draw_attribution(a2, d)
+    out = {"where": _png_bytes(fig)}
+    label = _corrected_label(d)
+    fig, axes = plt.subplots(len(d.runs) + 1, 1, figsize=(11, 3.0 * (len(d.runs) + 1)),
+                             constrained_layout=True, squeeze=False)
+    for ax, rd, base, fixed in zip(axes[:, 0], d.runs, d.bases, d.best_params()):
+        _draw_readings(ax, d, rd, base, fixed, label)
+    _draw_cumulative(axes[-1, 0], d, label)
+    out["readings"] = _png_bytes(fig)
+    return out
 
-    parts = ["<!DOCTYPE html><html><head><meta charset='utf-8'><title>Diagnosis</title>",
-             ("<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;"
-             "color:#222}pre{background:#f6f6f6;padding:1em;overflow-x:auto}"
-             "img{max-width:100%}</style></head><body>"),
-             f"<h1>{html.escape(d.machine.name)}: diagnosis of the sim-to-real gap</h1>",
-             f"<pre>{html.escape(d.report())}</pre>"]
+
+def _png_bytes(fig) -> bytes:
+    plt = pyplot()
+    buf = io.BytesIO()
+    try:
+        fig.savefig(buf, format="png", dpi=90)
+    finally:
+        plt.close(fig)
+    return buf.getvalue()
+
+
+@dataclass
+class GapCost:
+    """What an extra flow costs a year if it goes on: the flow (NL/min), the hours it
+    runs, the air (Nm³), the energy (kWh) and the cost at ``price`` per kWh."""
+    flow_l_min: float
+    hours: float
+    hours_basis: str
+    nm3: float
+    sec_kwh_per_nm3: float
+    kwh: float
+    price: float
+    cost: float
+
+
+def gap_cost(machine, flow_l_min: float, always_on: bool) -> GapCost:
+    """:class:`GapCost` of ``flow_l_min`` at the machine's supply pressure (E1), the
+    default price of ``plcpred size``, over its production hours, or (``always_on``: a
+    leak, which flows whenever the line is under pressure) the hours its [calendar]
+    keeps the supply on."""
+    hours = production_hours(machine, None)
+    basis = (f"{hours:,.0f} h of production a year"
+             + ("" if machine.calendar else " (plcpred size's default)"))
+    if always_on and machine.calendar is not None:
+        hours, basis = HOURS_PER_YEAR, "8,760 h a year (the supply stays on)"
+    sec = specific_energy_kwh_per_nm3(machine.supply_bar_g, machine.atmosphere_kpa)
+    nm3 = flow_l_min * 60.0 * hours / 1000.0
+    kwh = nm3 * sec
+    return GapCost(flow_l_min, hours, basis, nm3, sec, kwh, DEFAULT_PRICE,
+                   kwh * DEFAULT_PRICE)
+
+
+def _pct(x: float) -> str:
+    """A share with its sign, never "-0.0"."""
+    return f"{x + 0.0:+.1f}".replace("-0.0", "+0.0") + " %"
+
+
+def _gap_share(score) -> float:
+    """measured - predicted as a share of the measured air (the report's error_pct is
+    predicted - measured)."""
+    return -float(score.error_pct)
+
+
+def _verdict_effect(d):
+    return next((e for e in d.effects if e.name == d.verdict), None)
+
+
+def _physical_text(physical, depth: int = 0) -> str:
+    """Fitted physical values as "name=value" (per consumer where nested)."""
+    if not isinstance(physical, dict):
+        return f"{physical:.3g}" if isinstance(physical, (int, float, np.floating)) \
+            else str(physical)
+    parts = []
+    for k, v in physical.items():
+        if isinstance(v, dict) and depth == 0:
+            parts.append(f"{k}: {_physical_text(v, 1)}")
+        elif isinstance(v, (int, float, np.floating)):
+            parts.append(f"{k}={float(v):.3g}")
+        else:
+            parts.append(f"{k}={v}")
+    return ", ".join(parts)
+
+
+def diagnosis_conclusion(d) -> tuple[str, GapCost | None]:
+    """The report's first paragraph in plain words (plain text: the page escapes it),
+    and what the extra air costs a year where the verdict is a fault."""
+    b = d.baseline
+    logged_s = float(sum(np.sum(rd.weight_s) for rd in d.runs)) or 1.0
+    gap_nl = b.measured_nl - b.predicted_nl
+    mean_gap = gap_nl / logged_s * 60.0
+    more = "more" if gap_nl >= 0 else "less"
+    text = (f"The meter reads {abs(gap_nl):.2f} NL {more} than the machine file predicts "
+            f"({_pct(_gap_share(b))} of the measured {b.measured_nl:.2f} NL over "
+            f"{logged_s:g} s logged, {mean_gap:+.1f} NL/min on average). ")
+    e = _verdict_effect(d)
+    cost = None
+    if d.verdict == "none":
+        return text + ("That is no fault: the gap lies within the meter's noise and the "
+                       "model's own accuracy."), None
+    if d.verdict == "unexplained" or e is None:
+        where = ", ".join(c.context for c in d.contexts[:3] if c.stands_out) or "no one context"
+        text += ("No effect the diagnosis knows explains it; it lies mostly in "
+                 f"{where}. Look there on the machine.")
+    elif e.name in ("leak", "leak_from"):
+        flow = float(e.physical.get("flow_l_min", mean_gap))
+        title = e.title.split(" (")[0]         # without "(beyond the plant)" and such
+        text += f"The likely cause is {title} of about {flow:.1f} NL/min."
+        cost = gap_cost(d.machine, flow, always_on=True)
+    else:
+        text += f"The likely cause is {e.title} ({_physical_text(e.physical)})."
+        if mean_gap > 0:
+            cost = gap_cost(d.machine, mean_gap, always_on=False)
+    if cost is not None:
+        text += (f" Left as it is, it costs about {cost.kwh:,.0f} kWh and {cost.cost:,.0f} "
+                 f"a year at {cost.price:g} per kWh ({cost.nm3:,.0f} Nm³ of air).")
+    return text, cost
+
+
+def cost_basis(d, cost: GapCost) -> str:
+    """What the yearly figures of the conclusion rest on."""
+    return (f"The yearly figures: {cost.flow_l_min:.1f} NL/min over {cost.hours_basis}, "
+            f"{cost.sec_kwh_per_nm3:.3g} kWh per Nm³ at {d.machine.supply_bar_g:g} bar(g) "
+            f"(E1) and plcpred size's default price of {cost.price:g} per kWh (its --price "
+            "and a [calendar] in the machine file set your own).")
+
+
+def where_summary(d) -> str:
+    """The "where" section's sentence: the contexts that stand out and the consumer the
+    residual fits best."""
+    total = d.baseline.measured_nl - d.baseline.predicted_nl
+    out = [c for c in d.contexts if c.stands_out][:3]
+    text = ("Most of the gap lies in " + ", ".join(
+        f"{c.context} ({c.residual_nl:+.2f} NL, {100 * c.share:.0f} %)" for c in out) + "."
+        if out else f"No context stands out of the noise (gap {total:+.2f} NL).")
+    if d.attribution:
+        a = d.attribution[0]
+        how = (f"an always-on flow of {a['flow_l_min']:+.2f} NL/min"
+               if a["consumer"] == "always on" else
+               f"{a['consumer']} ({a['relative_pct']:+.0f} % of its predicted air)")
+        text += f" By consumer, it fits best as {how}."
+    return text
+
+
+def how_sure_rows(d) -> list[tuple[str, str]]:
+    """(what, value) rows of the report's "how sure" table, signs as measured -
+    predicted."""
+    bh = d.baseline_heldout
+    rows = [("held-out samples", d.fold_kind),
+            ("before: held-out gap, RMSE",
+             f"{_pct(_gap_share(bh))} of the measured air, {bh.rmse_l_min:.2f} NL/min")]
+    if d.combination:
+        h = d.combination["heldout"]
+        rows.append((f"after ({' + '.join(d.combination['effects'])}): held-out gap, RMSE",
+                     f"{_pct(_gap_share(h))}, {h.rmse_l_min:.2f} NL/min"))
+    rows.append(("meter noise; left beyond it after the fix",
+                 f"{d.meter_noise_l_min:.2g} NL/min; {d.left_l_min:.2g} NL/min RMS"))
+    if d.flexed is not None:
+        lo, hi = d.band_pct
+        # band_pct is predicted - measured, as the report's error: flipped and swapped
+        rows.append(("a healthy machine's gap (the model's own accuracy)",
+                     f"{_pct(-hi)} to {_pct(-lo)}"))
+    if d.alternatives:
+        rows.append(("as good on held-out samples (cannot be told apart)",
+                     ", ".join(d.alternatives)))
+    fit = d.combination["fit"] if d.combination else None
+    if fit is not None:
+        for name, value, se, unit in zip(fit.names, fit.theta, fit.stderr, fit.units):
+            interval = (f" (95 %: {value - 1.96 * se:.3g} to {value + 1.96 * se:.3g})"
+                        if se is not None and np.isfinite(se) else "")
+            rows.append((f"fitted {name}", f"{value:.3g} {unit}{interval}".replace("  ", " ")))
+    return rows
+
+
+def diagnosis_html(d, png: bytes | None = None, figures: dict | None = None) -> str:
+    """``diagnose.html``: a self-contained report, the conclusion first (what the gap is,
+    its likely cause and what it costs), then where it lies, how sure the diagnosis is,
+    and the printed report in full. ``png``: ``diagnose.png`` (every panel in one
+    picture), offered at the end; ``figures``: :func:`diagnosis_figures` if made."""
+    esc = html.escape
+    figures = diagnosis_figures(d) if figures is None else figures
+    conclusion, cost = diagnosis_conclusion(d)
+    parts = [_DIAG_HEAD,
+             f"<h1>{esc(d.machine.name)}: what the flow log says</h1>",
+             f"<p class='conclusion'>{esc(conclusion)}</p>",
+             ("<p>To carry it in predictions: <code>plcpred diagnose ... --write-machine "
+              "FIXED.toml</code> writes the machine file with what was fitted.</p>"
+              if d.combination else ""),
+             f"<p class='note'>{esc(cost_basis(d, cost))}</p>" if cost else "",
+             f"<p class='note'>On this page {esc(SIGN_NOTE)}.</p>",
+             *[f"<p class='warn'>Warning: {esc(w)}</p>" for w in d.warnings],
+             "<h2>Where the gap lies</h2>", f"<p>{esc(where_summary(d))}</p>",
+             _img(figures.get("where"), "where the gap lies"),
+             _img(figures.get("readings"), "meter readings on the logger's clock"),
+             "<h2>How sure</h2>", "<table>",
+             *[f"<tr><th>{esc(k)}</th><td>{esc(v)}</td></tr>" for k, v in how_sure_rows(d)],
+             "</table>",
+             "<h2>Details</h2>",
+             ("<p class='note'>The report as <code>plcpred diagnose</code> prints it. Its "
+              "<em>error</em> columns are predicted - measured (the opposite sign of the "
+              "gap above); its residuals are measured - predicted.</p>"),
+             (f"<details open><summary>full report</summary><pre>{esc(d.report())}</pre>"
+              "</details>")]
     if png is not None:
-        parts.append(f"<p><img alt='diagnosis' src='data:image/png;base64,"
-                     f"{base64.b64encode(png).decode()}'></p>")
+        parts.append("<details><summary>every panel in one picture (diagnose.png)"
+                     f"</summary>{_img(png, 'diagnose.png')}</details>")
     parts.append("</body></html>")
     return "\n".join(parts)
 
 
+def _img(data: bytes | None, alt: str) -> str:
+    if data is None:
+        return ""
+    return (f"<p><img alt='{html.escape(alt)}' src='data:image/png;base64,"
+            f"{base64.b64encode(data).decode()}'></p>")
+
+
+_DIAG_HEAD = (
+    "<!DOCTYPE html><html><head><meta charset='utf-8'><title>Diagnosis</title><style>"
+    "body{font-family:sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;"
+    "color:#222;line-height:1.4}pre{background:#f6f6f6;padding:1em;overflow-x:auto;font-size:85%}"
+    "img{max-width:100%}.conclusion{font-size:120%;background:#fff7e6;border-left:5px "
+    "solid #f28e2b;padding:0.8em 1em}.note{color:#555;font-size:90%}.warn{color:#a33}"
+    "table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:4px 10px;"
+    "text-align:left;vertical-align:top}th{background:#f3f3f3;font-weight:normal}"
+    "</style></head><body>")
+
+
 # ---------------------------------------------------------------------- emulate
 
-def plot_emulation(em, path, table=None) -> None:
-    """``emulate.png``: the meter's log against the plant's true total flow; each drive's
-    position; each drive's chamber pressures. ``table``: ``em.plant_table()`` if made."""
-    plt = pyplot()
+@dataclass
+class Envelope:
+    """A series reduced to bins of ``k`` samples: each bin's first time and the least,
+    mean and greatest value in it (``k`` = 1: the series itself). Min and max keep what
+    a mean hides: the full stroke of a drive that moves for a tenth of each bin."""
+    t_s: np.ndarray
+    lo: np.ndarray
+    mean: np.ndarray
+    hi: np.ndarray
+    k: int
 
+
+def envelope(t_s, values, k: int) -> Envelope:
+    values = np.asarray(values, dtype=float)
+    return Envelope(_bins(np.asarray(t_s, dtype=float), k, np.min), _bins(values, k, np.min),
+                    _bins(values, k), _bins(values, k, np.max), k)
+
+
+def emulation_period_s(em, predicted=None) -> tuple[float | None, str]:
+    """(the emulated machine's cycle time, where it comes from): its ``cycle_signal``
+    as the closed loop ran it, else its part arrivals' period, else the period the
+    prediction repeats with; (None, "") for a machine that does not cycle."""
+    m = em.machine
+    if m.cycle_signal:
+        cyc = cycles_of(m, em.timeline, _Cumulative(em.edges_s, em.true_total_cum_nl()))
+        if cyc is not None and cyc.cycle_s:
+            return float(cyc.cycle_s), cyc.source
+    arrival = arrival_period_s(m, em.timeline)
+    if arrival:
+        return float(arrival), "the part arrivals' period"
+    period = getattr(predicted, "period_s", None)
+    if period:
+        return float(period), "the period the prediction repeats with"
+    return None, ""
+
+
+class _Cumulative:
+    """The emulation's true cumulative air as :func:`cycles_of` reads a profile."""
+
+    def __init__(self, edges_s, cumulative_nl):
+        self.edges_s, self.cumulative_nl = edges_s, cumulative_nl
+
+    def cumulative_nl_at(self, at_s):
+        return np.interp(at_s, self.edges_s, self.cumulative_nl)
+
+
+def zoom_window(t_s, flow_l_min, horizon_s: float, period_s: float | None
+                ) -> tuple[float, float] | None:
+    """(start, end) s of the one cycle the emulation plot shows at full resolution: a
+    whole period within the last two, started just before the flow rises out of its
+    longest quiet spell (so the cycle reads from its first stroke, not from its
+    middle). None when the horizon does not hold two periods (the whole run is then
+    drawn at full resolution) or the machine does not cycle."""
+    if not period_s or horizon_s < 2 * period_s:
+        return None
+    t = np.asarray(t_s, dtype=float)
+    lo = horizon_s - 2 * period_s
+    span = (t >= lo) & (t <= horizon_s)
+    t, f = t[span], np.asarray(flow_l_min, dtype=float)[span]
+    if len(f) < 3:
+        return None
+    # the quiet level against the strokes' flows (a valve's fill spike of a few ms
+    # would otherwise set the scale)
+    quiet = f <= f.min() + 0.05 * (np.percentile(f, 95) - f.min())
+    a = horizon_s - period_s
+    rises = np.flatnonzero(quiet[:-1] & ~quiet[1:]) + 1
+    if len(rises):
+        falls = np.flatnonzero(~quiet[:-1] & quiet[1:]) + 1
+        # each rise's quiet spell began at the last fall before it (or the span's start)
+        began = np.array([falls[falls < r][-1] if (falls < r).any() else 0 for r in rises])
+        r = rises[np.argmax(t[rises] - t[began])]
+        a = float(t[r]) - 0.05 * period_s
+        a = a - period_s if a > horizon_s - period_s else a
+        a = min(max(a, lo), horizon_s - period_s)
+    return a, a + period_s
+
+
+def predicted_flow_l_min(predicted, edges_s) -> np.ndarray:
+    """The prediction's total flow (NL/min) on cells ``edges_s``: its exact air per cell
+    over the cell's width."""
+    edges_s = np.asarray(edges_s, dtype=float)
+    return predicted.cells_nl(None, edges_s) / np.diff(edges_s) * 60.0
+
+
+def _table_edges(t_end_s) -> np.ndarray:
+    """The cell edges of plant.csv's rows (their times are the cells' ends)."""
+    t_end_s = np.asarray(t_end_s, dtype=float)
+    return np.concatenate([[0.0], t_end_s])
+
+
+def _scaled(e: Envelope, scale: float) -> Envelope:
+    """``e`` on a time axis in other units (minutes, hours)."""
+    return Envelope(e.t_s * scale, e.lo, e.mean, e.hi, e.k)
+
+
+def _draw_envelope(ax, env: Envelope, color, label: str, lw: float = 1.0, ls="-",
+                   fill: bool = True, mean: bool = True, steps: bool = True) -> None:
+    """The mean line, and where bins hold several samples the band from their least to
+    their greatest value (step-wise: a bin's values hold over its width). Without
+    ``mean`` a binned series is its band and the band's edges: the mean of a drive's
+    position is a place it never stands. ``steps`` false: unbinned samples are states
+    at instants (a position), joined by lines."""
+    if env.k > 1 and fill:
+        ax.fill_between(env.t_s, env.lo, env.hi, step="post", color=color, alpha=0.2,
+                        lw=0)
+    if env.k > 1 and not mean:
+        ax.step(env.t_s, env.hi, where="post", color=color, lw=lw * 0.7, ls=ls, label=label)
+        ax.step(env.t_s, env.lo, where="post", color=color, lw=lw * 0.7, ls=ls)
+        return
+    if env.k == 1 and not steps:
+        ax.plot(env.t_s, env.mean, color=color, lw=lw, ls=ls, label=label)
+        return
+    ax.step(env.t_s, env.mean, where="post", color=color, lw=lw, ls=ls, label=label)
+
+
+def time_bins_mean(t_s, values, width_s: float, horizon_s: float
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """(bin starts, mean per bin) of samples at times ``t_s`` in bins of ``width_s``
+    from 0 (the meter's readings on the plant table's bins; empty bins are NaN)."""
+    n = max(1, int(np.ceil(horizon_s / width_s - 1e-9)))
+    idx = np.clip((np.asarray(t_s, dtype=float) // width_s).astype(np.int64), 0, n - 1)
+    count = np.bincount(idx, minlength=n)
+    total = np.bincount(idx, weights=np.asarray(values, dtype=float), minlength=n)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.arange(n) * width_s, np.where(count > 0, total / np.maximum(count, 1),
+                                                np.nan)
+
+
+@dataclass
+class _EmulationView:
+    """What the emulation plot draws, from the plant table: the columns by name, the
+    horizon's bin width, the zoomed cycle (None: none) and the prediction on the rows."""
+    col: dict
+    rows: np.ndarray
+    k: int
+    zoom: tuple[float, float] | None
+    period_s: float | None
+    period_source: str
+    predicted_l_min: np.ndarray | None
+
+    def series(self, name: str) -> np.ndarray:
+        return self.rows[:, self.col[name]]
+
+    def horizon(self, values) -> Envelope:
+        return envelope(self.rows[:, 0] - self.dt_s, values, self.k)
+
+    @property
+    def dt_s(self) -> float:
+        return float(self.rows[0, 0]) if len(self.rows) else 0.0
+
+    def in_zoom(self) -> np.ndarray:
+        a, b = self.zoom
+        t = self.rows[:, 0]
+        return (t > a) & (t <= b + 1e-9)
+
+
+def emulation_view(em, table=None, predicted=None) -> _EmulationView:
+    """The arrays the emulation plot draws (a pure function of the run, for the tests)."""
     header, rows = table or em.plant_table()
-    k = _bin_width(len(rows))
-    t = _bins(rows[:, 0], k)
     col = {h: i for i, h in enumerate(header)}
+    period, source = emulation_period_s(em, predicted)
+    k = whole_periods(_bin_width(len(rows)), period, float(rows[0, 0]), len(rows))
+    zoom = zoom_window(rows[:, 0], rows[:, col["total_l_min"]], em.horizon_s, period)
+    pred = (predicted_flow_l_min(predicted, _table_edges(rows[:, 0]))
+            if predicted is not None else None)
+    return _EmulationView(col, rows, k, zoom, period, source, pred)
+
+
+def plot_emulation(em, path, table=None, predicted=None) -> None:
+    """``emulate.png``: the meter's log, the plant's true total flow and the prediction
+    (``predicted``: the :class:`~plcpred.air.DemandProfile` of the same horizon); each
+    drive's position; each drive's chamber pressures. Over a long horizon each bin shows
+    its least and greatest value around its mean, and a second column shows one cycle
+    at the plant table's full resolution. ``table``: ``em.plant_table()`` if made."""
+    plt = pyplot()
+    v = emulation_view(em, table, predicted)
     drives = [c.name for c in em.machine.consumers if c.is_cylinder]
-    fig, axes = plt.subplots(3 if drives else 1, 1, figsize=(11, 8 if drives else 3.5),
-                             sharex=True, constrained_layout=True, squeeze=False)
-    axes = axes[:, 0]
-    ax = axes[0]
-    ax.plot(t, _bins(rows[:, col["total_l_min"]], k), color="tab:blue", lw=0.8,
-            label="true total (ISO 8778)")
-    ax.step(em.measured_time_s, em.measured_flow_l_min, where="pre", color="black", lw=1.0,
-            label=f"meter ({em.meter.reference}, tau {em.meter.tau_s:g} s, "
-                  f"{em.meter.rate_hz:g} Hz)")
-    ax.set_ylabel("NL/min")
-    ax.set_title(_plain(f"{em.machine.name}: emulated flow, {em.total_nl:.2f} NL true"),
-                 fontsize=10)
-    ax.legend(loc="upper right", fontsize=8)
+    n_rows = 3 if drives else 1
+    cols = 2 if v.zoom else 1
+    fig, axes = plt.subplots(n_rows, cols, figsize=(14 if v.zoom else 11, 9 if drives else 4),
+                             sharex="col", constrained_layout=True, squeeze=False,
+                             gridspec_kw={"width_ratios": [3, 2] if v.zoom else [1]})
+    scale, unit = _time_axis(em.horizon_s)
+    _draw_emulated_flow(axes[0, 0], em, v, scale, predicted)
     if drives:
-        for name in drives:
-            ax = axes[1]
-            ax.plot(t, _bins(rows[:, col[f"{name}_position_mm"]], k), lw=0.9,
-                    label=_plain(name))
-            axes[2].plot(t, _bins(rows[:, col[f"{name}_p_cap_bar_g"]], k), lw=0.8,
-                         label=_plain(f"{name} cap"))
-            axes[2].plot(t, _bins(rows[:, col[f"{name}_p_rod_bar_g"]], k), lw=0.8, ls="--",
-                         label=_plain(f"{name} rod"))
-        axes[1].set_ylabel("position, mm")
-        axes[1].legend(loc="upper right", fontsize=8, ncol=min(6, len(drives)))
-        axes[2].set_ylabel("chamber, bar(g)")
-        axes[2].legend(loc="upper right", fontsize=7, ncol=min(6, 2 * len(drives)))
-    axes[-1].set_xlabel("time, s")
+        _draw_drives(axes[1, 0], axes[2, 0], v, drives, v.horizon, scale)
+    axes[-1, 0].set_xlabel(f"time ({unit})")
+    axes[0, 0].set_xlim(0, em.horizon_s * scale)
+    if v.zoom:
+        a, b = v.zoom
+        _draw_zoom_flow(axes[0, 1], em, v)
+        if drives:
+            sel = v.in_zoom()
+            _draw_drives(axes[1, 1], axes[2, 1], v, drives,
+                         # the states are sampled at the rows' mid-times
+                         lambda x: envelope(v.rows[sel, 0] - v.dt_s / 2 - a, x[sel], 1), 1.0,
+                         legend=False)
+        axes[-1, 1].set_xlabel(f"time in the cycle (s; it starts at {a:.1f} s)")
+        axes[0, 1].set_xlim(0, b - a)
     save_fig(fig, path)
+
+
+def _draw_emulated_flow(ax, em, v: _EmulationView, scale: float, predicted) -> None:
+    """The horizon's flow: the plant's true total (its band and mean per bin), the
+    meter's log and the prediction (their means per bin; the prediction's greatest per
+    bin where bins are long enough for the peaks to differ from the mean)."""
+    true = v.horizon(v.series("total_l_min"))
+    width = v.dt_s * v.k
+    binned = f", band: min to max per {width:.3g} s" if v.k > 1 else ""
+    _draw_envelope(ax, _scaled(true, scale), "tab:blue", f"true total (ISO 8778{binned})",
+                   lw=0.9)
+    if len(em.measured_time_s) <= MAX_POINTS:
+        ax.step(em.measured_time_s * scale, em.measured_flow_l_min, where="pre",
+                color="black", lw=1.0, label=_meter_label(em))
+    else:
+        t, mean = time_bins_mean(em.measured_time_s - 0.5 / em.meter.rate_hz,
+                                 em.measured_flow_l_min, width, em.horizon_s)
+        ax.step(t * scale, mean, where="post", color="black", lw=0.8,
+                label=_meter_label(em) + ", mean per bin")
+    if v.predicted_l_min is not None:
+        pred = v.horizon(v.predicted_l_min)
+        _draw_envelope(ax, _scaled(pred, scale), "tab:orange", "predicted (machine file)"
+                       + (", mean per bin" if v.k > 1 else ""), lw=1.2, ls="--", fill=False)
+        if width >= 0.5:
+            ax.step(pred.t_s * scale, pred.hi, where="post", color="tab:orange", lw=0.8,
+                    ls=":", label="predicted, max per bin")
+    ax.set_ylabel("flow (NL/min)")
+    ax.set_ylim(bottom=0)
+    ax.grid(True, alpha=0.3)
+    pred_text = ""
+    if predicted is not None and predicted.total_nl > 0:
+        p = float(predicted.total_nl)
+        pred_text = (f", {p:.2f} NL predicted (true - predicted "
+                     f"{100 * (em.total_nl - p) / p:+.1f} % of predicted)")
+    ax.set_title(_plain(f"{em.machine.name}: emulated {em.horizon_s:g} s, "
+                        f"{em.total_nl:.2f} NL true{pred_text}"), fontsize=10)
+    ax.legend(loc="upper right", fontsize=7, framealpha=0.9)
+
+
+def _meter_label(em) -> str:
+    m = em.meter
+    return f"meter ({m.reference}, tau {m.tau_s:g} s, {m.rate_hz:g} Hz)"
+
+
+def _draw_zoom_flow(ax, em, v: _EmulationView) -> None:
+    """One cycle's flow at the plant table's resolution: true, metered, predicted."""
+    a, b = v.zoom
+    sel = v.in_zoom()
+    t = v.rows[sel, 0] - v.dt_s - a
+    ax.step(t, v.series("total_l_min")[sel], where="post", color="tab:blue", lw=0.9,
+            label="true total")
+    m = (em.measured_time_s > a) & (em.measured_time_s <= b)
+    ax.step(em.measured_time_s[m] - a, em.measured_flow_l_min[m], where="pre",
+            color="black", lw=1.0, label="meter")
+    if v.predicted_l_min is not None:
+        ax.step(t, v.predicted_l_min[sel], where="post", color="tab:orange", lw=1.2,
+                ls="--", label="predicted")
+    ax.set_ylim(bottom=0)
+    ax.grid(True, alpha=0.3)
+    ax.set_title(_plain(f"one cycle ({v.period_s:.3g} s, {v.period_source}), "
+                        f"rows every {v.dt_s:.3g} s"), fontsize=10)
+    ax.legend(loc="upper right", fontsize=7, framealpha=0.9)
+
+
+def _draw_drives(ax_pos, ax_p, v: _EmulationView, drives, reduce, scale: float = 1.0,
+                 legend: bool = True) -> None:
+    """Each drive's position and chamber pressures, reduced by ``reduce`` (an
+    :class:`Envelope` of a column)."""
+    colors = [c["color"] for c in pyplot().rcParams["axes.prop_cycle"]]
+
+    def draw(ax, env, color, label, ls="-", fill=True):
+        _draw_envelope(ax, _scaled(env, scale), color, label, lw=0.9, ls=ls, mean=False,
+                       fill=fill, steps=False)
+    for n, name in enumerate(drives):
+        color = colors[n % len(colors)]
+        draw(ax_pos, reduce(v.series(f"{name}_position_mm")), color, _plain(name))
+        # six chambers' bands would cover each other: their edges alone
+        draw(ax_p, reduce(v.series(f"{name}_p_cap_bar_g")), color, _plain(f"{name} cap"),
+             fill=False)
+        draw(ax_p, reduce(v.series(f"{name}_p_rod_bar_g")), color, _plain(f"{name} rod"),
+             ls="--", fill=False)
+    env = reduce(v.series(f"{drives[0]}_position_mm"))
+    per = f",\nmin to max per {v.dt_s * env.k:.3g} s" if env.k > 1 else ""
+    ax_pos.set_ylabel(f"position (mm){per}")
+    ax_p.set_ylabel(f"chamber (bar(g)){per}")
+    for ax in (ax_pos, ax_p):
+        ax.grid(True, alpha=0.3)
+    if legend:
+        ax_pos.legend(loc="upper right", fontsize=8, ncol=min(6, len(drives)))
+        ax_p.legend(loc="upper right", fontsize=7, ncol=min(6, 2 * len(drives)))

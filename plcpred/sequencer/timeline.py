@@ -183,6 +183,38 @@ class Timeline:
                              "signal": names[self.signal_idx] if len(names) else [],
                              "value": self.values})
 
+    def to_frame(self) -> pd.DataFrame:
+        """The timeline in wide form as a pandas DataFrame: indexed by ``time_s``, one
+        row per time at which some signal changes (the first at 0 holds every initial
+        value), one column per signal (named as in the program, in the timeline's order)
+        holding its value from that time on: ``bool`` for BOOL signals, numbers for the
+        others. The long form, one row per change, is :attr:`df` (``timeline.csv``'s
+        rows). A repeating machine's timeline is expanded over the whole horizon (times x
+        signals values: refused with :class:`TimelineTooLarge` where the changes are)."""
+        # pandas is imported here: it is heavy (half a second), and most runs never need it
+        import pandas as pd
+
+        t, s, v = self.time_ns, self.signal_idx, self.values
+        times, row = np.unique(t, return_inverse=True)
+        n = len(self.signals)
+        grid = np.full((len(times), n), np.nan)
+        if len(t):
+            # a signal changed twice at one time keeps its last value (edges are in order)
+            key = row.astype(np.int64) * n + s
+            _, last_rev = np.unique(key[::-1], return_index=True)
+            keep = len(key) - 1 - last_rev
+            grid[row[keep], s[keep]] = v[keep]
+        frame = pd.DataFrame(grid, columns=self.names,
+                             index=pd.Index(times / NS, name="time_s")).ffill()
+        for sig in self.signals:
+            column = frame[sig.name]
+            if sig.dtype == "bool":
+                frame[sig.name] = column.fillna(0.0).astype(bool)
+            elif sig.dtype not in ("real", "lreal") and not column.isna().any() \
+                    and bool((column == column.round()).all()):
+                frame[sig.name] = column.astype(np.int64)
+        return frame
+
     def edges(self, name: str) -> "pd.DataFrame":
         """The changes of one signal: ``time_s, value`` (the first row is its initial
         value at 0)."""

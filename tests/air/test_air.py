@@ -441,3 +441,30 @@ def test_cell_volumes_equal_the_differences_of_the_exact_cumulative():
         np.testing.assert_allclose(
             rectangles_cell_nl(edges, start, dur, amount),
             np.diff(rectangles_cumulative_nl(edges, start, dur, amount)), rtol=1e-9, atol=1e-9)
+
+
+def test_demand_to_frame_has_the_grid_and_a_column_per_consumer():
+    from plcpred import predict
+
+    p = predict(SAMPLES / "pick_place.toml", "20s", dt=0.05)
+    frame = p.profile.to_frame()
+    assert frame.index.name == "time_s" and len(frame) == p.profile.n_cells == 400
+    assert frame.index[1] == pytest.approx(0.05)
+    assert frame.columns.tolist() == ["total_l_min", "Z_lift_l_min", "X_slide_l_min",
+                                      "gripper_l_min", "vacuum_l_min", "fittings_leak_l_min"]
+    # the columns are NL/min per cell: their mean over the horizon is the mean flow, the
+    # consumers add up to the total, and a leak flows all the time
+    assert frame["total_l_min"].mean() == pytest.approx(p.profile.mean_l_min, rel=1e-9)
+    assert np.allclose(frame.iloc[:, 1:].sum(axis=1), frame["total_l_min"])
+    assert (frame["X_slide_l_min"].mean() * 20 / 60) == pytest.approx(
+        p.profile.consumer_nl[1], rel=1e-9)
+    assert frame["fittings_leak_l_min"].min() > 0
+    assert p.profile.to_frame(consumers=False).columns.tolist() == ["total_l_min"]
+
+
+def test_demand_to_frame_names_columns_as_demand_csv_does(tmp_path):
+    from plcpred import predict
+
+    p = predict(SAMPLES / "pick_place.toml", "8s", dt=0.1)
+    p.profile.names[:2] = ["a, b", "a; b"]          # the same once cleaned
+    assert p.profile.to_frame().columns[1:3].tolist() == ["a__b_l_min", "a__b__l_min"]

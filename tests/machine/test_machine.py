@@ -85,7 +85,7 @@ def test_good_file_loads_with_defaults(tmp_path):
 def test_cross_check_with_program_warns_on_undriven_outputs_and_unread_switches(tmp_path):
     m = load_machine(write(tmp_path, GOOD))
     warnings = check_against_program(m, parse_st(PROGRAM))
-    assert any("output 'LAMP'" in w and "drives no consumer" in w for w in warnings)
+    assert any("output 'lamp'" in w and "drives no consumer" in w for w in warnings)
     assert any("switch 'clamp_work' is never read" in w for w in warnings)
     assert not any("clamp_home" in w for w in warnings)
 
@@ -498,3 +498,16 @@ def test_a_signal_changed_after_loading_is_named_without_the_files_line(tmp_path
         check_against_program(m, parse_st(PROGRAM))
     assert str(ei.value).startswith(f"{tmp_path / 'station.toml'}: consumer \"blow-off\": "
                                     "valve 'blower'")
+
+
+def test_outputs_named_in_no_air_draw_no_warning(tmp_path):
+    text = GOOD.replace("supply_bar_g = 6.0", 'supply_bar_g = 6.0\nno_air = ["LAMP"]', 1)
+    m = load_machine(write(tmp_path, text))
+    assert m.no_air == ["LAMP"]
+    warnings = check_against_program(m, parse_st(PROGRAM))
+    assert not any("lamp" in w.lower() and "drives no consumer" in w for w in warnings)
+    m = load_machine(write(tmp_path, text.replace('["LAMP"]', '["lamp_x"]')))
+    with pytest.raises(MachineError, match=r"no_air 'lamp_x' is not a variable.*did you mean"):
+        check_against_program(m, parse_st(PROGRAM))
+    with pytest.raises(MachineError, match="no_air must be a list of outputs"):
+        load_machine(write(tmp_path, text.replace('["LAMP"]', '"lamp"')))

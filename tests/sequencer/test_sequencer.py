@@ -520,3 +520,34 @@ END_PROGRAM""", [], [InputSchedule("s", pulses_s=[0.5], pulse_ms=200)], scan_ms=
     assert tl.edges("copy")["time_s"].tolist() == pytest.approx([0.0, 0.5, 0.7])
     assert tl.value_at("seen", 0.3) and tl.value_at("seen", 0.9)
     assert not tl.value_at("copy", 0.3) and tl.value_at("copy", 0.6)
+
+
+def test_timeline_to_frame_holds_each_signal_at_each_change():
+    tl = unfold(SAMPLES / "prototype_rig" / "rig.toml", "30s")
+    frame = tl.to_frame()
+    assert frame.index.name == "time_s" and frame.columns.tolist() == tl.names
+    assert frame.index.is_monotonic_increasing and frame.index[0] == 0
+    assert len(frame) == len(np.unique(tl.time_ns))
+    assert set(frame.dtypes.astype(str)) == {"bool"}
+    # each column changes where that signal's edges are, and holds its value in between
+    for sig in ("Y_A", "A_EXT", "Y_KNIVES"):
+        edges = tl.edges(sig)
+        changes = frame[sig][frame[sig] != frame[sig].shift()]
+        assert changes.index.tolist() == pytest.approx(edges["time_s"].tolist())
+        assert changes.tolist() == [bool(v) for v in edges["value"]]
+    assert bool(frame["A_EXT"].loc[0.92]) and not bool(frame["A_EXT"].loc[:0.92 - 1e-9].iloc[-1])
+    assert bool(frame.loc[2.0:, "Y_KNIVES"].iloc[0]) == (tl.value_at("Y_KNIVES", 2.0) != 0)
+
+
+def test_timeline_to_frame_keeps_numbers_and_a_signal_set_twice_at_once():
+    from plcpred.sequencer.timeline import NS, Signal, Timeline
+
+    sigs = [Signal("x", "input", "bool"), Signal("n", "output", "int"),
+            Signal("r", "output", "real")]
+    tl = Timeline(sigs, [0, 0, 0, NS, NS, NS, 2 * NS], [0, 1, 2, 1, 1, 0, 2],
+                  [0, 0, 0.5, 3, 4, 1, 2.25], 3 * NS)
+    frame = tl.to_frame()
+    assert frame.index.tolist() == [0.0, 1.0, 2.0]
+    assert frame["x"].tolist() == [False, True, True]
+    assert frame["n"].tolist() == [0, 4, 4] and str(frame["n"].dtype) == "int64"
+    assert frame["r"].tolist() == [0.5, 0.5, 2.25]

@@ -1,0 +1,255 @@
+"""The plots and the diagnosis report say what the data say: checked through the arrays
+they draw (plcpred.outputs.report's small helpers), not through pixels."""
+import copy
+import re
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from conftest import SAMPLES
+
+from plcpred.air import predict
+from plcpred.air.sizing import receiver_deficit, size_prediction
+from plcpred.diagnose import diagnose, read_measured
+from plcpred.machine import load_machine
+from plcpred.outputs.report import (
+    SIGN_NOTE,
+    diagnosis_conclusion,
+    diagnosis_html,
+    emulation_view,
+    envelope,
+    gap_cost,
+    how_sure_rows,
+    logger_axis,
+    plot_diagnosis,
+    plot_emulation,
+    plot_sizing,
+    predicted_flow_l_min,
+    sizing_windows,
+    time_bins_mean,
+    window_layers,
+    zoom_window,
+)
+from plcpred.plant import emulate
+
+PICK_PLACE = SAMPLES / "pick_place.toml"
+RIG = SAMPLES / "prototype_rig" / "rig.toml"
+RIG_NOLEAK = SAMPLES / "prototype_rig" / "rig_noleak.toml"
+
+
+@pytest.fixture(scope="module")
+def pick_place_emulated():
+    """Three 4 s cycles of the pick-and-place in the plant, and their prediction."""
+    em = emulate(PICK_PLACE, "12s", seed=1)
+    return em, predict(load_machine(PICK_PLACE), em.horizon_s).profile
+
+
+@pytest.fixture(scope="module")
+def rig_diagnosis():
+    """The rig's logged leak, diagnosed quickly (two effects, no plant)."""
+    runs = [read_measured(SAMPLES / "prototype_rig" / "seq1_measured.csv")]
+    return diagnose(load_machine(RIG_NOLEAK), runs, effects=["leak", "meter_gain"],
+                    dynamic=False)
+
+
+# ------------------------------------------------------------------------ emulate.png
+
+def test_envelope_keeps_a_drives_full_stroke(pick_place_emulated):
+    """A bin's mean of the X slide's position is a place it never stands; the band's top
+    is its stroke, in the plot's bins and in bins of a whole cycle alike."""
+    em, pred = pick_place_emulated
+    v = emulation_view(em, predicted=pred)
+    x = v.series("X slide_position_mm")
+    assert v.k > 1
+    assert v.horizon(x).hi.max() == pytest.approx(x.max())
+    assert x.max() == pytest.approx(200.0, abs=1.0)
+    per_cycle = envelope(v.rows[:, 0], x, round(4.0 / v.dt_s))
+    assert per_cycle.hi[:3] == pytest.approx([200.0] * 3, abs=1.0)
+    assert per_cycle.mean.max() < 120.0         # what the old plot drew as the stroke
+
+
+def test_zoom_spans_one_cycle_from_its_first_stroke(pick_place_emulated):
+    em, pred = pick_place_emulated
+    v = emulation_view(em, predicted=pred)
+    assert v.period_s == pytest.approx(4.0)
+    a, b = v.zoom
+    assert b - a == pytest.approx(4.0)
+    assert em.horizon_s - 8.0 <= a and b <= em.horizon_s + 1e-9
+    sel = v.in_zoom()
+    total = v.series("total_l_min")[sel]
+    # it starts quiet (only the leak) and holds the X slide's whole stroke
+    assert total[0] <= total.min() + 0.05 * (np.percentile(total, 95) - total.min())
+    assert v.series("X slide_position_mm")[sel].max() == pytest.approx(200.0, abs=1.0)
+
+
+def test_zoom_window_on_a_known_cycle():
+    """Pulses from 1.0 to 1.5 s of every 4 s: the window opens just before one."""
+    t = np.arange(0.0, 20.0, 0.01)
+    flow = 3.0 + 100.0 * ((t % 4.0 >= 1.0) & (t % 4.0 < 1.5))
+    a, b = zoom_window(t, flow, 20.0, 4.0)
+    assert (a, b) == pytest.approx((12.8, 16.8), abs=0.02)
+    assert zoom_window(t, flow, 20.0, 12.0) is None      # not two periods
+    assert zoom_window(t, flow, 20.0, None) is None      # no cycle
+
+
+def test_prediction_overlaid_is_the_predictions_air(pick_place_emulated):
+    em, pred = pick_place_emulated
+    v = emulation_view(em, predicted=pred)
+    assert np.sum(v.predicted_l_min) * v.dt_s / 60.0 == pytest.approx(pred.total_nl, rel=1e-6)
+    edges = np.linspace(0.0, em.horizon_s, 7)
+    flow = predicted_flow_l_min(pred, edges)
+    assert np.sum(flow * np.diff(edges) / 60.0) == pytest.approx(pred.total_nl, rel=1e-9)
+
+
+def test_meter_means_per_bin():
+    t, mean = time_bins_mean([0.1, 0.2, 1.1, 2.5, 2.6], [1.0, 3.0, 5.0, 7.0, 9.0], 1.0, 4.0)
+    assert list(t) == [0.0, 1.0, 2.0, 3.0]
+    assert list(mean[:3]) == [2.0, 5.0, 8.0] and np.isnan(mean[3])
+
+
+def test_emulation_plot_is_written(pick_place_emulated, tmp_path):
+    em, pred = pick_place_emulated
+    plot_emulation(em, tmp_path / "e.png", predicted=pred)
+    assert (tmp_path / "e.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+# ------------------------------------------------------------------------- sizing.png
+
+@pytest.fixture(scope="module")
+def pick_place_sized():
+    r = predict(load_machine(PICK_PLACE), "61s")
+    return r.profile, size_prediction(r)
+
+
+def test_air_per_cycle_adds_up_to_the_total(pick_place_sized):
+    profile, s = pick_place_sized
+    _, _, deficit = receiver_deficit(profile.total_flow_l_min, profile.dt_s,
+                                     s.design_flow_l_min)
+    w = sizing_windows(profile, s, deficit)
+    assert w.what == "cycle" and w.width_s == pytest.approx(s.cycle_s)
+    assert w.nl.sum() == pytest.approx(profile.total_nl, rel=1e-9)
+    assert w.whole.sum() == 15 and not w.whole[-1]       # 61 s: 15 cycles and a second
+    # a steady machine: every whole cycle takes the steady air per cycle
+    assert w.nl[w.whole][1:] == pytest.approx(s.nl_per_cycle, rel=1e-3)
+    # the receiver is sized on the largest deficit of any cycle
+    assert w.deficit_nl.max() == pytest.approx(s.deficit_nl, rel=1e-9)
+
+
+def test_a_machine_without_a_cycle_is_cut_in_windows():
+    r = predict(load_machine(RIG), "20s")
+    s = size_prediction(r)
+    _, _, deficit = receiver_deficit(r.profile.total_flow_l_min, r.profile.dt_s,
+                                     s.design_flow_l_min)
+    w = sizing_windows(r.profile, s, deficit)
+    assert w.what == "window" and len(w.nl) == 20
+    assert w.nl.sum() == pytest.approx(r.profile.total_nl, rel=1e-9)
+    assert w.deficit_nl.max() == pytest.approx(s.deficit_nl, rel=1e-9)
+
+
+def test_sizing_plot_is_written(pick_place_sized, tmp_path):
+    profile, s = pick_place_sized
+    plot_sizing(profile, s, tmp_path / "s.png", title="<b>$x$</b>")
+    assert (tmp_path / "s.png").stat().st_size > 10_000
+
+
+# ---------------------------------------------------------------------- diagnose.html
+
+def _text(page: str) -> str:
+    """The page without its tags and embedded pictures."""
+    return re.sub(r"<[^>]+>", " ", re.sub(r"src='data:[^']*'", "", page))
+
+
+def test_html_opens_with_the_conclusion(rig_diagnosis):
+    d = rig_diagnosis
+    page = diagnosis_html(d, None, figures={})
+    body = page[page.index("<body>"):]
+    first = re.search(r"<p[^>]*>(.*?)</p>", body, re.DOTALL)
+    assert "class='conclusion'" in first.group(0)
+    assert "leak of about 9.9 NL/min" in first.group(1)
+    assert "kWh" in first.group(1)
+    assert body.index("conclusion") < body.index("How sure") < body.index("<pre>")
+
+
+def test_html_holds_the_held_out_figures_signed_one_way(rig_diagnosis):
+    d = rig_diagnosis
+    text = _text(diagnosis_html(d, None, figures={}))
+    before, after = d.baseline_heldout, d.combination["heldout"]
+    assert d.baseline.measured_nl > d.baseline.predicted_nl
+    # measured - predicted: the meter reads more, so the gap is positive
+    assert f"+{-before.error_pct:.1f} %" in text
+    assert f"{before.rmse_l_min:.2f} NL/min" in text and f"{after.rmse_l_min:.2f} NL/min" in text
+    assert SIGN_NOTE in text
+    rows = dict(how_sure_rows(d))
+    assert "95 %" in rows["fitted flow_l_min"]
+
+
+def test_html_escapes_what_comes_from_files(rig_diagnosis):
+    d = copy.copy(rig_diagnosis)
+    d.machine = copy.copy(d.machine)
+    d.machine.name = "<script>alert(1)</script>"
+    page = diagnosis_html(d, b"not a png", figures={})
+    assert "<script>" not in page
+    assert "&lt;script&gt;alert(1)&lt;/script&gt;" in page
+
+
+def test_the_logger_clock_is_named(rig_diagnosis):
+    rd = rig_diagnosis.runs[0]
+    t, origin, label = logger_axis(rd)
+    assert origin == 0.0 and t == pytest.approx(rd.end_s + rd.offset_s)
+    assert "logger's clock" in label and "time_s" in label
+
+
+def test_a_leak_costs_what_its_air_does(rig_diagnosis):
+    machine = rig_diagnosis.machine
+    c = gap_cost(machine, 10.0, always_on=True)
+    assert machine.calendar is None and c.hours == 4000.0
+    assert c.nm3 == pytest.approx(10.0 * 60 * 4000 / 1000)
+    assert c.kwh == pytest.approx(c.nm3 * c.sec_kwh_per_nm3)
+    assert c.cost == pytest.approx(c.kwh * c.price)
+    text, cost = diagnosis_conclusion(rig_diagnosis)
+    assert f"{cost.kwh:,.0f} kWh" in text
+
+
+def test_diagnosis_pictures(rig_diagnosis, tmp_path):
+    plot_diagnosis(rig_diagnosis, tmp_path / "d.png")
+    page = diagnosis_html(rig_diagnosis, (tmp_path / "d.png").read_bytes())
+    assert page.count("data:image/png;base64,") == 3
+
+
+def test_air_per_cycle_by_consumer_adds_up(pick_place_sized):
+    profile, s = pick_place_sized
+    _, _, deficit = receiver_deficit(profile.total_flow_l_min, profile.dt_s,
+                                     s.design_flow_l_min)
+    w = sizing_windows(profile, s, deficit)
+    groups, _, stacks = window_layers(profile, w, 1)
+    assert len(groups) == w.whole.sum() + 1
+    assert stacks.sum(axis=0) == pytest.approx(w.nl[w.whole], rel=1e-9)
+    grouped = window_layers(profile, w, 4)[2].sum(axis=0)    # mean per cycle of 4
+    assert grouped[0] == pytest.approx(w.nl[:4].mean(), rel=1e-9)
+
+
+def test_a_date_time_clock_is_shown_from_its_first_reading():
+    """A log stamped with dates: its clock in seconds since 1970 would read 1.7e9 s."""
+    run = SimpleNamespace(source={"time_format": "%Y-%m-%d %H:%M:%S", "time_column": "Zeit"})
+    start = 1_700_000_000.0                         # 2023-11-14 22:13:20
+    rd = SimpleNamespace(run=run, offset_s=start, end_s=np.array([1.0, 2.0, 3.0]),
+                         weight_s=np.array([1.0, 1.0, 1.0]))
+    t, origin, label = logger_axis(rd)
+    assert origin == start and list(t) == [1.0, 2.0, 3.0]
+    assert "2023-11-14 22:13:20" in label and "'Zeit'" in label
+
+
+@pytest.mark.parametrize("verdict", ["none", "unexplained", "meter_gain"])
+def test_every_verdict_reads(rig_diagnosis, verdict):
+    d = copy.copy(rig_diagnosis)
+    d.verdict = verdict
+    d.combination = None if verdict != "meter_gain" else d.combination
+    text, cost = diagnosis_conclusion(d)
+    assert text.startswith("The meter reads 6.99 NL more")
+    if verdict == "none":
+        assert "no fault" in text and cost is None
+    elif verdict == "unexplained":
+        assert "idle" in text and cost is None
+    else:
+        assert "flow meter reading high or low" in text and cost.kwh > 0
+    assert "How sure" in diagnosis_html(d, None, figures={})
