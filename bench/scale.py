@@ -12,6 +12,14 @@ while the last one is out, then retracting them in reverse order. Four layouts:
 * ``arrays``: parallel, written as large machines often are: the I/O in two-dimensional
   arrays (station, cylinder) that the machine file names element by element
   (``aQ[3,1]``), one loop over the stations.
+* ``fb_line``: the way most engineers write a line: stations of ten drives, one function
+  block per drive (valve command, done flag, a watchdog timer that latches a fault, a
+  stroke count in an output nothing reads), a station FB holding an array of them and a
+  parts count in an output nothing reads, an array of stations with its I/O in a struct
+  per station; each station's part sensor has its own period phase, so the stations'
+  cycles overlap and the whole line never rests at once;
+* ``fb_jittered``: ``fb_line`` with each station's part arrivals jittered on their own
+  (independent sensors: the line as a whole never repeats).
 
 Each case runs ``predict`` and writes its files in a child process (peak memory is the
 child's own) and prints the time per stage, the peak resident memory, and a hand check
@@ -49,6 +57,8 @@ def line_program(n: int, layout: str) -> str:
     """IEC 61131-3 ST of the line."""
     if layout == "arrays":
         return array_line_program(n)
+    if layout.startswith("fb_"):
+        return fb_line_program(n)
     stations = math.ceil(n / PER_STATION)
     g = ["VAR_GLOBAL", "    xPart : BOOL;"]
     body = []
@@ -124,7 +134,120 @@ END_PROGRAM
 """
 
 
+FB_PER_STATION = 10
+
+
+def fb_line_program(n: int) -> str:
+    """The ``fb_line`` layout's ST: n drives in stations of ten."""
+    s_hi, k = n // FB_PER_STATION - 1, FB_PER_STATION
+    return f"""TYPE ST_Io :
+STRUCT
+    xPart : BOOL;
+    aExt, aRet, aValve : ARRAY[0..{k - 1}] OF BOOL;
+END_STRUCT
+END_TYPE
+
+FUNCTION_BLOCK FB_Drive
+VAR_INPUT
+    xCmd, xExt, xRet : BOOL;
+    tWatch : TIME := T#5S;
+END_VAR
+VAR_OUTPUT
+    xValve, xDone, xFault : BOOL;
+    nStrokes : UDINT;
+END_VAR
+VAR
+    fbWatch : TON;
+    fbCmdEdge : R_TRIG;
+END_VAR
+fbCmdEdge(CLK := xCmd);
+IF fbCmdEdge.Q THEN
+    nStrokes := nStrokes + 1;
+END_IF
+xValve := xCmd AND NOT xFault;
+xDone := (xCmd AND xExt) OR (NOT xCmd AND xRet);
+fbWatch(IN := NOT xDone, PT := tWatch);
+IF fbWatch.Q THEN
+    xFault := TRUE;
+END_IF
+END_FUNCTION_BLOCK
+
+FUNCTION_BLOCK FB_Station
+VAR_IN_OUT
+    io : ST_Io;
+END_VAR
+VAR_OUTPUT
+    nParts : UDINT;
+END_VAR
+VAR
+    aDrive : ARRAY[0..{k - 1}] OF FB_Drive;
+    nStep, i : INT;
+    fbPart : R_TRIG;
+END_VAR
+fbPart(CLK := io.xPart);
+CASE nStep OF
+    0:
+        IF fbPart.Q THEN
+            nStep := 1;
+        END_IF
+    1..{k}:
+        aDrive[nStep - 1].xCmd := TRUE;
+        IF io.aExt[nStep - 1] THEN
+            nStep := nStep + 1;
+        END_IF
+    {k + 1}:
+        FOR i := 0 TO {k - 1} DO
+            aDrive[i].xCmd := FALSE;
+        END_FOR
+        IF io.aRet[0] AND io.aRet[{k - 1}] THEN
+            nParts := nParts + 1;
+            nStep := 0;
+        END_IF
+END_CASE
+FOR i := 0 TO {k - 1} DO
+    aDrive[i](xExt := io.aExt[i], xRet := io.aRet[i]);
+    io.aValve[i] := aDrive[i].xValve;
+END_FOR
+END_FUNCTION_BLOCK
+
+PROGRAM Line
+VAR
+    aIo : ARRAY[0..{s_hi}] OF ST_Io;
+    aStation : ARRAY[0..{s_hi}] OF FB_Station;
+    s : INT;
+END_VAR
+FOR s := 0 TO {s_hi} DO
+    aStation[s](io := aIo[s]);
+END_FOR
+END_PROGRAM
+"""
+
+
+def fb_line_machine(n: int, layout: str, program: str) -> str:
+    stations = n // FB_PER_STATION
+    out = ["[machine]", f'name = "line-{n}-{layout}"', f'program = "{program}"',
+           "scan_ms = 10", f"supply_bar_g = {SUPPLY_BAR_G}"]
+    for s in range(stations):
+        # stations 0.17 s apart: their cycles (about 2.5 s in 4 s) overlap
+        out += ["", "[[input]]", f'signal = "aIo[{s}].xPart"', "period_s = 4.0",
+                f"offset_s = {0.1 + 0.17 * s:.2f}", "pulse_ms = 300"]
+        if layout == "fb_jittered":
+            out += ["jitter_s = 0.15", f"seed = {s + 1}"]
+        for d in range(FB_PER_STATION):
+            bore, rod, stroke, te, tr = SIZES[d % len(SIZES)]
+            out += ["", "[[consumer]]", f'name = "S{s}C{d}"', 'kind = "double_acting"',
+                    f"bore_mm = {bore}", f"rod_mm = {rod}", f"stroke_mm = {stroke}",
+                    f"tube_id_mm = {TUBE_ID_MM}", f"tube_length_m = [{TUBE_M}, {TUBE_M}]",
+                    f'valve = "aIo[{s}].aValve[{d}]"', f"stroke_time_s = [{te}, {tr}]",
+                    "switch_delay_s = 0.012",
+                    f'switches = {{ retracted = "aIo[{s}].aRet[{d}]", '
+                    f'extended = "aIo[{s}].aExt[{d}]" }}']
+    return "\n".join(out + [""])
+
+
 def line_machine(n: int, layout: str, program: str) -> str:
+    if layout.startswith("fb_"):
+        return fb_line_machine(n, layout, program)
     stations = math.ceil(n / PER_STATION)
     out = ["[machine]", f'name = "line-{n}-{layout}"', f'program = "{program}"',
            "scan_ms = 4", f"supply_bar_g = {SUPPLY_BAR_G}", "",
@@ -211,7 +334,7 @@ def hand_active_nl(result: dict) -> float:
     for name, (ext, ret) in result["strokes"].items():
         if not re.fullmatch(r"S\d+C\d+", name):
             continue            # not a generated line
-        v_ext, v_ret = d1_volumes_nl(int(name.split("C")[-1]))
+        v_ext, v_ret = d1_volumes_nl(int(name.split("C")[-1]) % len(SIZES))
         total += ext * v_ext + ret * v_ret
     return total
 
@@ -234,7 +357,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sizes", default="10,50,200")
     ap.add_argument("--horizons", default="1h,24h")
-    ap.add_argument("--layouts", default="parallel,sequential,jittered,arrays")
+    ap.add_argument("--layouts",
+                    default="parallel,sequential,jittered,arrays,fb_line,fb_jittered")
     ap.add_argument("--quick", action="store_true", help="N = 10, 50 over 1 h")
     args = ap.parse_args(argv)
     if args.quick:

@@ -154,14 +154,21 @@ class CompressorSheet:
                 "efficiency, along E1 to the supply pressure")
 
 
+DEFICIT_TIE_NL = 1e-6          # deficits closer than a microlitre are the same one
+
+
 def receiver_deficit(flow_l_min, dt_s: float, design_flow_l_min: float):
-    """(largest deficit in NL, time in s at which it occurs, deficit curve at the end of
-    each cell) of demand over a constant supply (a Lindley recursion, vectorised)."""
+    """(largest deficit in NL, time in s at which it first occurs, deficit curve at the
+    end of each cell) of demand over a constant supply (a Lindley recursion,
+    vectorised). A repeating machine reaches the same deficit every cycle, and the sum's
+    rounding makes one of them larger by 1e-12 NL: the first cycle within a microlitre
+    of the largest is the one named, whatever order the cells were added in."""
     net_nl = (np.asarray(flow_l_min, dtype=float) - design_flow_l_min) * dt_s / 60.0
     d = np.concatenate([[0.0], np.cumsum(net_nl)])
     deficit = d - np.minimum.accumulate(d)
-    k = int(np.argmax(deficit))
-    return float(deficit[k]), k * dt_s, deficit[1:]
+    largest = float(deficit.max())
+    k = int(np.argmax(deficit >= largest - DEFICIT_TIE_NL))
+    return largest, round(k * dt_s, 9), deficit[1:]
 
 
 def idle_mask(profile, idle_after_s: float = 0.0) -> np.ndarray:

@@ -899,6 +899,9 @@ class _Run:
     values: tuple | None = None     # the recorded signals' values at the last scan
     tiled_from: tuple | None = None
     drift: dict | None = None
+    # a scan that took a scheduled input and is no fixed point: a busy machine (stations
+    # whose cycles overlap never rest all at once) is checked for a repeat there
+    probe: bool = False
 
     def __post_init__(self):
         # what the per-scan loop (Sequencer._scan_to_rest) reads, bound once a run: the
@@ -1212,10 +1215,11 @@ class Sequencer:
          values_now, record, scan_fn, snap_fn, all_ran_since) = r.scan_loop
         t, next_input, k_change, scans = r.t, r.next_input, r.k_change, r.scans
         prev_snap, prev_values, prev_valves = r.prev_snap, r.prev_values, r.prev_valves
-        values, rests = r.values, False
+        values, rests, probing, took_input = r.values, False, r.can_tile, False
         while t <= horizon_ns:
             if t >= next_input:
                 next_input = update(t)
+                took_input = probing
             if rewrite or image.stale:
                 write(drive)
                 image.stale = False
@@ -1240,6 +1244,9 @@ class Sequencer:
                 if snap != prev_snap or moved:
                     k_change = t // scan
                 prev_snap = snap
+                if took_input:
+                    r.probe, rests = True, True     # _after_rest goes on from t + scan
+                    break
                 t += scan
                 continue
             rests = True
@@ -1251,8 +1258,16 @@ class Sequencer:
 
     def _after_rest(self, r: _Run) -> bool:
         """At a fixed point: replay a recorded part, or tile a repetition, or jump to the
-        first scan at which anything can change. False when the run ends here."""
+        first scan at which anything can change. At a probe (a scan that took a
+        scheduled input, not a fixed point): tile a repetition, or go on with the next
+        scan. False when the run ends here."""
         t, scan = r.t, r.scan
+        if r.probe:
+            r.probe = False
+            if self._repeated(r):
+                return False
+            r.t = t + scan
+            return True
         if r.next_input <= t:
             r.next_input = r.image.update(t)
         nxt, running = self._next_event(r)

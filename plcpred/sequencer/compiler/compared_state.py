@@ -23,6 +23,9 @@ class ComparedState:
         self.global_names = set(global_names)
         self.observed = observed
         self.member_names = ir.names_in(program)
+        # names bound in calls (``fb(x := a, q => b)``): an FB output bound anywhere is read
+        self.bound_names = {a.name.upper() for a, _ in ir.nodes(program)
+                            if isinstance(a, ir.Arg) and a.name}
         # FBs another extends (the base's name without a library prefix)
         self.extended = {p.extends.rsplit(".", 1)[-1].upper() for p in program.pous
                          if p.extends}
@@ -45,7 +48,7 @@ class ComparedState:
         counters and statistics such as ``nParts := nParts + 1``. Decided from the data
         flow of the FB's own code (``reads_et``: that code reads an ET); anything named
         as ``x.member`` anywhere is never a sink."""
-        cands = self._sink_candidates(fb, scope)
+        cands = self._sink_candidates(fb, scope) | self._unread_outputs(fb, scope)
         # a standard FB only changes its own outputs: its inputs flow into it, and it is a
         # sink when nothing reads those outputs (a parts counter nobody looks at)
         std = {k for k in cands if base_t(scope.names[k][1]).cat == "stdfb"}
@@ -73,11 +76,31 @@ class ComparedState:
         self.left_out[fb.cls_name] = {k: count_width(k, flow, sinks, scope) for k in sinks}
         return sinks, et_matters
 
+    @classmethod
+    def _sink_candidates(cls, fb, scope) -> set:
+        return cls._declared(fb, scope, ("VAR", "VAR_TEMP"))
+
+    def _unread_outputs(self, fb, scope) -> set:
+        """A function block's outputs that nothing outside it can read: no ``x.name`` and
+        no ``name => ...`` binding anywhere in the program, no FB extending it (whose code
+        would read them by name), none the machine file names. An FB per drive that
+        counts its strokes in an output nobody looks at is then as repeatable as one
+        counting in a local variable. A PROGRAM's outputs are left alone (a
+        configuration may connect them)."""
+        pou = fb.pou
+        if pou.kind != "FUNCTION_BLOCK" or pou.name.upper() in self.extended:
+            return set()
+        outside = self.member_names | self.bound_names | self.observed
+        return {k for k in self._declared(fb, scope, ("VAR_OUTPUT",))
+                if k.upper() not in outside}
+
     @staticmethod
-    def _sink_candidates(fb, scope) -> set:
+    def _declared(fb, scope, kinds) -> set:
+        """The plain variables of the given block kinds a candidate may be: no address,
+        a value type (a standard FB counts: it only changes its own outputs)."""
         cands = set()
         for b in fb.pou.var_blocks:
-            if b.kind not in ("VAR", "VAR_TEMP"):
+            if b.kind not in kinds:
                 continue
             for d in b.decls:
                 t = base_t(scope.names[ident(d.name)][1])
