@@ -29,6 +29,9 @@ from ..sequencer.timeline import NS
 from .errors import DiagnosisError
 
 
+# metered cumulative NL kept per run model (each a float per grid cell: 2.9 MB an hour)
+METERED_KEPT = 12
+
 @dataclass
 class ModelParams:
     """The numbers an effect may change (per drive: in the order of
@@ -210,6 +213,7 @@ class RunModel:
         self.leak_unit = interval_cells(self.edges_s, [0.0], [self.horizon_s], 1.0)
         self._leak_from: dict[float, np.ndarray] = {}
         self._drive_cache: dict[tuple, np.ndarray] = {}
+        self._metered: dict[tuple, tuple] = {}
         # NL per cell the physics plant draws beyond the nominal D1 model on these edges
         # (set by the diagnosis; used where ModelParams.dynamic)
         self.dynamic_cells: np.ndarray | None = None
@@ -217,15 +221,20 @@ class RunModel:
         self.variant_cells: dict[tuple, np.ndarray] = {}
 
     # ------------------------------------------------------------------ cells
+    @staticmethod
+    def _drive_key(params: ModelParams, k: int) -> tuple:
+        """What drive ``k``'s cells depend on."""
+        return (k, params.extend_nl[k], params.retract_nl[k], params.delay_s[k],
+                (params.stroke_ext_s[k], params.stroke_ret_s[k]), params.exhaust_tau_s[k],
+                tuple(params.held_nl[k]), tuple(params.swept_nl[k]),
+                tuple(params.swept_held_nl[k]), bool(params.partial_strokes[k]),
+                params.refill_fraction, params.refill_tau_s)
+
     def drive_cells(self, params: ModelParams, k: int) -> np.ndarray:
         """NL per cell of drive ``k`` under ``params`` (cached: most evaluations change
         one drive at most)."""
         st = (params.stroke_ext_s[k], params.stroke_ret_s[k])
-        key = (k, params.extend_nl[k], params.retract_nl[k], params.delay_s[k], st,
-               params.exhaust_tau_s[k], tuple(params.held_nl[k]), tuple(params.swept_nl[k]),
-               tuple(params.swept_held_nl[k]), bool(params.partial_strokes[k]),
-               params.refill_fraction,
-               params.refill_tau_s)
+        key = self._drive_key(params, k)
         cells = self._drive_cache.get(key)
         if cells is None:
             if len(self._drive_cache) > 256:
@@ -303,12 +312,38 @@ class RunModel:
     # ------------------------------------------------------------------ readings
     def metered_cumulative_nl(self, params: ModelParams,
                               total_cells: np.ndarray | None = None) -> np.ndarray:
-        """Normal litres through the meter (its lag applied) by each grid edge."""
+        """Normal litres through the meter (its lag applied) by each grid edge.
+
+        Kept for the last few parameter sets that give different cells or lags: a fit's
+        Jacobian moves the clock (which only shifts the readings) and the parameters of
+        other runs, and about two evaluations in three meter cells already metered."""
+        key = None
+        if total_cells is None:
+            key = self._metered_key(params)
+            hit = self._metered.get(key)
+            if hit is not None and hit[0] is self.dynamic_cells \
+                    and hit[1] is self.variant_cells.get(params.variant):
+                cum = hit[2]
+                return cum if params.meter_gain == 1.0 else cum * params.meter_gain
         cells = self.total_cells(params) if total_cells is None else total_cells
         if params.meter_tau_s > 0:
             cells = first_order_lag(cells, self.dt_s, params.meter_tau_s)
         cum = cumulative_nl(cells)
+        if key is not None:
+            cum.flags.writeable = False          # shared by later evaluations
+            if len(self._metered) >= METERED_KEPT:
+                self._metered.pop(next(iter(self._metered)))
+            self._metered[key] = (self.dynamic_cells,
+                                  self.variant_cells.get(params.variant), cum)
         return cum if params.meter_gain == 1.0 else cum * params.meter_gain
+
+    def _metered_key(self, params: ModelParams) -> tuple:
+        """What the metered cumulative NL depends on but the meter's gain (the dynamic
+        reference's arrays are checked by identity beside it)."""
+        return (tuple(self._drive_key(params, k) for k in range(len(self.mm.drives))),
+                tuple(params.passive_l_min), params.extra_leak_l_min,
+                params.extra_leak_from_s, params.dynamic, params.variant,
+                params.meter_tau_s)
 
     def readings(self, params: ModelParams, start_s: np.ndarray, end_s: np.ndarray,
                  total_cells: np.ndarray | None = None,
