@@ -39,7 +39,7 @@ import numpy as np
 from .datafile import FLOW_UNIT_SPELLINGS, PRESSURE_UNIT_SPELLINGS, DataLines
 from .diagnose.io import FLOW_UNITS, PRESSURE_UNITS, column_unit
 from .errors import PlcpredError
-from .outputs.report import pyplot, save_fig
+from .outputs.plotting import pyplot, save_fig
 from .physics.flow import phi
 from .physics.units import P_ATM_KPA, P_ATM_PA, PA_PER_BAR, R_J_KG_K, RHO0_KG_M3, T0_K, ZERO_C_K
 

@@ -15,7 +15,7 @@ from ..output import (
     output_dir,
     write_json,
 )
-from ..outputs.report import diagnosis_html, plot_diagnosis
+from ..outputs.diagnosis_report import diagnosis_html, plot_diagnosis
 from ..progress import Progress
 from .common import command_line, fail
 

@@ -21,8 +21,9 @@ from ..output import (
     output_dir,
     write_json,
 )
+from ..outputs.demand_plot import consumer_table
 from ..outputs.files import write_prediction
-from ..outputs.report import consumer_table, write_sizing_report
+from ..outputs.sizing_report import write_sizing_report
 from ..progress import Progress
 from ..sequencer import parse_horizon, unfold
 from ..sweep import SweepError, measure_setting, parse_setting, sweep

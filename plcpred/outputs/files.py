@@ -12,7 +12,8 @@ from ..air.cycles import arrival_period_s
 from ..output import SHOWN_CONSUMERS, atomic_writer, csv_column_name, write_json
 from ..progress import Progress, progress_or_off
 from ..sequencer.timeline import NS, seconds_texts
-from .report import plot_demand, plot_emulation
+from .demand_plot import plot_demand
+from .emulation_plot import plot_emulation
 
 
 def write_prediction(prediction, out_dir, plot: bool = True, timeline: bool = True,

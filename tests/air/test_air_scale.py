@@ -214,7 +214,7 @@ def test_a_run_that_does_not_repeat_is_plotted_in_whole_arrival_periods(tmp_path
     # jittered arrivals never tile; bins of a fixed length over a 4 s cycle would draw
     # a moire, bins of the arrival period average one part each
     from plcpred.machine import machine_from_data, read_machine_data
-    from plcpred.outputs import report
+    from plcpred.outputs import demand_plot
     from plcpred.outputs.files import write_prediction
     path = SAMPLES / "pick_place.toml"
     data = read_machine_data(path)
@@ -229,8 +229,8 @@ def test_a_run_that_does_not_repeat_is_plotted_in_whole_arrival_periods(tmp_path
     assert arrival_period_s(jittered.machine, jittered.timeline) == period
     assert arrival_period_s(tiled.machine, tiled.timeline) is None
     widths = []
-    real = report.whole_periods
-    monkeypatch.setattr(report, "whole_periods",
+    real = demand_plot.whole_periods
+    monkeypatch.setattr(demand_plot, "whole_periods",
                         lambda *a: widths.append(real(*a)) or widths[-1])
     write_prediction(jittered, tmp_path, plot=True)
     cells = round(period / jittered.profile.dt_s)
@@ -238,5 +238,6 @@ def test_a_run_that_does_not_repeat_is_plotted_in_whole_arrival_periods(tmp_path
     # the sizing report's demand plot (drawn last) is binned the same way
     from plcpred.air.sizing import size_prediction
     (tmp_path / "size").mkdir()
-    report.write_sizing_report(jittered, size_prediction(jittered), tmp_path / "size")
+    from plcpred.outputs.sizing_report import write_sizing_report
+    write_sizing_report(jittered, size_prediction(jittered), tmp_path / "size")
     assert widths[-1] == widths[0]

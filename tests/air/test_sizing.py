@@ -417,7 +417,7 @@ def test_the_report_says_what_the_sizing_rests_on(tmp_path):
 
 
 def test_long_horizon_plots_bin_whole_cycles():
-    from plcpred.outputs.report import MAX_CYCLES_DRAWN, whole_periods
+    from plcpred.outputs.plotting import MAX_CYCLES_DRAWN, whole_periods
     # a 4 s cycle on a 10 ms grid over an hour: 900 cycles, bins of 120 cells would cut
     # cycles in drifting places; they become one whole cycle (400 cells) or more
     assert whole_periods(120, 4.0, 0.01, 360_000) == 400

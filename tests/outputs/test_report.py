@@ -1,5 +1,5 @@
 """The plots and the diagnosis report say what the data say: checked through the arrays
-they draw (plcpred.outputs.report's small helpers), not through pixels."""
+they draw (the small helpers of plcpred.outputs' plot modules), not through pixels."""
 import copy
 import re
 from types import SimpleNamespace
@@ -12,24 +12,24 @@ from plcpred.air import predict
 from plcpred.air.sizing import receiver_deficit, size_prediction
 from plcpred.diagnose import diagnose, read_measured
 from plcpred.machine import load_machine
-from plcpred.outputs.report import (
+from plcpred.outputs.diagnosis_report import (
     SIGN_NOTE,
     diagnosis_conclusion,
     diagnosis_html,
-    emulation_view,
-    envelope,
     gap_cost,
     how_sure_rows,
     logger_axis,
     plot_diagnosis,
+)
+from plcpred.outputs.emulation_plot import (
+    emulation_view,
     plot_emulation,
-    plot_sizing,
     predicted_flow_l_min,
-    sizing_windows,
     time_bins_mean,
-    window_layers,
     zoom_window,
 )
+from plcpred.outputs.plotting import envelope
+from plcpred.outputs.sizing_report import plot_sizing, sizing_windows, window_layers
 from plcpred.plant import emulate
 
 PICK_PLACE = SAMPLES / "pick_place.toml"
