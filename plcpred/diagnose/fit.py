@@ -177,10 +177,17 @@ class _Correlations:
         bb = float(b @ b)
         out = np.empty(len(offs))
         per_block = max(1, CORRELATION_BLOCK // len(idx))
+        # a log whose readings follow one another (each starts where the one before
+        # ended) shares its edges: the cumulative air is read once at each
+        chained = len(starts) > 1 and bool(np.array_equal(starts[1:], ends[:-1]))
+        bounds = np.concatenate([starts[:1], ends]) if chained else None
         for k in range(0, len(offs), per_block):
             o = offs[k:k + per_block, None]
-            r = rm.readings(p, (starts - o).ravel(), (ends - o).ravel(),
-                            cum_nl=cum).reshape(len(o), -1)
+            if chained:
+                r = rm.chained_readings(p, bounds - o, cum)
+            else:
+                r = rm.readings(p, (starts - o).ravel(), (ends - o).ravel(),
+                                cum_nl=cum).reshape(len(o), -1)
             a = r - r.mean(axis=1, keepdims=True)
             den = np.sqrt((a * a).sum(axis=1) * bb)
             out[k:k + per_block] = np.where(den > 0, (a @ b) / np.where(den > 0, den, 1.0),

@@ -24,7 +24,12 @@ from ..air.demand import (
     stroke_cells,
     valve_transitions,
 )
-from ..physics.meter import cumulative_nl, first_order_lag, interval_means_l_min
+from ..physics.meter import (
+    chained_interval_means_l_min,
+    cumulative_nl,
+    first_order_lag,
+    interval_means_l_min,
+)
 from ..sequencer.timeline import NS
 from .errors import DiagnosisError
 
@@ -355,3 +360,12 @@ class RunModel:
         shift = params.clock_adjust_s + self.start_s
         return interval_means_l_min(cum_nl, self._sampled_edges_s, start_s - shift,
                                     end_s - shift, self.dt_s)
+
+    def chained_readings(self, params: ModelParams, bounds_s: np.ndarray,
+                         cum_nl: np.ndarray) -> np.ndarray:
+        """:meth:`readings` of intervals that follow one another, a chain per row of
+        ``bounds_s`` (each row's ``n + 1`` boundaries in the run's prediction time):
+        the same values, each shared boundary read once."""
+        shift = params.clock_adjust_s + self.start_s
+        return chained_interval_means_l_min(cum_nl, self._sampled_edges_s,
+                                            bounds_s - shift, self.dt_s)

@@ -65,6 +65,18 @@ def interval_means_l_min(cum_nl: np.ndarray, edges_s: np.ndarray, start_s: np.nd
     return (c1 - c0) / (end_s - start_s) * 60.0
 
 
+def chained_interval_means_l_min(cum_nl: np.ndarray, edges_s: np.ndarray,
+                                 bounds_s: np.ndarray, dt_s: float) -> np.ndarray:
+    """:func:`interval_means_l_min` of intervals that follow one another: each row of
+    ``bounds_s`` holds the boundaries of one chain (``n + 1`` for ``n`` intervals) on the
+    uniform grid ``edges_s``. Each shared boundary is read once; the values are the
+    function's, to the last bit."""
+    b = np.asarray(bounds_s, dtype=float)
+    i, f = _uniform_weights(b.ravel(), edges_s, dt_s)
+    c = _at(cum_nl, i, f).reshape(b.shape)
+    return (c[..., 1:] - c[..., :-1]) / (b[..., 1:] - b[..., :-1]) * 60.0
+
+
 def _uniform_weights(x: np.ndarray, edges_s: np.ndarray, dt_s: float):
     """(cell, share of it) of each time ``x`` on edges ``k dt_s``: ``np.interp``'s
     weights, clamped at both ends."""
