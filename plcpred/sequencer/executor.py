@@ -478,8 +478,18 @@ class ProgramInstance:
         self.every = [max(1, round(iv[n] / scan_ns)) if n in iv else 1 for n in self.names]
         self.scan_ns = scan_ns
         self.ran_at = [-1] * len(self.names)
+        self.quiet_scans = 0
+        self._k = -1
         if all(k == 1 for k in self.every):
             self.every = None
+
+    def settle_over_all_phases(self) -> None:
+        """A fixed point must hold through every combination of the tasks' phases: the
+        program writes an input the input image writes again before every scan, and a
+        scan in which its task does not run shows the image's value, not the program's
+        (a state that holds at the task's scans may change at the others)."""
+        if self.every is not None:
+            self.quiet_scans = math.lcm(*self.every)
 
     def scan(self, now_ns: int) -> None:
         self.ns["_now"] = now_ns
@@ -488,16 +498,25 @@ class ProgramInstance:
             for body in self._bodies:
                 body()
             return
-        k = now_ns // self.scan_ns
+        k = self._k = now_ns // self.scan_ns
         for i, body in enumerate(self._bodies):
             if k % self.every[i] == 0:
                 body()
                 self.ran_at[i] = k
 
     def all_ran_since(self, k_change: int) -> bool:
-        """Every program has run after scan ``k_change`` (a state change): only then can
-        an unchanged state be a fixed point."""
-        return self.every is None or all(r > k_change for r in self.ran_at)
+        """Every program has run after scan ``k_change`` (a state change), and where it
+        must (:meth:`settle_over_all_phases`) every phase of the tasks has passed since:
+        only then can an unchanged state be a fixed point."""
+        return self.every is None or (all(r > k_change for r in self.ran_at)
+                                      and self._k - k_change >= self.quiet_scans)
+
+    def last_run_by_all_ns(self) -> int:
+        """The last scan time by which every program has run (NEVER without tasks: all
+        of them run at every scan, the last one included)."""
+        if self.every is None:
+            return NEVER
+        return min(self.ran_at) * self.scan_ns
 
     def phase(self, now_ns: int):
         if self.every is None:
@@ -1166,6 +1185,8 @@ class Sequencer:
             and self.plant_model is None \
             and not any(s.random for s, _, _ in schedules)
         inst.set_scan(self.scan_ns)
+        if image.rewrite:
+            inst.settle_over_all_phases()
         can_replay = replay and not can_tile and not always_step \
             and self.plant_model is None and inst.every is None and bool(schedules)
         if can_replay:
@@ -1299,14 +1320,18 @@ class Sequencer:
         nxt = r.next_input if r.next_input < NEVER else None
         et_thresholds = self.compiled.et_thresholds or ()
         # a timer whose PT lies in the past was not called since: it cannot change
-        # until some other event makes the program call it again
+        # until some other event makes the program call it again. Unless a slower task
+        # has not run since it expired: that task calls it at its next run
         running = False
+        seen_by_all = r.inst.last_run_by_all_ns()
         for tm in r.inst.timers:
             e = tm.next_event_ns()
             if e is not None and e > t:
                 running = True
                 if nxt is None or e < nxt:
                     nxt = e
+            elif e is not None and e > seen_by_all:
+                nxt = t + r.scan
             if et_thresholds:
                 # ET compared with constants: the comparisons flip at (or just after,
                 # for strict ones) origin + constant

@@ -64,3 +64,59 @@ def test_a_jittered_busy_line_is_executed_not_tiled():
     run = Sequencer(program, machine).run(h)
     assert run.info["period_s"] is None
     assert run == Sequencer(program, machine).run(h, scan_stepping=True)
+
+
+def test_a_program_writing_its_input_in_a_slower_task_is_not_at_rest():
+    # the input image writes the schedule's value before every scan and the slow task
+    # writes TRUE over it at its own scans: a state that holds at the task's scans
+    # changes at the others (found by bench/fuzz.py --differential, seed full-1128-1033)
+    program = parse_st("""PROGRAM Aux
+VAR_INPUT i0 : BOOL; END_VAR
+VAR ctd0 : CTD; END_VAR
+IF ((NOT ctd0.Q XOR i0) XOR ctd0.Q) THEN i0 := TRUE; END_IF
+END_PROGRAM
+CONFIGURATION Cfg
+  RESOURCE Res ON PLC
+    TASK tSlow(INTERVAL := T#10500us, PRIORITY := 2);
+    PROGRAM pAux WITH tSlow : Aux;
+  END_RESOURCE
+END_CONFIGURATION""", "aux.st")
+    machine = Machine("aux", Path("aux.toml"), Path("aux.st"), scan_ms=2.5)
+    machine.inputs = [InputSchedule("pAux.i0", pulses_s=[0.829, 1.186, 2.001, 2.031],
+                                    pulse_ms=200)]
+    h = parse_horizon("3.333s")
+    for kw in ({}, {"tiling": False, "replay": False}):
+        assert Sequencer(program, machine).run(h, **kw) == Sequencer(program, machine).run(
+            h, scan_stepping=True)
+
+
+def test_a_timer_expiring_between_its_slow_tasks_runs_is_not_forgotten():
+    # a fixed point found after a timer of the slow task expired, before that task ran
+    # again: the task still sees the expiry at its next run (bench/fuzz.py
+    # --differential, seed full-1128-898)
+    program = parse_st("""PROGRAM Main
+VAR_INPUT i2 : BOOL; END_VAR
+VAR_OUTPUT y2_0 : BOOL; END_VAR
+END_PROGRAM
+PROGRAM Aux
+VAR tBlink0 : TON; q0 : BOOL; aBits0 : ARRAY[1..3] OF BOOL; i2 : INT; END_VAR
+tBlink0(IN := NOT tBlink0.Q, PT := T#250ms);
+IF tBlink0.Q THEN q0 := NOT q0; END_IF
+FOR i2 := 3 TO 2 BY -1 DO aBits0[i2] := aBits0[i2 - 1]; END_FOR
+END_PROGRAM
+CONFIGURATION Cfg
+  RESOURCE Res ON PLC
+    TASK tFast(INTERVAL := T#7ms, PRIORITY := 1);
+    TASK tSlow(INTERVAL := T#35ms, PRIORITY := 2);
+    PROGRAM pMain WITH tFast : Main;
+    PROGRAM pAux WITH tSlow : Aux;
+  END_RESOURCE
+END_CONFIGURATION""", "blink.st")
+    machine = Machine("blink", Path("blink.toml"), Path("blink.st"), scan_ms=7)
+    machine.inputs = [InputSchedule("pMain.i2", pulses_s=[0.144, 1.784, 2.879], pulse_ms=200)]
+    machine.consumers = [Consumer("nozzle", "nozzle", valve=["pAux.q0"], orifice_mm=1.0)]
+    h = parse_horizon("3s")
+    every_scan = Sequencer(program, machine).run(h, scan_stepping=True)
+    assert every_scan.count_rising("pAux.q0") == 4
+    for kw in ({}, {"tiling": False, "replay": False}):
+        assert Sequencer(program, machine).run(h, **kw) == every_scan
