@@ -57,7 +57,7 @@ from .effects import (
 )
 from .errors import DiagnosisError
 from .fit import FitResult, RunData, Score, align, fit_effects, folds, heldout, score
-from .fit_model import MachineModel, RunModel
+from .fit_model import MachineModel, RunModel, render_start_s
 from .io import TIME_OF_DAY_FORMATS, MeasuredRun
 from .locate import attribution, contexts, sample_contexts, step_contexts, windows
 from .noise import flat_noise_l_min, noise_level_l_min
@@ -568,7 +568,10 @@ def _align_run(machine: Machine, aligned: _Aligned, run: MeasuredRun, tl, off,
     if tl is None:
         tl = _sequenced_timeline(machine, aligned, run, horizon)
     mm, meter_tau = aligned.mm, aligned.meter_tau
-    rm = RunModel(mm, tl, _grid_dt(tl.horizon_ns / 1e9))
+    # a log read far along a given clock is rendered over its own window (and the
+    # meter's settling before it), not from the machine's start
+    start_s = 0.0 if off is None else render_start_s(float(run.time_s[0]) - off)
+    rm = RunModel(mm, tl, _grid_dt(tl.horizon_ns / 1e9 - start_s), start_s=start_s)
     rd = align(dataclasses.replace(run, sampling=run.sampling or "mean"), rm,
                mm.nominal(meter_tau or 0.0), window, meter_tau, off)
     _check_run(rd, rd.readings(mm.nominal(rd.meter_tau_s)), machine.name,

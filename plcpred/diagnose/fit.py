@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..physics.meter import IntervalSampler, cumulative_nl, first_order_lag
+from ..physics.meter import cumulative_nl, first_order_lag
 from .effects import METER_LAG_FIT_MAX_S, Effect, Param
 from .errors import DiagnosisError
 from .fit_model import MachineModel, ModelParams, RunModel
@@ -78,9 +78,8 @@ class RunData:
         if sampler is None:
             if len(self._samplers) >= MAX_SAMPLERS:
                 self._samplers.pop(next(iter(self._samplers)))
-            shift = params.clock_adjust_s
-            sampler = IntervalSampler(rm.edges_s, (self.read_start_s - shift_s) - shift,
-                                      (self.end_s - shift_s) - shift, rm.dt_s)
+            sampler = rm.sampler(self.read_start_s - shift_s, self.end_s - shift_s,
+                                 params.clock_adjust_s)
             self._samplers[key] = sampler
         return sampler(rm.metered_cumulative_nl(params))
 

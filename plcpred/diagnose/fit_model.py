@@ -25,6 +25,7 @@ from ..air.demand import (
     valve_transitions,
 )
 from ..physics.meter import (
+    IntervalSampler,
     chained_interval_means_l_min,
     cumulative_nl,
     first_order_lag,
@@ -32,7 +33,6 @@ from ..physics.meter import (
 )
 from ..sequencer.timeline import NS
 from .errors import DiagnosisError
-
 
 # metered cumulative NL kept per run model (each a float per grid cell: 2.9 MB an hour)
 METERED_KEPT = 12
@@ -360,6 +360,14 @@ class RunModel:
         shift = params.clock_adjust_s + self.start_s
         return interval_means_l_min(cum_nl, self._sampled_edges_s, start_s - shift,
                                     end_s - shift, self.dt_s)
+
+    def sampler(self, start_s: np.ndarray, end_s: np.ndarray,
+                clock_adjust_s: float = 0.0) -> IntervalSampler:
+        """What :meth:`readings` reads of the metered cumulative NL for these intervals
+        at this clock, found once (its cells and weights on the run's own grid)."""
+        shift = clock_adjust_s + self.start_s
+        return IntervalSampler(self._sampled_edges_s, start_s - shift, end_s - shift,
+                               self.dt_s)
 
     def chained_readings(self, params: ModelParams, bounds_s: np.ndarray,
                          cum_nl: np.ndarray) -> np.ndarray:

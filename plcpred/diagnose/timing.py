@@ -105,7 +105,7 @@ class Resequencer:
         for rd, horizon, window, off in zip(self.rds, self.horizons_s, self.windows_s,
                                             self.offsets):
             tl = unfold(machine, horizon, program=self.program, compiled=self.compiled)
-            rm = RunModel(mm, tl, rd.model.dt_s)
+            rm = RunModel(mm, tl, rd.model.dt_s, start_s=rd.model.start_s)
             shift = lag = 0.0
             if off is None and _edges_moved_s(rd.model, rm, float(rd.end_s[-1])) > rm.dt_s:
                 # the nominal alignment matched a cycle of the wrong length: the variant

@@ -118,3 +118,26 @@ def test_the_plant_on_a_late_grid_integrates_a_few_periods_only(pick, closed_loo
     assert np.allclose(c_far, c_near, rtol=1e-9, atol=1e-12)
     # (from the machine's start to the far grid: a thousand periods of plant)
     assert far["pieces"] <= 1.2 * near["pieces"]
+
+
+def test_a_log_far_along_a_given_clock_is_diagnosed_on_its_window():
+    """A pick-and-place log at 35 days of machine time, given with ``--offset``: the
+    diagnosis renders its window (and the meter's settling before it), not the 35 days
+    from the machine's start (found by bench/fuzz.py: a log at 3,000,000 s with
+    --offset 5 ran for minutes)."""
+    from plcpred.diagnose import MeasuredRun, diagnose
+
+    machine = as_machine(PICK)
+    far_s = 3_000_000.0
+    prediction = unfold(machine, 80.0)
+    mm = MachineModel.of(machine)
+    rm = RunModel(mm, prediction, DT_S)
+    ends = np.arange(1.0, 80.0, 0.5)
+    flow = rm.readings(mm.nominal(0.2), ends - 0.5, ends) + 4.0     # a 4 NL/min leak
+    # the machine repeats every 4 s: the same readings a whole number of cycles later
+    run = MeasuredRun("far.csv", ends + far_s + 5.0, flow)
+    d = diagnose(machine, [run], offsets=[5.0], effects=["leak"], dynamic=False)
+    model = d.runs[0].model
+    assert model.start_s >= far_s - 200.0 and model.n_cells < 30_000
+    assert d.verdict == "leak"
+    assert d.effects[0].physical["flow_l_min"] == pytest.approx(4.0, rel=0.1)
