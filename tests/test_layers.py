@@ -13,7 +13,8 @@ from importlinter.cli import lint_imports
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "plcpred"
 # third-party modules slow to import that only some runs need: imported where used
-HEAVY = {"scipy", "matplotlib", "pandas", "dask"}
+HEAVY = {"scipy", "matplotlib", "pandas", "dask",
+         "prometheus_client"}      # (optional: plcpred watch --prometheus only)
 # the command line imports each command's code when the command runs, so that `--help`
 # and a syntax check do not wait for numpy, scipy and the compiler
 LAZY_MODULES = {"plcpred/cli/main.py", "plcpred/__init__.py", "plcpred/sequencer/__init__.py",

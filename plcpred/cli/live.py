@@ -49,7 +49,7 @@ def cmd_serve(args) -> int:
                     truth_at_s=_seconds(args.truth_at, "--truth-at") or 0.0, seed=args.seed,
                     program=args.program)
         result = asyncio.run(serve(twin, args.endpoint, speed=args.speed,
-                                   epoch=_epoch(args.epoch),
+                                   epoch=_epoch(args.epoch), history=args.history,
                                    report=lambda line: print(line, flush=True)))
     except PlcpredError as e:
         print(f"plcpred: error: {e}", file=sys.stderr)
@@ -69,6 +69,9 @@ def cmd_watch(args) -> int:
             window_s=_seconds(args.window, "--window"),
             rotate_s=_seconds(args.rotate, "--rotate"),
             gap_alarm_percent=args.gap_alarm, gap_alarm_cycles=args.gap_cycles,
+            learn_cycles=args.learn_cycles,
+            diagnose_every_s=_seconds(args.diagnose_every, "--diagnose-every"),
+            prometheus=args.prometheus,
             idle_limit_l_min=args.idle_limit, publishing_ms=args.publishing_ms)
         _check_settings(machine, settings)
         duration_s = _seconds(args.duration, "--duration")
@@ -96,5 +99,7 @@ def _check_settings(machine, s) -> None:
         if not low <= v <= high:
             raise LiveError(f"{key.replace('_s', '').replace('_ms', '')} {v:g} is outside "
                             f"{low:g}..{high:g}")
+    if s.diagnose_every_s is not None and not 10.0 <= s.diagnose_every_s <= 86_400.0:
+        raise LiveError(f"--diagnose-every {s.diagnose_every_s:g} s is outside 10 s..24 h")
     if s.gap_alarm_cycles < 1 or not s.gap_alarm_percent > 0:
         raise LiveError("--gap-alarm must be > 0 and --gap-cycles at least 1")

@@ -20,6 +20,7 @@ from .args import (
     seconds,
     seed,
     test_column_args,
+    whole_number,
 )
 
 
@@ -361,6 +362,9 @@ def _add_serve(sub) -> None:
                         "restarted with its first start's epoch goes on where the machine is "
                         "(default: now)")
     p.add_argument("--seed", type=seed, metavar="N", help="seed of the meter's noise")
+    p.add_argument("--history", type=lambda t: whole_number(t, 0), default=0, metavar="N",
+                   help="keep each node's last N values for HistoryRead: a watch that lost "
+                        "its connection reads what it missed (default 0: none)")
     p.add_argument("--program", metavar="PROGRAM",
                    help="run this program instead of the one the machine file names")
     p.set_defaults(run=("live", "cmd_serve"))
@@ -375,7 +379,8 @@ def _add_watch(sub) -> None:
                                    "measured-NNNN.csv (as diagnose --io and --measured read "
                                    "them, a new pair every --rotate of machine time and after "
                                    "every gap) and compare each cycle's measured air with the "
-                                   "air the model predicts from the recorded valve edges: a "
+                                   "air the model predicts from the recorded valve edges and "
+                                   "with the reference learned from the first cycles: a "
                                    "line per cycle, events and alarms in DIR/events.jsonl. "
                                    "Node ids, the meter and the alarms come from the machine "
                                    "file's [live] table; the options below override it.")
@@ -393,12 +398,23 @@ def _add_watch(sub) -> None:
     p.add_argument("--rotate", metavar="T",
                    help="a new pair of files every T of machine time (default 1h)")
     p.add_argument("--gap-alarm", type=float, metavar="PERCENT",
-                   help="alarm when measured and predicted air differ by more than this "
-                        "(default 10) ...")
+                   help="alarm when a cycle's measured air departs from the reference "
+                        "(see --learn-cycles) by more than this (default 10) ...")
     p.add_argument("--gap-cycles", type=positive_int, metavar="N",
                    help="... for N cycles in a row (default 3)")
+    p.add_argument("--learn-cycles", type=lambda t: whole_number(t, 0), metavar="N",
+                   help="judge the gap against a reference learned from the first N cycles "
+                        "(D1 scaled per consumer to what the healthy machine measured; "
+                        "default 10, 0: against D1 itself)")
     p.add_argument("--idle-limit", type=float, metavar="NL_MIN",
                    help="alarm when the flow while the machine rests exceeds this")
     p.add_argument("--publishing-ms", type=float, metavar="MS",
                    help="the subscription's publishing interval (default 100)")
+    p.add_argument("--diagnose-every", metavar="T",
+                   help="diagnose the last T of machine time (as plcpred diagnose does) every "
+                        "T, in a worker process while recording goes on; the verdict is a "
+                        "'diagnosis' event (e.g. 15min; at least 10s)")
+    p.add_argument("--prometheus", metavar="[HOST:]PORT",
+                   help="serve the comparison as Prometheus metrics at PORT (every "
+                        "interface) or HOST:PORT; needs the prometheus-client package")
     p.set_defaults(run=("live", "cmd_watch"))

@@ -5,9 +5,13 @@ what it sees (:mod:`.record`) and comparing it with the prediction cycle by cycl
 Every value is taken at its source time stamp (the server's, not when it arrived).
 Notifications of several nodes come grouped by node, so they are held for a few
 publishing intervals and written in time order. A lost connection is tried again with
-a growing pause; the segment open then ends where the last value was seen, the next
-one starts with the values the server gives on reconnecting, and the gap between them is
-an event (nothing is invented for it, nothing seen twice is written twice)."""
+a growing pause, on a new session with a new subscription. Where the server keeps the
+values' history (HistoryRead) back to the last value seen, the time it was away is read
+from it and the segment goes on; otherwise the open segment ends where the last value
+was seen, the next one starts with the values the server gives on reconnecting, and the
+gap between them is an event. Nothing is invented for a gap, and a value is written once
+however often it comes (a node's value at or before the last of its own written is
+known)."""
 from __future__ import annotations
 
 import asyncio
@@ -15,7 +19,7 @@ import contextlib
 import os
 import time
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 from asyncua import Client, ua
@@ -23,6 +27,8 @@ from asyncua import Client, ua
 from ..diagnose.io import flow_unit_factor, reference_factor
 from ..sequencer.timeline import NS
 from .compare import LiveComparison
+from .metrics import Metrics
+from .periodic import PeriodicDiagnosis
 from .record import EventLog, Recorder, iso_time
 from .settings import LiveError, LiveSettings, machine_signals
 
@@ -30,6 +36,7 @@ QUEUE_SIZE = 10_000             # values a node may change between two publishes
 FIRST_PAUSE_S, MAX_PAUSE_S = 0.5, 30.0
 CHECK_EVERY_S = 1.0             # how often the connection is checked
 HOLD_PUBLISHES = 3              # notifications held this many publishing intervals
+DIAGNOSIS_END_WAIT_S = 120.0    # a diagnosis running at the watch's end given this long
 _EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 _METER, _PRESSURE = "\0meter", "\0pressure"
 
@@ -88,6 +95,8 @@ class Watcher:
     def __init__(self, machine, out: Path, settings: LiveSettings, report=print):
         self.machine, self.out, self.settings, self.report = machine, out, settings, report
         self.signals = machine_signals(machine)
+        self.metrics = Metrics(settings.prometheus, machine.name) if settings.prometheus \
+            else None
         out.mkdir(parents=True, exist_ok=True)
         self.events = EventLog(out / "events.jsonl")
         self.recorder = Recorder(out, self.signals, settings.rotate_s, self.events)
@@ -100,6 +109,12 @@ class Watcher:
         self.last_ns: int | None = None  # the latest source time written
         self.bad_streak = False
         self.subscribed = False
+        self.outage = False              # lost with the segment open, not yet resumed
+        self.cutoff: dict = {}           # per node: the newest time read from history
+        self.wanted: list = []           # (key, node id) subscribed to
+        self.periodic = None if not settings.diagnose_every_s else PeriodicDiagnosis(
+            machine.path, settings.diagnose_every_s, out, self.events, report,
+            on_result=None if self.metrics is None else self.metrics.diagnosis)
 
     # ------------------------------------------------------------------ connection
     async def run(self, duration_s: float | None = None, stop: asyncio.Event | None = None
@@ -109,6 +124,7 @@ class Watcher:
         pause = FIRST_PAUSE_S
         self.events.write("watch", machine=self.machine.name, settings=self.settings.shown(),
                           signals=self.signals)
+        interrupted = False
         try:
             while not stop.is_set() and (deadline is None or time.monotonic() < deadline):
                 self.subscribed = False
@@ -122,14 +138,32 @@ class Watcher:
                     left = None if deadline is None else deadline - time.monotonic()
                     await asyncio.sleep(pause if left is None else max(0.0, min(pause, left)))
                     pause = min(2 * pause, MAX_PAUSE_S)
+        except asyncio.CancelledError:
+            interrupted = True
+            raise
         finally:
             self._drain(final=True)
+            await self._end_diagnosis(interrupted)
             self.recorder.finish("watch ended")
             self.result.files = list(self.recorder.written)
             self.events.write("end", cycles=self.result.cycles, readings=self.result.readings,
                               changes=self.result.changes, gaps=len(self.result.gaps))
             self.events.close()
+            if self.metrics is not None:
+                self.metrics.close()
         return self.result
+
+    async def _end_diagnosis(self, interrupted: bool) -> None:
+        """The diagnosis still running given its time to finish (recording has ended),
+        or ended at once when the watch was interrupted."""
+        if self.periodic is None:
+            return
+        if interrupted or self.periodic.running is None:
+            self.periodic.stop(0.0)
+            return
+        self.report(f"waiting for the diagnosis still running (at most "
+                    f"{DIAGNOSIS_END_WAIT_S:g} s)")
+        await asyncio.to_thread(self.periodic.stop, DIAGNOSIS_END_WAIT_S)
 
     def _client(self) -> Client:
         s = self.settings
@@ -151,10 +185,16 @@ class Watcher:
             self.subscribed = True
             self.events.write("connected", endpoint=s.endpoint)
             self.report(f"connected to {s.endpoint}")
+            if self.metrics is not None:
+                self.metrics.connected.set(1)
+            if self.outage:
+                await self._resume(client)
             next_check = time.monotonic() + CHECK_EVERY_S
             while not stop.is_set() and (deadline is None or time.monotonic() < deadline):
                 await asyncio.sleep(s.publishing_ms / 1000.0)
                 self._take(handler)
+                if self.periodic is not None:
+                    self.periodic.tick(self.last_ns, self.recorder)
                 if handler.status:
                     self.events.write("server_status", status=handler.status[:])
                     handler.status.clear()
@@ -173,6 +213,7 @@ class Watcher:
         s = self.settings
         wanted = [(sig, s.node_id(sig)) for sig in self.signals]
         wanted += [(_METER, s.meter_node_id()), (_PRESSURE, s.pressure_node_id())]
+        self.wanted = wanted
         keys = {ua.NodeId.from_string(node): key for key, node in wanted}
         handler = _Handler(keys)
         params = ua.CreateSubscriptionParameters(
@@ -206,20 +247,51 @@ class Watcher:
         return handler
 
     def _lost(self, why: str, pause: float) -> None:
-        """The connection failed: write what was held, end the open segment there."""
+        """The connection failed: write what was held; the open segment waits for the
+        reconnection (:meth:`_resume`)."""
         self._drain(final=True)
-        if self.recorder.open:
-            self.recorder.finish("connection lost")
+        if self.metrics is not None:
+            self.metrics.connected.set(0)
+        if self.recorder.open and not self.outage:
+            self.outage = True
             self.events.write("disconnected", last=iso_time(self.last_ns) if self.last_ns
                               else None, last_ns=self.last_ns, why=why)
             self.report(f"connection lost ({why}); trying again")
         else:
             self.events.write("connect_failed", why=why, retry_in_s=pause)
-        self.snapshot = {}
+        self.snapshot, self.cutoff = {}, {}
+
+    async def _resume(self, client) -> None:
+        """Connected again after a loss: the values the server's history holds since
+        the last one seen, held and written like notifications; or, where it keeps none
+        that reach back so far, the open segment ended at the last value seen (the next
+        starts from the values the server gives now: a gap)."""
+        self.outage = False
+        wanted = [(k, n) for k, n in self.wanted if k not in self.result.missing_nodes]
+        got = await read_history(client, wanted, self.last_ns,
+                                 self.recorder.last_reading_ns,
+                                 self.comparison.reading_period_ns)
+        if isinstance(got, str):
+            self.recorder.finish("connection lost")
+            self.events.write("no_history", why=got)
+            return
+        now = time.monotonic()
+        for key, t_ns, value, good in got:
+            self.pending.append((now, key, t_ns, value, good, False))
+            self.cutoff[key] = max(self.cutoff.get(key, t_ns), t_ns)
+        newest = max(self.cutoff.values())
+        self.events.write("backfilled", **{"from": iso_time(self.last_ns)}, to=iso_time(newest),
+                          seconds=(newest - self.last_ns) / NS, values=len(got))
+        self.report(f"read {len(got)} values of {(newest - self.last_ns) / NS:.1f} s from "
+                    "the server's history: no gap")
 
     # ------------------------------------------------------------------ values
     def _take(self, handler: _Handler) -> None:
-        self.pending += handler.inbox
+        if self.cutoff:       # what history gave already: each value once
+            self.pending += [p for p in handler.inbox
+                             if p[2] is None or p[2] > self.cutoff.get(p[1], -1)]
+        else:
+            self.pending += handler.inbox
         handler.inbox = []
         self._drain()
 
@@ -280,6 +352,8 @@ class Watcher:
             gap = {"from": iso_time(self.last_ns), "to": iso_time(origin),
                    "seconds": (origin - self.last_ns) / NS}
             self.result.gaps.append(gap)
+            if self.metrics is not None:
+                self.metrics.gaps.inc()
             self.events.write("gap", **gap)
             why = "after a gap"
         self.recorder.start(origin, states, why)
@@ -313,26 +387,68 @@ class Watcher:
 
     def _cycle(self, r) -> None:
         self.result.cycles += 1
+        if self.metrics is not None:
+            self.metrics.cycle(r)
         origin = self.recorder.origin_ns
-        gap = r.gap
+        gap, ref_gap = r.gap, r.reference_gap
         self.events.write("cycle", number=r.number, start=iso_time(r.start_ns),
                           duration_s=r.duration_s, measured_nl=r.measured_nl,
+                          reference=r.reference, reference_nl=r.reference_nl,
+                          reference_gap_percent=None if ref_gap is None else 100 * ref_gap,
                           predicted_nl=r.predicted_nl,
                           gap_percent=None if gap is None else 100 * gap,
                           idle_l_min=r.idle_l_min, idle_predicted_l_min=r.idle_predicted_l_min,
                           rolling_gap_percent=None if r.rolling_gap is None
                           else 100 * r.rolling_gap)
+        reference = "       -   " if r.reference_nl is None else f"{r.reference_nl:8.3f} NL"
         self.report(f"cycle {r.number:5d}  {(r.start_ns - origin) / NS:9.2f} s  "
-                    f"{r.duration_s:6.2f} s  measured {r.measured_nl:8.3f} NL  predicted "
-                    f"{r.predicted_nl:8.3f} NL  gap {_pct(gap)}  idle "
-                    + (f"{r.idle_l_min:6.1f} NL/min" if r.idle_l_min is not None else "     -")
-                    + f"  rolling {_pct(r.rolling_gap)}")
+                    f"{r.duration_s:6.2f} s  measured {r.measured_nl:8.3f} NL  reference "
+                    f"{reference} {_pct(ref_gap)}  D1 {r.predicted_nl:8.3f} NL {_pct(gap)}  "
+                    "idle " + (f"{r.idle_l_min:6.1f} NL/min" if r.idle_l_min is not None
+                               else "     -") + f"  rolling {_pct(r.rolling_gap)}"
+                    f"  ({r.reference})")
+        if r.learned_now:
+            learned = self.comparison.reference.summary()
+            self.events.write("reference_learned", **learned)
+            self.report(f"reference {learned['reference']}: measured/D1 "
+                        f"{learned['ratio']:.4f}, fit within {learned['fit_rms_percent']:.2f}% rms")
         for alarm in self.comparison.alarms(r):
             at = alarm.get("began_ns", alarm.get("at_ns"))
             alarm = {k: v for k, v in alarm.items() if not k.endswith("_ns")}
             self.events.write("alarm", **alarm, began=iso_time(at))
             self.result.alarms.append(alarm)
-            self.report(f"ALARM {alarm['alarm']} {alarm['state']} (began {iso_time(at)})")
+            if self.metrics is not None:
+                self.metrics.alarm_state(alarm["alarm"], alarm["state"] == "raised")
+            self.report(f"ALARM {alarm['alarm']} {alarm['state']} (began {iso_time(at)}, "
+                        f"against {alarm.get('reference', 'the idle limit')})")
+
+
+async def read_history(client, wanted: list, from_ns: int, last_reading_ns: int | None,
+                       period_ns: int | None) -> list | str:
+    """Every node's values after ``from_ns`` from the server's history as (key, ns,
+    value, good), or why there are none to trust: history must be kept for every node
+    (the supply pressure's may be missing), and the meter's (it ticks, the witness) must
+    begin within two reading periods of the last reading seen, else its oldest values
+    are gone."""
+    if from_ns is None or last_reading_ns is None or not period_ns:
+        return "nothing seen before the loss to go on from"
+    start = _EPOCH + timedelta(microseconds=from_ns // 1000)
+    out = []
+    for key, node in wanted:
+        try:
+            values = await client.get_node(node).read_raw_history(start, None)
+        except (ua.UaError, TimeoutError) as e:
+            if key == _PRESSURE:
+                continue
+            return f"{node}: no history ({type(e).__name__}: {e})"[:300]
+        got = [(key, stamp_ns(dv), dv.Value.Value if dv.Value is not None else None,
+                dv.StatusCode is None or dv.StatusCode.is_good()) for dv in values]
+        got = [g for g in got if g[1] is not None and g[1] > from_ns]
+        if key == _METER and (not got or min(g[1] for g in got)
+                              > last_reading_ns + 2 * period_ns):
+            return f"{node}: the history does not reach back to the last reading seen"
+        out += got
+    return out
 
 
 def _pct(x) -> str:

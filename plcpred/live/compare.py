@@ -2,7 +2,8 @@
 per window, the air the model predicts from the recorded valve edges (the activation
 model of :mod:`plcpred.air` on the real I/O, through the meter's first-order response
 like the readings) against the air the meter read, the flow while the machine rests, a
-rolling gap and the alarms.
+rolling gap and the alarms. The alarms judge the gap to the reference learned from the
+first cycles (:mod:`.reference`), D1's own gap is reported beside it.
 
 It holds only the edges and readings of the last stretch it compares (a lookback for
 the strokes still running at a cycle's start, and the cycle): memory stays bounded
@@ -15,8 +16,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..air import consumer_models, demand_profile
+from ..air.demand import DemandSteps
 from ..physics.meter import cumulative_nl, first_order_lag
 from ..sequencer.timeline import NS, Signal, Timeline
+from .reference import LearnedReference
 
 GRID_DT_S = 0.01
 ROLLING_CYCLES = 10
@@ -33,16 +36,30 @@ class CycleResult:
     predicted_nl: float
     idle_l_min: float | None          # measured flow while resting (None: no rest)
     idle_predicted_l_min: float | None
-    rolling_gap: float | None         # (measured - predicted) / predicted over the last cycles
+    rolling_gap: float | None         # against the reference over the last cycles
+    by_consumer: np.ndarray | None = None   # D1's NL per consumer (``models`` order)
+    reference_nl: float | None = None       # the learned reference's (None: learning)
+    reference: str = "D1"                   # what the reference is (its label)
+    learned_now: bool = False               # the reference was learned with this cycle
 
     @property
     def gap(self) -> float | None:
-        return (self.measured_nl - self.predicted_nl) / self.predicted_nl \
-            if self.predicted_nl > 0 else None
+        """Measured against D1."""
+        return _gap(self.measured_nl, self.predicted_nl)
+
+    @property
+    def reference_gap(self) -> float | None:
+        """Measured against the learned reference (the one alarms judge)."""
+        return _gap(self.measured_nl, self.reference_nl)
 
     @property
     def duration_s(self) -> float:
         return (self.end_ns - self.start_ns) / NS
+
+
+def _gap(measured: float, expected: float | None) -> float | None:
+    return (measured - expected) / expected if expected is not None and expected > 0 \
+        else None
 
 
 @dataclass
@@ -58,6 +75,9 @@ class LiveComparison:
     def __init__(self, machine, settings):
         self.machine, self.settings = machine, settings
         self.models = consumer_models(machine)
+        # kept over reconnects and new segments: the machine is the same
+        self.reference = LearnedReference([m.name for m in self.models],
+                                          int(getattr(settings, "learn_cycles", 0) or 0))
         self.valves = list(dict.fromkeys(v for m in self.models for v in m.valve))
         self.rest_value = self._rest_values()
         self.tau_s = float(settings.meter_tau_s or 0.0)
@@ -89,9 +109,12 @@ class LiveComparison:
         self.base = dict(self.state)
         self.edges: deque = deque()            # (t ns, valve, value)
         self.readings: deque = deque()         # (t ns, NL/min)
+        # what flowed before the origin (strokes under way, the meter's response) is
+        # unknown: a cycle or window is compared from a lookback after it on
+        self.first_ns = None if origin_ns is None else origin_ns + self.lookback_ns
         # the open cycle's start (with a cycle signal: its first rising edge, the
         # stretch before it is no whole cycle)
-        self.boundary_ns = origin_ns if self.cycle_signal is None else None
+        self.boundary_ns = self.first_ns if self.cycle_signal is None else None
         self.pending: deque = deque()          # cycles ended, waiting for their readings
         self.cycle_value = None
         self.reading_period_ns = None
@@ -141,7 +164,7 @@ class LiveComparison:
         return out
 
     def _boundary(self, t_ns: int) -> None:
-        if self.boundary_ns is not None and t_ns > self.boundary_ns:
+        if self.boundary_ns is not None and t_ns > self.boundary_ns >= self.first_ns:
             self.pending.append((self.boundary_ns, t_ns))
         self.boundary_ns = t_ns
 
@@ -163,24 +186,30 @@ class LiveComparison:
         grid = np.arange(start_ns, b_ns + 1, round(GRID_DT_S * NS), dtype=np.int64)
         if grid[-1] != b_ns:
             grid = np.append(grid, b_ns)
-        predicted_cum = self._predicted_cum_nl(start_ns, b_ns, grid)
+        by_consumer_cum = self._predicted_cum_nl(start_ns, b_ns, grid)
+        predicted_cum = by_consumer_cum.sum(axis=0)
         measured_cum, covered = self._measured_cum_nl(grid)
         ia, ib = int(np.searchsorted(grid, a_ns)), len(grid) - 1
         measured = float(measured_cum[ib] - measured_cum[ia])
-        predicted = float(predicted_cum[ib] - predicted_cum[ia])
+        by_consumer = by_consumer_cum[:, ib] - by_consumer_cum[:, ia]
         idle, idle_pred = self._idle(grid, ia, measured_cum, predicted_cum, covered)
         self.count += 1
-        result = CycleResult(self.count, a_ns, b_ns, measured, predicted, idle, idle_pred,
-                             None)
-        self.results.append(result)
-        m = sum(r.measured_nl for r in self.results)
-        p = sum(r.predicted_nl for r in self.results)
-        result.rolling_gap = (m - p) / p if p > 0 else None
+        ref = self.reference
+        learned_now = ref.add(self.count, by_consumer, measured)
+        result = CycleResult(self.count, a_ns, b_ns, measured, float(by_consumer.sum()), idle,
+                             idle_pred, None, by_consumer, ref.expected_nl(by_consumer),
+                             ref.label(), learned_now)
+        if result.reference_nl is not None:
+            self.results.append(result)
+            m = sum(r.measured_nl for r in self.results)
+            e = sum(r.reference_nl for r in self.results)
+            result.rolling_gap = _gap(m, e)
         return result
 
     def _predicted_cum_nl(self, start_ns: int, end_ns: int, grid: np.ndarray) -> np.ndarray:
-        """The model's air (NL) by each grid time from the valves' states at
-        ``start_ns`` and the edges since, through the meter's response."""
+        """Per consumer (rows in ``self.models`` order) the model's air (NL) by each grid
+        time from the valves' states at ``start_ns`` and the edges since, through the
+        meter's response (linear: each consumer's share passes it on its own)."""
         names = self.valves
         index = {n: i for i, n in enumerate(names)}
         state = dict(self.base)
@@ -192,16 +221,20 @@ class LiveComparison:
         t_ns = [0] * len(names) + [r[0] for r in later]
         sig = list(range(len(names))) + [r[1] for r in later]
         val = [state[n] for n in names] + [r[2] for r in later]
+        horizon_ns = max(end_ns - start_ns, 1)
         timeline = Timeline([Signal(n, "output", "bool") for n in names], t_ns, sig, val,
-                            max(end_ns - start_ns, 1), info={"mode": "recorded",
-                                                             "source": "watched I/O"})
+                            horizon_ns, info={"mode": "recorded", "source": "watched I/O"})
         profile = demand_profile(timeline, self.models, GRID_DT_S)
-        cum = profile.steps.cumulative_nl((grid - start_ns) / NS)
-        cells = np.diff(cum)
+        at_s = (grid - start_ns) / NS
         dt = np.diff(grid) / NS
-        flow = np.divide(cells, dt, out=np.zeros_like(cells), where=dt > 0) * 60.0
-        lagged = first_order_lag(flow, GRID_DT_S, self.tau_s)
-        return cumulative_nl(lagged * dt / 60.0)
+        out = np.zeros((len(self.models), len(grid)))
+        for k, rect in enumerate(profile.rects):
+            if rect is None or not len(rect[0]):
+                continue
+            cells = np.diff(DemandSteps.of([rect], horizon_ns / NS).cumulative_nl(at_s))
+            flow = np.divide(cells, dt, out=np.zeros_like(cells), where=dt > 0) * 60.0
+            out[k] = cumulative_nl(first_order_lag(flow, GRID_DT_S, self.tau_s) * dt / 60.0)
+        return out
 
     def _measured_cum_nl(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The meter's air (NL) by each grid time (each reading the mean flow since the
@@ -238,16 +271,18 @@ class LiveComparison:
 
     # ------------------------------------------------------------------ alarms
     def alarms(self, result: CycleResult) -> list[dict]:
-        """Alarm events this cycle raises or clears: the gap beyond the threshold for
-        ``gap_alarm_cycles`` cycles in a row, the idle flow beyond its limit. Each
-        raised alarm gives the time it began (the first cycle of its streak)."""
+        """Alarm events this cycle raises or clears: the gap to the reference beyond the
+        threshold for ``gap_alarm_cycles`` cycles in a row (none while it is learned),
+        the idle flow beyond its limit. Each raised alarm gives the time it began (the
+        first cycle of its streak)."""
         s = self.settings
         out = []
-        gap = result.gap
+        gap = result.reference_gap
         beyond = gap is not None and abs(gap) * 100.0 > s.gap_alarm_percent
         out += self._track(self.gap_alarm, beyond, result, s.gap_alarm_cycles, "gap",
                            {"gap_percent": None if gap is None else 100.0 * gap,
-                            "limit_percent": s.gap_alarm_percent})
+                            "limit_percent": s.gap_alarm_percent,
+                            "reference": result.reference})
         if s.idle_limit_l_min is not None and result.idle_l_min is not None:
             out += self._track(self.idle_alarm, result.idle_l_min > s.idle_limit_l_min,
                                result, 1, "idle_flow",

@@ -15,11 +15,14 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections import deque
 from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 from ..output import json_safe
 from ..sequencer.timeline import NS, format_seconds
+
+KEPT_SEGMENTS = 8        # the segments written that a periodic diagnosis may reach back to
 
 
 def iso_time(t_ns: int) -> str:
@@ -61,6 +64,11 @@ class _PartialFile:
         self._f.write(line)
         self.rows += 1
 
+    def flush(self) -> int:
+        """Everything written so far handed to the system; the bytes it holds."""
+        self._f.flush()
+        return self._f.tell()
+
     def finish(self) -> None:
         self._f.flush()
         os.fsync(self._f.fileno())
@@ -89,6 +97,9 @@ class Recorder:
         self.supply: float | None = None
         self._timeline = self._measured = None
         self.written: list[Path] = []
+        # the last segments written: (timeline, measured, origin ns, last reading ns,
+        # why they ended)
+        self.finished: deque = deque(maxlen=KEPT_SEGMENTS)
 
     def _first_free_number(self) -> int:
         used = [int(p.stem.rpartition("-")[2]) for p in self.out.glob("timeline-*.csv")
@@ -98,6 +109,14 @@ class Recorder:
     @property
     def open(self) -> bool:
         return self._timeline is not None
+
+    @property
+    def timeline_file(self) -> _PartialFile | None:
+        return self._timeline
+
+    @property
+    def measured_file(self) -> _PartialFile | None:
+        return self._measured
 
     def start(self, origin_ns: int, states: dict[str, float], why: str) -> None:
         """A new segment from ``origin_ns`` (absolute, ns since 1970), every signal at
@@ -153,6 +172,8 @@ class Recorder:
             self._timeline.finish()
             self._measured.finish()
             self.written += [self._timeline.path, self._measured.path]
+            self.finished.append((str(self._timeline.path), str(self._measured.path),
+                                  self.origin_ns, self.last_reading_ns, why))
             self.events.write("segment_end", number=self.number, why=why,
                               readings=self._measured.rows,
                               changes=self._timeline.rows)

@@ -6,10 +6,12 @@ Every signal of the machine file is a Boolean node ``ns=2;s={signal}``, the flow
 it, with that time as its source time stamp. The served clock runs ``speed`` times as
 fast as the wall clock from ``epoch`` (the machine's start), so a server restarted with
 the same epoch goes on where the machine would be, as a PLC runs on while its OPC UA
-server restarts."""
+server restarts. With ``history``, the server keeps each node's last values for
+HistoryRead (a client that lost its connection reads what it missed)."""
 from __future__ import annotations
 
 import asyncio
+import threading
 import time
 from dataclasses import dataclass
 from datetime import UTC, datetime, timedelta
@@ -48,11 +50,13 @@ def _variant(value, boolean: bool):
 
 
 async def serve(twin: Twin, endpoint: str, speed: float = 1.0, epoch: datetime | None = None,
-                report=print, started=None, hold: asyncio.Event | None = None) -> ServeResult:
+                report=print, started=None, hold: asyncio.Event | None = None,
+                history: int = 0) -> ServeResult:
     """Serve ``twin`` at ``endpoint`` until its horizon (machine time) is served.
     ``started(epoch)`` is called once the machine clock runs, with its start. With
     ``hold``, the server comes up with the machine at rest at its start and its clock
-    starts when ``hold`` is set (a client connected first sees every edge)."""
+    starts when ``hold`` is set (a client connected first sees every edge). ``history``:
+    the values kept per node for HistoryRead (0: none)."""
     if not 0 < speed <= MAX_SPEED:
         raise LiveError(f"--speed must be more than 0 and at most {MAX_SPEED:g}")
     check_endpoint(endpoint)
@@ -64,8 +68,12 @@ async def serve(twin: Twin, endpoint: str, speed: float = 1.0, epoch: datetime |
         raise LiveError(f"--epoch {epoch.isoformat()}: at --speed {speed:g} the machine "
                         f"would be {start_s:g} s in, past the horizon of {twin.horizon_s:g} s")
     horizons = [h for h in twin.run_horizons() if h > start_s] or [twin.horizon_s]
-    run = await asyncio.to_thread(twin.run, horizons.pop(0))
-    server, nodes, boolean = await _server(twin, endpoint, twin.values_at(run, start_s))
+    run = await _in_thread(twin.run, horizons.pop(0))
+    # a restarted machine's values carry its clock from the first moment a client may
+    # connect: a stamp of the wall clock would misplace the new segment's start
+    first_stamp = None if epoch is None else source_time(epoch, round(start_s * NS))
+    server, nodes, boolean = await _server(twin, endpoint, twin.values_at(run, start_s),
+                                           first_stamp, history)
     try:
         report(f"serving {twin.nominal.name} at {endpoint}: {len(twin.signals)} signals, "
                "meter and supply" + ("; holding at the start" if hold is not None else ""))
@@ -79,19 +87,21 @@ async def serve(twin: Twin, endpoint: str, speed: float = 1.0, epoch: datetime |
             # every value as of the machine clock's start (the meter's first reading is
             # one period on)
             value = await node.read_data_value()
-            await server.write_attribute_value(node.nodeid, ua.DataValue(
-                Value=value.Value, SourceTimestamp=stamp, ServerTimestamp=stamp))
+            await _put(server, node.nodeid, ua.DataValue(
+                Value=value.Value, SourceTimestamp=stamp, ServerTimestamp=stamp), history)
         if started is not None:
             started(epoch)
         written = await _publish(server, twin, run, horizons, nodes, boolean, speed, epoch,
-                                 start_s, report)
+                                 start_s, report, history)
     finally:
         await server.stop()
     return ServeResult(endpoint, twin.horizon_s - start_s, written, epoch)
 
 
-async def _server(twin: Twin, endpoint: str, values: list):
-    """(the started server, its nodes, which of them are Boolean) with ``values``."""
+async def _server(twin: Twin, endpoint: str, values: list, stamp: datetime | None,
+                  history: int):
+    """(the started server, its nodes, which of them are Boolean) with ``values``
+    (stamped ``stamp`` where given), each keeping its last ``history`` values."""
     server = Server()
     await server.init()
     server.set_endpoint(endpoint)
@@ -102,8 +112,21 @@ async def _server(twin: Twin, endpoint: str, values: list):
     boolean = [i < len(twin.signals) for i in range(len(twin.names))]
     nodes = []
     for i, (name, value) in enumerate(zip(twin.names, values)):
-        nodes.append(await folder.add_variable(ua.NodeId(name, idx), name,
-                                               _variant(value, boolean[i])))
+        node = await folder.add_variable(ua.NodeId(name, idx), name,
+                                         _variant(value, boolean[i]))
+        nodes.append(node)
+        if history:
+            # kept by the writes themselves (_put): asyncua's own historizing samples
+            # through a subscription and would drop values written in one burst
+            await server.iserver.history_manager.storage.new_historized_node(
+                node.nodeid, None, history)
+            await node.write_attribute(ua.AttributeIds.Historizing, ua.DataValue(True))
+            for attribute in (ua.AttributeIds.AccessLevel, ua.AttributeIds.UserAccessLevel):
+                await node.set_attr_bit(attribute, ua.AccessLevel.HistoryRead)
+        if stamp is not None:
+            await _put(server, node.nodeid, ua.DataValue(
+                Value=_variant(value, boolean[i]), SourceTimestamp=stamp,
+                ServerTimestamp=stamp), history)
     try:
         await server.start()
     except OSError as e:
@@ -111,38 +134,71 @@ async def _server(twin: Twin, endpoint: str, values: list):
     return server, nodes, boolean
 
 
+async def _put(server, nodeid, value: ua.DataValue, history: int) -> None:
+    await server.write_attribute_value(nodeid, value)
+    if history:
+        await server.iserver.history_manager.storage.save_node_value(nodeid, value)
+
+
 async def _publish(server, twin: Twin, run, horizons: list, nodes, boolean, speed: float,
-                   epoch: datetime, start_s: float, report) -> int:
+                   epoch: datetime, start_s: float, report, history: int = 0) -> int:
     """Write every value when the served clock reaches it, working out the next stretch
     in a thread while this one is written, and the next longer run while the runs go."""
     wall0 = time.time() - (datetime.now(UTC) - epoch).total_seconds()
     report(f"machine clock from {epoch.isoformat()} at {speed:g}x"
            + (f", from {start_s:.3f} s" if start_s else ""))
     chunk_s = max(MIN_CHUNK_S, speed * WALL_CHUNK_S)
-    next_run = asyncio.create_task(asyncio.to_thread(twin.run, horizons.pop(0))) \
-        if horizons else None
+    next_run = _in_thread(twin.run, horizons.pop(0)) if horizons else None
     done_s, written = start_s, 0
-    ahead = asyncio.create_task(asyncio.to_thread(
-        twin.events, run, done_s, min(done_s + chunk_s, run.horizon_s)))
+    ahead = _in_thread(twin.events, run, done_s, min(done_s + chunk_s, run.horizon_s))
     while done_s < twin.horizon_s:
         end_s = min(done_s + chunk_s, run.horizon_s)
         t_ns, idx, values = await ahead
         if end_s >= run.horizon_s and next_run is not None:
             run = await next_run
-            next_run = asyncio.create_task(asyncio.to_thread(twin.run, horizons.pop(0))) \
-                if horizons else None
+            next_run = _in_thread(twin.run, horizons.pop(0)) if horizons else None
         following = min(end_s + chunk_s, run.horizon_s)
         if following > end_s:
-            ahead = asyncio.create_task(asyncio.to_thread(twin.events, run, end_s, following))
-        written += await _write(server, nodes, boolean, t_ns, idx, values, wall0, speed, epoch)
+            ahead = _in_thread(twin.events, run, end_s, following)
+        written += await _write(server, nodes, boolean, t_ns, idx, values, wall0, speed, epoch,
+                                history)
         done_s = end_s
     if next_run is not None:
         next_run.cancel()
     return written
 
 
+def _in_thread(fn, *args) -> asyncio.Future:
+    """``fn(*args)`` in a daemon thread: a server stopped (Ctrl-C, SIGTERM, its task
+    cancelled) ends at once instead of waiting for a closed-loop run it no longer needs,
+    as the event loop's own worker threads would make it."""
+    loop = asyncio.get_running_loop()
+    future = loop.create_future()
+
+    def settle(result, error) -> None:
+        if future.cancelled():
+            return
+        if error is not None:
+            future.set_exception(error)
+        else:
+            future.set_result(result)
+
+    def work() -> None:
+        try:
+            outcome = (fn(*args), None)
+        except Exception as e:  # noqa: BLE001 - handed to the awaiting coroutine
+            outcome = (None, e)
+        try:
+            loop.call_soon_threadsafe(settle, *outcome)
+        except RuntimeError:
+            pass                     # the loop is closed: no one waits for it any more
+
+    threading.Thread(target=work, daemon=True, name="plcpred-twin").start()
+    return future
+
+
 async def _write(server, nodes, boolean, t_ns, idx, values, wall0: float, speed: float,
-                 epoch: datetime) -> int:
+                 epoch: datetime, history: int) -> int:
     """Write the values at their wall times (a batch for all that are due at once)."""
     k, n = 0, len(t_ns)
     while k < n:
@@ -155,8 +211,8 @@ async def _write(server, nodes, boolean, t_ns, idx, values, wall0: float, speed:
         for j in range(k, end):
             stamp = source_time(epoch, int(t_ns[j]))
             i = int(idx[j])
-            await server.write_attribute_value(
-                nodes[i].nodeid, ua.DataValue(Value=_variant(values[j], boolean[i]),
-                                              SourceTimestamp=stamp, ServerTimestamp=stamp))
+            await _put(server, nodes[i].nodeid,
+                       ua.DataValue(Value=_variant(values[j], boolean[i]),
+                                    SourceTimestamp=stamp, ServerTimestamp=stamp), history)
         k = end
     return n

@@ -40,6 +40,9 @@ class LiveSettings:
     rotate_s: float = 3600.0
     gap_alarm_percent: float = 10.0
     gap_alarm_cycles: int = 3
+    learn_cycles: int = 10       # the reference learned from this many first cycles (0: D1)
+    diagnose_every_s: float | None = None   # machine time between diagnoses (None: none)
+    prometheus: str | None = None           # [HOST:]PORT of the metrics (None: none)
     idle_limit_l_min: float | None = None
     security_policy: str = "None"
     security_mode: str = "SignAndEncrypt"
@@ -87,6 +90,7 @@ def live_settings(machine, endpoint: str | None = None, **overrides) -> LiveSett
     for key, value in {**given, **{k: v for k, v in overrides.items() if v is not None}}.items():
         setattr(s, key, value)
     s.gap_alarm_cycles = int(s.gap_alarm_cycles)
+    s.learn_cycles = int(s.learn_cycles)
     if endpoint is not None:
         s.endpoint = endpoint
     if s.endpoint is None:

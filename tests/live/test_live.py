@@ -2,6 +2,7 @@
 client recording it and comparing it with the prediction), a real asyncua server and a
 real client talking over TCP on localhost; nothing is patched."""
 import asyncio
+import contextlib
 import json
 import os
 import socket
@@ -105,29 +106,310 @@ def test_watch_records_the_served_machine_as_diagnose_reads_it(tmp_path):
     assert not result.alarms and not result.gaps
 
 
-def test_a_leak_switched_on_is_flagged_with_its_onset(tmp_path):
+class Live:
+    """A served twin and a watch of it in one event loop, driven by conditions on what
+    the watch reports (never by sleeps): the server can be killed and restarted."""
+
+    def __init__(self, tmp_path, twin, speed, history=0, watch_url=None, **overrides):
+        self.twin, self.speed, self.history = twin, speed, history
+        self.url = f"opc.tcp://127.0.0.1:{free_port()}"
+        self.machine = load_machine(PICK)
+        self.settings = live_settings(self.machine, endpoint=watch_url or self.url,
+                                      cycle_signal="qX", **overrides)
+        self.out, self.lines, self.epoch = tmp_path / "watch", [], None
+        self.stop = asyncio.Event()
+
+    def count(self, start: str) -> int:
+        return sum(line.startswith(start) for line in self.lines)
+
+    async def until(self, condition, timeout=90.0):
+        """Wait until ``condition()`` holds (checked every 20 ms)."""
+        loop = asyncio.get_running_loop()
+        end = loop.time() + timeout
+        while not condition():
+            assert loop.time() < end, f"timed out; the watch said: {self.lines[-5:]}"
+            await asyncio.sleep(0.02)
+
+    async def start_server(self):
+        """Serve (the first time holding the machine at its start until the watch is
+        connected; afterwards on from where the machine is, as a PLC runs on while its
+        OPC UA server restarts)."""
+        up, hold = asyncio.Event(), None
+        if self.epoch is None:
+            hold = self.go = asyncio.Event()
+        self.server = asyncio.create_task(serve(
+            self.twin, self.url, speed=self.speed, epoch=self.epoch, hold=hold,
+            history=self.history, report=lambda line: up.set(),
+            started=lambda e: setattr(self, "epoch", self.epoch or e)))
+        await asyncio.wait_for(up.wait(), 60)
+
+    async def kill_server(self):
+        self.server.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await self.server
+
+    def start_watch(self):
+        def report(line):
+            self.lines.append(line)
+            if line.startswith("connected"):
+                self.go.set()
+        self.watcher = asyncio.create_task(watch(self.machine, self.out, self.settings,
+                                                 stop=self.stop, report=report))
+
+    async def end(self):
+        self.stop.set()
+        result = await asyncio.wait_for(self.watcher, 180)
+        await self.kill_server()
+        return result
+
+
+class Relay:
+    """A TCP relay between the watch and the server that can be cut and restored: the
+    network dropped while the server runs on."""
+
+    def __init__(self, target_url: str):
+        self.target = int(target_url.rsplit(":", 1)[1])
+        self.port = free_port()
+        self.url = f"opc.tcp://127.0.0.1:{self.port}"
+        self.links: list = []
+
+    async def open(self):
+        self.listener = await asyncio.start_server(self._link, "127.0.0.1", self.port)
+
+    async def _link(self, reader, writer):
+        up_reader, up_writer = await asyncio.open_connection("127.0.0.1", self.target)
+        self.links += [writer, up_writer]
+
+        async def pipe(src, dst):
+            with contextlib.suppress(ConnectionError, OSError):
+                while data := await src.read(65536):
+                    dst.write(data)
+                    await dst.drain()
+            dst.close()
+        await asyncio.gather(pipe(reader, up_writer), pipe(up_reader, writer))
+
+    async def cut(self):
+        self.listener.close()
+        for w in self.links:
+            w.transport.abort()
+        self.links = []
+
+
+def test_a_healthy_machine_matches_its_learned_reference_within_1_percent(tmp_path):
+    twin = Twin(PICK, 90.0, seed=5)
+    _, result, out = asyncio.run(served_and_watched(
+        tmp_path, twin, speed=40.0, cycle_signal="qX", learn_cycles=10))
+    ev = events(out)
+    cycles = [e for e in ev if e["event"] == "cycle"]
+    learned = [e for e in ev if e["event"] == "reference_learned"]
+    assert len(learned) == 1 and learned[0]["reference"] == "learned from cycles 1-10"
+    assert 0.9 < learned[0]["ratio"] < 0.96           # D1's own error on this plant
+    assert [c["reference"] for c in cycles[:9]] == [f"learning {k}/10" for k in range(1, 10)]
+    after = cycles[10:]
+    assert len(after) >= 8
+    for c in after:
+        assert c["reference"] == "learned from cycles 1-10"
+        assert abs(c["reference_gap_percent"]) < 1.0, c
+        assert -9.0 < c["gap_percent"] < -5.0           # D1's gap, still reported
+        assert abs(c["rolling_gap_percent"]) < 1.0
+    assert not result.alarms and not result.gaps
+
+
+def test_a_leak_is_flagged_with_its_onset_and_named_by_the_periodic_diagnosis(tmp_path):
     truth = tmp_path / "leak.toml"
     truth.write_text('[[consumer]]\nname = "hidden leak"\nkind = "leak"\norifice_mm = 0.8\n'
                      'Cd = 0.6\n')
-    twin = Twin(PICK, 44.0, truth=truth, truth_at_s=14.0, seed=1)
-    served, _, out = asyncio.run(served_and_watched(
-        tmp_path, twin, speed=40.0, cycle_signal="qX", gap_alarm_cycles=2))
-    ev = events(out)
+    onset_s = 28.0
+    # files rotated every 15 s: the first 40 s window spans three segments (one clock,
+    # read as one run)
+    live = Live(tmp_path, Twin(PICK, 320.0, truth=truth, truth_at_s=onset_s, seed=1),
+                speed=10.0, learn_cycles=5, diagnose_every_s=40.0, rotate_s=15.0)
+
+    async def run():
+        await live.start_server()
+        live.start_watch()
+        await live.until(lambda: live.count("diagnosis 1") == 1)
+        seen = live.count("cycle")       # recording goes on after the verdict
+        await live.until(lambda: live.count("cycle") >= seen + 2)
+        return await live.end()
+
+    asyncio.run(run())
+    ev = events(live.out)
+    epoch_ns = _epoch_ns(live.epoch)
     cycles = [e for e in ev if e["event"] == "cycle"]
-    epoch_ns = _epoch_ns(served.epoch)
-    before = [c for c in cycles if (_iso_ns(c["start"]) - epoch_ns) / NS + 4.0 <= 14.0]
-    after = [c for c in cycles if (_iso_ns(c["start"]) - epoch_ns) / NS >= 14.0]
+    machine_s = [(_iso_ns(c["start"]) - epoch_ns) / NS for c in cycles]
+    before = [c for c, t in zip(cycles, machine_s) if 5 <= c["number"] and t + 4.0 <= onset_s]
+    after = [c for c, t in zip(cycles, machine_s) if t >= onset_s]
     assert before and len(after) >= 3
-    assert all(-9.0 < c["gap_percent"] < -5.0 for c in before)
-    assert all(c["gap_percent"] > 50.0 for c in after)
+    assert all(abs(c["reference_gap_percent"]) < 1.0 for c in before)
+    assert all(c["reference_gap_percent"] > 50.0 for c in after)
     alarms = [e for e in ev if e["event"] == "alarm" and e["state"] == "raised"]
     assert [a["alarm"] for a in alarms] == ["gap"]
-    onset_s = (_iso_ns(alarms[0]["began"]) - epoch_ns) / NS
-    assert 14.0 - 4.0 <= onset_s <= 14.0 + 4.0   # the first cycle with the leak in it
-    flagged = next(c for c in cycles if c["number"] == alarms[0]["cycle"])
-    assert (_iso_ns(flagged["start"]) - epoch_ns) / NS <= onset_s + 5 * 4.0
-    # the leak's flow shows while the machine rests
+    began_s = (_iso_ns(alarms[0]["began"]) - epoch_ns) / NS
+    assert onset_s - 4.0 <= began_s <= onset_s      # the first cycle with the leak in it
+    first_leaky = next(c["number"] for c, t in zip(cycles, machine_s) if t + 4.0 > onset_s)
+    assert alarms[0]["cycle"] - first_leaky < 5
+    assert alarms[0]["reference"] == "learned from cycles 1-5"
     assert after[-1]["idle_l_min"] > before[0]["idle_l_min"] + 15.0
+    # the diagnosis of the first 40 s names the leak and when it began
+    started = [e for e in ev if e["event"] == "diagnosis_started"]
+    assert started[0]["runs"] == 1 and started[0]["window_s"] == pytest.approx(40.0, abs=0.2)
+    verdict = next(e for e in ev if e["event"] == "diagnosis")
+    assert verdict["verdict"] == "leak", verdict
+    assert (_iso_ns(verdict["onset"]) - epoch_ns) / NS == pytest.approx(onset_s, abs=2.0)
+    assert verdict["combination"]["parameters"]["flow_l_min"] > 15.0
+    # ... while the recording went on: every cycle from before the request to after the
+    # verdict there, 4 s apart, none missing
+    asked = (_iso_ns(started[0]["requested_at"]) - epoch_ns) / NS
+    done = (_iso_ns(verdict["finished_at"]) - epoch_ns) / NS
+    assert done > asked + 4.0
+    during = [c for c, t in zip(cycles, machine_s) if asked - 4.0 <= t <= done]
+    assert len(during) >= round((done - asked) / 4.0) - 1
+    assert np.allclose(np.diff([_iso_ns(c["start"]) for c in during]) / NS, 4.0, atol=0.02)
+    assert not [e for e in ev if e["event"] == "gap"]
+    assert not (live.out / ".diagnosis").exists()
+
+
+def test_the_server_killed_and_restarted_twice_loses_and_repeats_no_edge(tmp_path):
+    # a horizon far beyond what the test needs: the server must not reach its end while
+    # the watch waits to reconnect
+    live = Live(tmp_path, Twin(PICK, 600.0, seed=3), speed=5.0, learn_cycles=3)
+
+    async def run():
+        await live.start_server()
+        live.start_watch()
+        for k in range(2):
+            seen = live.count("cycle")
+            await live.until(lambda seen=seen: live.count("cycle") >= seen + 2)
+            await live.kill_server()
+            await live.until(lambda k=k: live.count("connection lost") == k + 1)
+            await live.start_server()
+            await live.until(lambda k=k: live.count("connected") == k + 2)
+        seen = live.count("cycle")
+        await live.until(lambda: live.count("cycle") >= seen + 2)
+        return await live.end()
+
+    result = asyncio.run(run())
+    ev = events(live.out)
+    epoch_ns = _epoch_ns(live.epoch)
+    segments = [e for e in ev if e["event"] == "segment"]
+    gaps = [e for e in ev if e["event"] == "gap"]
+    assert len(segments) == 3 and len(gaps) == 2 and len(result.gaps) == 2
+    assert [s["why"] for s in segments] == ["connected", "after a gap", "after a gap"]
+    ends = [e for e in ev if e["event"] == "segment_end"]
+    assert [e["why"] for e in ends] == ["connection lost", "connection lost", "watch ended"]
+    # a restarted server has no history of the time it was down: a gap, not a backfill
+    assert len([e for e in ev if e["event"] == "no_history"]) == 2
+    assert not [e for e in ev if e["event"] == "backfilled"]
+    origins = [(s["start_ns"] - epoch_ns) / NS for s in segments]
+    recorded = [recorded_edges(live.out, n, o) for n, o in enumerate(origins, 1)]
+    lasts = [max(t[-1] for t, _ in r.values() if len(t)) for r in recorded]
+    em = emulate(PICK, lasts[-1] + 5.0, seed=3)
+    names = em.timeline.info["machine_signals"]
+    spans = []
+    for origin_s, last, edges in zip(origins, lasts, recorded):
+        for name, (t, v) in edges.items():
+            et, evals = em.timeline.edge_times_ns(names.get(name, name))
+            et, evals = et[1:] / NS, evals[1:]
+            inside = (et > origin_s + 1e-6) & (et <= last + 1e-6)
+            # every served change within the segment, each once
+            assert len(t) == inside.sum(), (name, origin_s, last)
+            assert np.allclose(t, et[inside], atol=2e-6) and np.array_equal(v, evals[inside])
+        spans.append((origin_s, last))
+    for (a0, a1), (b0, _), gap in zip(spans, spans[1:], gaps):
+        # the gap runs from the last value seen to the restarted server's first values
+        assert (_iso_ns(gap["from"]) - epoch_ns) / NS >= a1 - 1e-6
+        assert (_iso_ns(gap["to"]) - epoch_ns) / NS == pytest.approx(b0, abs=1e-6)
+        assert gap["seconds"] > 0
+    cycles = [e for e in ev if e["event"] == "cycle"]
+    assert all(abs(c["reference_gap_percent"]) < 1.0 for c in cycles[3:])
+    assert not result.alarms
+
+
+def test_a_dropped_connection_is_filled_from_the_servers_history(tmp_path):
+    """The network drops while the server runs on (and keeps its values' history): the
+    watch reads what it missed and the segment goes on, every change once."""
+    twin = Twin(PICK, 600.0, seed=3)
+    url = f"opc.tcp://127.0.0.1:{free_port()}"
+    relay = Relay(url)
+    live = Live(tmp_path, twin, speed=5.0, history=20_000, watch_url=relay.url,
+                learn_cycles=3)
+    live.url = url
+
+    def failed_once():
+        path = live.out / "events.jsonl"
+        return path.exists() and '"connect_failed"' in path.read_text()
+
+    async def run():
+        await relay.open()
+        await live.start_server()
+        live.start_watch()
+        await live.until(lambda: live.count("cycle") >= 3)
+        await relay.cut()
+        await live.until(lambda: live.count("connection lost") == 1)
+        await live.until(failed_once)            # the server has run on meanwhile
+        await relay.open()
+        await live.until(lambda: live.count("read ") == 1)
+        seen = live.count("cycle")
+        await live.until(lambda: live.count("cycle") >= seen + 3)
+        result = await live.end()
+        await relay.cut()
+        return result
+
+    result = asyncio.run(run())
+    ev = events(live.out)
+    kinds = [e["event"] for e in ev]
+    assert kinds.count("segment") == 1 and "gap" not in kinds and not result.gaps
+    backfilled = next(e for e in ev if e["event"] == "backfilled")
+    assert backfilled["seconds"] > 2.0 and backfilled["values"] > 20
+    epoch_ns = _epoch_ns(live.epoch)
+    segment = next(e for e in ev if e["event"] == "segment")
+    origin_s = (segment["start_ns"] - epoch_ns) / NS
+    recorded = recorded_edges(live.out, 1, origin_s)
+    last = max(t[-1] for t, _ in recorded.values() if len(t))
+    em = emulate(PICK, last + 10.0, seed=3)
+    names = em.timeline.info["machine_signals"]
+    lost_s = (_iso_ns(backfilled["from"]) - epoch_ns) / NS
+    for name, (t, v) in recorded.items():
+        et, evals = em.timeline.edge_times_ns(names.get(name, name))
+        et, evals = et[1:] / NS, evals[1:]
+        inside = (et > origin_s + 1e-6) & (et <= last + 1e-6)
+        assert np.allclose(t, et[inside], atol=2e-6) and np.array_equal(v, evals[inside])
+    assert any(((t > lost_s) & (t < lost_s + backfilled["seconds"])).any()
+               for t, _ in recorded.values())          # changes from the history itself
+    run = read_measured(live.out / "measured-0001.csv")
+    assert np.allclose(np.diff(run.time_s), 0.1, atol=1e-6)   # every reading, once
+    cycles = [e for e in ev if e["event"] == "cycle"]
+    assert all(abs(c["reference_gap_percent"]) < 1.0 for c in cycles[3:])
+
+
+def test_prometheus_metrics_follow_the_comparison(tmp_path):
+    pytest.importorskip("prometheus_client")
+    port = free_port()
+    live = Live(tmp_path, Twin(PICK, 600.0, seed=2), speed=20.0, learn_cycles=3,
+                prometheus=f"127.0.0.1:{port}")
+
+    def scrape() -> dict:
+        import urllib.request
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/metrics", timeout=10) as r:
+            text = r.read().decode()
+        return {line.split("{")[0]: float(line.rsplit(" ", 1)[1])
+                for line in text.splitlines() if line.startswith("plcpred_watch_")}
+
+    async def run():
+        await live.start_server()
+        live.start_watch()
+        await live.until(lambda: live.count("cycle") >= 6)
+        metrics = await asyncio.to_thread(scrape)
+        await live.end()
+        return metrics
+
+    m = asyncio.run(run())
+    assert m["plcpred_watch_cycles_total"] >= 6
+    assert m["plcpred_watch_connected"] == 1 and m["plcpred_watch_reference_learned"] == 1
+    assert abs(m["plcpred_watch_gap_percent"]) < 1.0
+    assert -9.0 < m["plcpred_watch_d1_gap_percent"] < -5.0
+    assert m["plcpred_watch_cycle_measured_nl"] == pytest.approx(2.18, rel=0.02)
 
 
 def _epoch_ns(epoch) -> int:
@@ -181,6 +463,10 @@ def test_cli_bad_input_exits_2_with_one_line(tmp_path, capsys):
               "opc.tcp://127.0.0.1:1", "--cycle-signal", "nope"], "cycle signal 'nope'"),
             (["serve", str(PICK), "--endpoint", "opc.tcp://127.0.0.1:1", "--speed", "0"],
              "--speed"),
+            (["watch", str(PICK), "--out", str(tmp_path / "o"), "--endpoint",
+              "opc.tcp://127.0.0.1:1", "--diagnose-every", "2s"], "--diagnose-every"),
+            (["watch", str(PICK), "--out", str(tmp_path / "o"), "--endpoint",
+              "opc.tcp://127.0.0.1:1", "--prometheus", "host:port"], "--prometheus"),
             (["serve", str(PICK), "--endpoint", "opc.tcp://127.0.0.1:1", "--horizon", "25h"],
              "--horizon")):
         assert main(args) == 2, args
