@@ -9,6 +9,8 @@ Library first: the ``plcpred`` command is a thin layer over these calls.
 """
 __version__ = "0.1.0"
 
+from .lazy import lazy_attributes
+
 # imported on first use (PEP 562), so that ``plcpred --help`` and the CLI's argument
 # errors do not wait for numpy, the parser and the sequencer
 _LAZY = {"load_machine": ".machine", "load_program": ".parser", "Timeline": ".sequencer",
@@ -18,15 +20,4 @@ __all__ = ["DemandProfile", "Timeline", "load_machine", "load_program", "predict
            "__version__"]
 
 
-def __getattr__(name: str):
-    if name in _LAZY:
-        import importlib
-
-        value = getattr(importlib.import_module(_LAZY[name], __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'plcpred' has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_attributes(__name__, _LAZY)

@@ -17,8 +17,7 @@ HEAVY = {"scipy", "matplotlib", "pandas", "dask",
          "prometheus_client"}      # (optional: plcpred watch --prometheus only)
 # the command line imports each command's code when the command runs, so that `--help`
 # and a syntax check do not wait for numpy, scipy and the compiler
-LAZY_MODULES = {"plcpred/cli/main.py", "plcpred/__init__.py", "plcpred/sequencer/__init__.py",
-                "plcpred/diagnose/__init__.py",
+LAZY_MODULES = {"plcpred/cli/main.py",
                 # lark (.tablegen) only when the shipped parser tables do not match a grammar
                 "plcpred/parser/tables.py"}
 

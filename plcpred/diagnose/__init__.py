@@ -9,6 +9,8 @@ on samples the fit never saw.
 * :data:`EFFECTS` - the vocabulary of effects, each a bounded change of the activation
   model (:mod:`~plcpred.diagnose.effects`)
 """
+from ..lazy import lazy_attributes
+
 # Each name is imported from its module on first use (PEP 562): the plots and the plant
 # read a constant or the log reader from here, and must not wait for the fits and scipy's
 # optimisers to load.
@@ -21,15 +23,4 @@ __all__ = ["Diagnosis", "DiagnosisError", "EFFECTS", "MeasuredDataError", "Measu
            "VOCABULARY", "diagnose", "read_io_timeline", "read_measured"]
 
 
-def __getattr__(name: str):
-    if name in _LAZY:
-        import importlib
-
-        value = getattr(importlib.import_module(_LAZY[name], __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_attributes(__name__, _LAZY)

@@ -8,6 +8,8 @@ semantics and a plant I/O model.
 * :mod:`~plcpred.sequencer.stdfb` - the IEC 61131-3 standard function blocks
 * :mod:`~plcpred.sequencer.plant` - cylinder end switches following their valves
 """
+from ..lazy import lazy_attributes
+
 # Each name is imported from its module on first use (PEP 562): the compiler's package
 # is imported by `plcpred check`, which must not wait for numpy, the machine file's
 # reader and the executor (the start-up benchmark, bench/startup.py).
@@ -25,15 +27,4 @@ __all__ = ["CompileError", "ExecutionError", "Sequencer", "SequencerError", "Sig
            "observed_names", "parse_horizon", "unfold", "valves_moved"]
 
 
-def __getattr__(name: str):
-    if name in _LAZY:
-        import importlib
-
-        value = getattr(importlib.import_module(_LAZY[name], __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(set(globals()) | set(_LAZY))
+__getattr__, __dir__ = lazy_attributes(__name__, _LAZY)
