@@ -918,8 +918,9 @@ class _Run:
     values: tuple | None = None     # the recorded signals' values at the last scan
     tiled_from: tuple | None = None
     drift: dict | None = None
-    # a scan that took a scheduled input and is no fixed point: a busy machine (stations
-    # whose cycles overlap never rest all at once) is checked for a repeat there
+    # a scan that took an input change (a schedule's edge or an end switch) and is no
+    # fixed point: a busy machine (stations whose cycles overlap never rest all at
+    # once) is checked for a repeat there
     probe: bool = False
 
     def __post_init__(self):
@@ -1279,9 +1280,9 @@ class Sequencer:
 
     def _after_rest(self, r: _Run) -> bool:
         """At a fixed point: replay a recorded part, or tile a repetition, or jump to the
-        first scan at which anything can change. At a probe (a scan that took a
-        scheduled input, not a fixed point): tile a repetition, or go on with the next
-        scan. False when the run ends here."""
+        first scan at which anything can change. At a probe (a scan that took an input
+        change, not a fixed point): tile a repetition, or go on with the next scan.
+        False when the run ends here."""
         t, scan = r.t, r.scan
         if r.probe:
             r.probe = False

@@ -48,7 +48,7 @@ class ComparedState:
         counters and statistics such as ``nParts := nParts + 1``. Decided from the data
         flow of the FB's own code (``reads_et``: that code reads an ET); anything named
         as ``x.member`` anywhere is never a sink."""
-        cands = self._sink_candidates(fb, scope) | self._unread_outputs(fb, scope)
+        cands = self._declared(fb, scope, ("VAR", "VAR_TEMP")) | self._unread_outputs(fb, scope)
         # a standard FB only changes its own outputs: its inputs flow into it, and it is a
         # sink when nothing reads those outputs (a parts counter nobody looks at)
         std = {k for k in cands if base_t(scope.names[k][1]).cat == "stdfb"}
@@ -75,10 +75,6 @@ class ComparedState:
         et_matters = any(t is None or t not in sinks for t in flow.et_targets)
         self.left_out[fb.cls_name] = {k: count_width(k, flow, sinks, scope) for k in sinks}
         return sinks, et_matters
-
-    @classmethod
-    def _sink_candidates(cls, fb, scope) -> set:
-        return cls._declared(fb, scope, ("VAR", "VAR_TEMP"))
 
     def _unread_outputs(self, fb, scope) -> set:
         """A function block's outputs that nothing outside it can read: no ``x.name`` and
