@@ -71,7 +71,7 @@ def cmd_watch(args) -> int:
             gap_alarm_percent=args.gap_alarm, gap_alarm_cycles=args.gap_cycles,
             learn_cycles=args.learn_cycles,
             diagnose_every_s=_seconds(args.diagnose_every, "--diagnose-every"),
-            prometheus=args.prometheus,
+            prometheus=args.prometheus, plot=args.plot,
             idle_limit_l_min=args.idle_limit, publishing_ms=args.publishing_ms)
         _check_settings(machine, settings)
         duration_s = _seconds(args.duration, "--duration")

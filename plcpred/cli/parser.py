@@ -417,4 +417,7 @@ def _add_watch(sub) -> None:
     p.add_argument("--prometheus", metavar="[HOST:]PORT",
                    help="serve the comparison as Prometheus metrics at PORT (every "
                         "interface) or HOST:PORT; needs the prometheus-client package")
+    p.add_argument("--plot", action="store_true", default=None,
+                   help="draw DIR/comparison.png (measured against predicted per cycle, "
+                        "the gap, alarms) when the watch ends (default: [live] plot)")
     p.set_defaults(run=("live", "cmd_watch"))

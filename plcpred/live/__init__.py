@@ -9,9 +9,12 @@
 * :func:`live_settings` - the machine file's ``[live]`` with its defaults
 * :class:`LearnedReference` - the per-consumer factors on D1 learned from the first
   cycles, the reference the alarms judge (:mod:`~plcpred.live.reference`)
+* :func:`plot_comparison` - a watch's comparison per cycle as a picture, from its
+  events (:mod:`~plcpred.live.plot`; matplotlib is loaded only when it draws)
 """
 from .client import Watcher, WatchResult, watch
 from .compare import CycleResult, LiveComparison
+from .plot import plot_comparison
 from .reference import LearnedReference
 from .server import ServeResult, serve
 from .settings import LiveError, LiveSettings, check_endpoint, live_settings, machine_signals
@@ -19,4 +22,4 @@ from .twin import Twin
 
 __all__ = ["CycleResult", "LearnedReference", "LiveComparison", "LiveError", "LiveSettings", "ServeResult",
            "Twin", "WatchResult", "Watcher", "check_endpoint", "live_settings",
-           "machine_signals", "serve", "watch"]
+           "machine_signals", "plot_comparison", "serve", "watch"]

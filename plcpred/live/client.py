@@ -11,7 +11,15 @@ from it and the segment goes on; otherwise the open segment ends where the last 
 was seen, the next one starts with the values the server gives on reconnecting, and the
 gap between them is an event. Nothing is invented for a gap, and a value is written once
 however often it comes (a node's value at or before the last of its own written is
-known)."""
+known).
+
+The values a server gives on subscribing are not one snapshot: it reads each node's as
+it creates that node's monitored item, and the machine runs on meanwhile (a restarted
+server writes the values it owes in a burst), so a node whose item came early may change
+before the last item is made. Its change then comes as a notification older than other
+nodes' first values. A segment therefore starts once every node has given its first
+value, at the newest of them, each signal at its newest value by then, first value or
+change: a change older than the start goes into the start's values, not lost."""
 from __future__ import annotations
 
 import asyncio
@@ -29,6 +37,7 @@ from ..sequencer.timeline import NS
 from .compare import LiveComparison
 from .metrics import Metrics
 from .periodic import PeriodicDiagnosis
+from .plot import plot_comparison
 from .record import EventLog, Recorder, iso_time
 from .settings import LiveError, LiveSettings, machine_signals
 
@@ -37,6 +46,7 @@ FIRST_PAUSE_S, MAX_PAUSE_S = 0.5, 30.0
 CHECK_EVERY_S = 1.0             # how often the connection is checked
 HOLD_PUBLISHES = 3              # notifications held this many publishing intervals
 DIAGNOSIS_END_WAIT_S = 120.0    # a diagnosis running at the watch's end given this long
+FIRST_VALUES_WAIT_S = 10.0      # a node giving no first value this long is left unknown
 _EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 _METER, _PRESSURE = "\0meter", "\0pressure"
 
@@ -105,7 +115,13 @@ class Watcher:
             reference_factor(settings.meter_reference)
         self.result = WatchResult()
         self.pending: list = []          # (received, key, ns, value, good, first)
-        self.snapshot: dict = {}
+        # before a segment opens (this session's values): each node's newest value (ns,
+        # value, good), the time stamp of each one's first (None: it had none), the
+        # nodes whose first is awaited, since when (monotonic)
+        self.known: dict = {}
+        self.firsts: dict = {}
+        self.awaited: set = set()
+        self.awaited_since = 0.0
         self.last_ns: int | None = None  # the latest source time written
         self.bad_streak = False
         self.subscribed = False
@@ -151,7 +167,20 @@ class Watcher:
             self.events.close()
             if self.metrics is not None:
                 self.metrics.close()
+            if self.settings.plot:          # Ctrl-C too: the usual end of a watch
+                self._plot()
         return self.result
+
+    def _plot(self) -> None:
+        """``comparison.png`` drawn from the events (``[live] plot``); a watch that
+        compared no cycle has none."""
+        try:
+            path = plot_comparison(self.out)
+        except (LiveError, OSError) as e:
+            self.report(f"no comparison.png: {e}")
+            return
+        self.result.files.append(path)
+        self.report(f"wrote {path}")
 
     async def _end_diagnosis(self, interrupted: bool) -> None:
         """The diagnosis still running given its time to finish (recording has ended),
@@ -232,7 +261,11 @@ class Watcher:
                 ItemToMonitor=ua.ReadValueId(NodeId=ua.NodeId.from_string(node),
                                              AttributeId=ua.AttributeIds.Value),
                 MonitoringMode=ua.MonitoringMode.Reporting, RequestedParameters=mp))
+        self.known, self.firsts = {}, {}
+        self.awaited_since = time.monotonic()
         results = await sub.create_monitored_items(requests)
+        self.awaited = {key for (key, _), r in zip(wanted, results)
+                        if not isinstance(r, ua.StatusCode)}
         for (key, node), r in zip(wanted, results):
             if isinstance(r, ua.StatusCode) and key == _METER:
                 raise LiveError(f"{s.endpoint}: the flow meter's node {node} is not on the "
@@ -259,7 +292,7 @@ class Watcher:
             self.report(f"connection lost ({why}); trying again")
         else:
             self.events.write("connect_failed", why=why, retry_in_s=pause)
-        self.snapshot, self.cutoff = {}, {}
+        self.known, self.firsts, self.cutoff = {}, {}, {}
 
     async def _resume(self, client) -> None:
         """Connected again after a loss: the values the server's history holds since
@@ -294,6 +327,21 @@ class Watcher:
             self.pending += handler.inbox
         handler.inbox = []
         self._drain()
+        if not self.recorder.open and time.monotonic() > \
+                self.awaited_since + FIRST_VALUES_WAIT_S:
+            self._stop_awaiting()
+
+    def _stop_awaiting(self) -> None:
+        """Nodes subscribed to that never gave a first value (a server should): the
+        segment starts without them, their values unknown until they change."""
+        silent = sorted(self.awaited - self.firsts.keys())
+        self.awaited -= set(silent)
+        for key in silent:
+            name = {_METER: "the flow meter", _PRESSURE: "the supply pressure"}.get(key, key)
+            self.events.write("no_first_value", signal=name,
+                              waited_s=FIRST_VALUES_WAIT_S)
+            self.report(f"warning: {name}: no value from the server in "
+                        f"{FIRST_VALUES_WAIT_S:g} s of subscribing; unknown until it changes")
 
     def _drain(self, final: bool = False) -> None:
         """Write the held notifications that no later one can precede: those older than
@@ -311,17 +359,15 @@ class Watcher:
         for _, key, t_ns, value, good, first in ready:
             if t_ns is not None:
                 self._value(key, t_ns, value, good, first)
+            elif first:                 # a first value without a time: no state known
+                self.firsts.setdefault(key, None)
 
     def _value(self, key: str, t_ns: int, value, good: bool, first: bool) -> None:
-        if first:
-            self.snapshot[key] = (t_ns, value, good)
+        if not self.recorder.open and not self._opens(key, t_ns, value, good, first):
+            return
         if key == _PRESSURE:
             if good and value is not None:
                 self.recorder.supply = float(value)
-            return
-        if not self.recorder.open:
-            if key == _METER:           # the meter's first value: the newest, as it ticks
-                self._start_segment()
             return
         if key == _METER and t_ns <= self.recorder.last_reading_ns:
             if first:
@@ -341,11 +387,33 @@ class Watcher:
             self.recorder.edge(t_ns, key, v)
             self.comparison.edge(t_ns, key, v)
 
-    def _start_segment(self) -> None:
-        """A segment from the newest of the values the server gave on subscribing, each
-        signal at its value then."""
-        origin = max(t for t, _, _ in self.snapshot.values())
-        states = {k: float(v) for k, (_, v, good) in self.snapshot.items()
+    def _opens(self, key: str, t_ns: int, value, good: bool, first: bool) -> bool:
+        """Before a segment: each node's newest value kept, first value or change (taken
+        in time order). True when this value is the first after the segment's start,
+        which opens the segment before it is written."""
+        if first:
+            self.firsts[key] = t_ns
+        origin = self._origin()
+        if origin is not None and t_ns > origin:
+            self._start_segment(origin)
+            return True
+        held = self.known.get(key)
+        if held is None or t_ns >= held[0]:
+            self.known[key] = (t_ns, value, good)
+        return False
+
+    def _origin(self) -> int | None:
+        """Where the segment starts: the newest of the first values the server gave on
+        subscribing (and of the changes taken with them), once every node has given its
+        own and a reading is known (None: not yet)."""
+        if _METER not in self.known or not self.awaited <= self.firsts.keys():
+            return None
+        return max([t for t, _, _ in self.known.values()]
+                   + [t for t in self.firsts.values() if t is not None])
+
+    def _start_segment(self, origin: int) -> None:
+        """A segment from ``origin``, each signal at its newest value then."""
+        states = {k: float(v) for k, (_, v, good) in self.known.items()
                   if k not in (_METER, _PRESSURE) and good and v is not None}
         why = "connected"
         if self.last_ns is not None:
@@ -360,7 +428,11 @@ class Watcher:
         self.comparison.reset(origin)
         self.comparison.snapshot(states)
         self.last_ns = origin
-        self.recorder.last_reading_ns = self.snapshot[_METER][0]
+        self.recorder.last_reading_ns = self.known[_METER][0]
+        supply = self.known.get(_PRESSURE)
+        if supply is not None and supply[2] and supply[1] is not None:
+            self.recorder.supply = float(supply[1])
+        self.known = {}
 
     def _clock_went_back(self, t_ns: int) -> None:
         self.events.write("clock_jump", from_=iso_time(self.recorder.last_reading_ns),

@@ -43,6 +43,7 @@ class LiveSettings:
     learn_cycles: int = 10       # the reference learned from this many first cycles (0: D1)
     diagnose_every_s: float | None = None   # machine time between diagnoses (None: none)
     prometheus: str | None = None           # [HOST:]PORT of the metrics (None: none)
+    plot: bool = False                      # comparison.png drawn when the watch ends
     idle_limit_l_min: float | None = None
     security_policy: str = "None"
     security_mode: str = "SignAndEncrypt"

@@ -391,10 +391,15 @@ def _live(file: str, table: dict, path: Path) -> dict:
         "meter_tau_s": r.number("meter_tau_s", nonneg=True),
         "gap_alarm_percent": r.number("gap_alarm_percent", nonneg=True),
         "gap_alarm_cycles": r.number("gap_alarm_cycles", nonneg=True),
-        "idle_limit_l_min": r.number("idle_limit_l_min", nonneg=True)}
+        "idle_limit_l_min": r.number("idle_limit_l_min", nonneg=True),
+        "learn_cycles": r.number("learn_cycles", nonneg=True),
+        "diagnose_every_s": r.number("diagnose_every_s", nonneg=True),
+        "prometheus": _metrics_address(r, table.get("prometheus")),
+        "plot": r.flag("plot", None)}
     out = {k: v for k, v in given.items() if v is not None}
-    if "gap_alarm_cycles" in out and out["gap_alarm_cycles"] != int(out["gap_alarm_cycles"]):
-        raise r.error("gap_alarm_cycles must be a whole number")
+    for key in ("gap_alarm_cycles", "learn_cycles"):
+        if key in out and out[key] != int(out[key]):
+            raise r.error(f"{key} must be a whole number, not {out[key]:g}", key)
     # read when watch connects: paths, never the keys themselves
     for key, value in (("certificate", r.string("certificate")),
                        ("private_key", r.string("private_key"))):
@@ -416,6 +421,21 @@ def _live(file: str, table: dict, path: Path) -> dict:
         raise r.error(f"security_policy {out['security_policy']} needs certificate and "
                       "private_key")
     return out
+
+
+_METRICS_ADDRESS = re.compile(r"(?:(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):)?(\d{1,5})")
+
+
+def _metrics_address(r: _Reader, v) -> str | None:
+    """[live] prometheus: a port (a number or text) or "HOST:PORT", as text."""
+    if v is None:
+        return None
+    text = str(v) if isinstance(v, int) and not isinstance(v, bool) else v
+    m = _METRICS_ADDRESS.fullmatch(text) if isinstance(text, str) else None
+    if m is None or not 0 < int(m.group(2)) < 65536:
+        raise r.error('prometheus must be a port (9109) or "HOST:PORT" ("127.0.0.1:9109"), '
+                      f"not {_shown(v)}", "prometheus")
+    return text
 
 
 _PROGRAM_SUFFIXES = {".st", ".iecst", ".seq", ".xml", ".tcpou", ".tcgvl", ".tcdut", ".tcio",

@@ -277,6 +277,22 @@ SECTIONS = (
             '... for this many cycles (or windows) in a row'),
         Row(('idle_limit_l_min',), 'number', 'none',
             'alarm when the flow while the machine rests exceeds this (NL/min)'),
+        Row(('learn_cycles',), 'integer', '10',
+            ('judge the gap against a reference learned from this many first cycles (D1 '
+             'scaled per consumer to what the healthy machine measured; 0: against D1 '
+             'itself; 0-100,000)')),
+        Row(('diagnose_every_s',), 'number', 'none',
+            ('diagnose the last so many seconds of machine time every so many seconds, in '
+             'a worker process while recording goes on (10-86,400: 900 is every 15 '
+             'minutes)')),
+        Row(('prometheus',), 'string', 'none',
+            ('serve the comparison as Prometheus metrics at this port, on every interface '
+             '(`9109`), or at `"HOST:PORT"` (`"127.0.0.1:9109"`); needs the '
+             '`prometheus-client` package')),
+        Row(('plot',), 'flag', 'false',
+            ("draw the comparison per cycle (`comparison.png`, as in the [guide]"
+             "(../guide/live.md#the-comparison-as-a-picture)) in the output folder when "
+             "the watch ends")),
         Row(('security_policy',), 'string', '`"None"`',
             ('`"Basic256Sha256"`, `"Aes128_Sha256_RsaOaep"` or `"Aes256_Sha256_RsaPss"` '
              '(with `certificate` and `private_key`)')),
@@ -335,7 +351,8 @@ RANGES = {
 RANGES.update({"window_s": (1.0, 86_400.0), "sampling_ms": (0.0, 60_000.0),
                "publishing_ms": (10.0, 60_000.0), "rotate_s": (60.0, 86_400.0),
                "meter_tau_s": (0.0, 600.0), "gap_alarm_percent": (0.1, 1_000.0),
-               "gap_alarm_cycles": (1.0, 10_000.0), "idle_limit_l_min": (0.0, 1e8)})
+               "gap_alarm_cycles": (1.0, 10_000.0), "idle_limit_l_min": (0.0, 1e8),
+               "learn_cycles": (0.0, 100_000.0), "diagnose_every_s": (10.0, 86_400.0)})
 
 
 @dataclass(frozen=True)

@@ -8,13 +8,15 @@ import os
 import socket
 import subprocess
 import sys
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import numpy as np
 import pytest
+from asyncua import Server, ua
 
 from plcpred.diagnose import read_io_timeline, read_measured
-from plcpred.live import Twin, live_settings, serve, watch
+from plcpred.live import Twin, live_settings, machine_signals, plot_comparison, serve, watch
 from plcpred.machine import MachineError, load_machine
 from plcpred.plant import emulate
 from plcpred.sequencer.timeline import NS
@@ -50,6 +52,12 @@ async def served_and_watched(tmp_path, twin, speed, machine=PICK, **overrides):
     await asyncio.sleep(0.5)
     stop.set()
     return served, await watcher, out
+
+
+def initial_values(path: Path) -> dict:
+    """Each signal's value in a recorded timeline's rows at time 0."""
+    rows = [line.split(",") for line in path.read_text().splitlines()[1:]]
+    return {name: float(value) for t, name, value in rows if float(t) == 0.0}
 
 
 def recorded_edges(out: Path, number: int, origin_s: float) -> dict:
@@ -223,7 +231,7 @@ def test_a_leak_is_flagged_with_its_onset_and_named_by_the_periodic_diagnosis(tm
     # files rotated every 15 s: the first 40 s window spans three segments (one clock,
     # read as one run)
     live = Live(tmp_path, Twin(PICK, 320.0, truth=truth, truth_at_s=onset_s, seed=1),
-                speed=10.0, learn_cycles=5, diagnose_every_s=40.0, rotate_s=15.0)
+                speed=10.0, learn_cycles=5, diagnose_every_s=40.0, rotate_s=15.0, plot=True)
 
     async def run():
         await live.start_server()
@@ -268,13 +276,17 @@ def test_a_leak_is_flagged_with_its_onset_and_named_by_the_periodic_diagnosis(tm
     assert np.allclose(np.diff([_iso_ns(c["start"]) for c in during]) / NS, 4.0, atol=0.02)
     assert not [e for e in ev if e["event"] == "gap"]
     assert not (live.out / ".diagnosis").exists()
+    # [live] plot: the comparison drawn when the watch ended
+    picture = live.out / "comparison.png"
+    assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert 10_000 < picture.stat().st_size < 300_000
 
 
-@pytest.mark.xfail(strict=False, reason=(
-    "known bug, issue 41: about one run in four, on an idle 2-core machine too, a segment "
-    "begun after a restart misses one served edge shortly after its start (xXFront: 6 "
-    "recorded against 7 served); the assertions stay as they are until it is found"))
 def test_the_server_killed_and_restarted_twice_loses_and_repeats_no_edge(tmp_path):
+    # issue 41 (one run in four lost an edge just after a restart): the restarted server
+    # wrote the values it owed while the watch's monitored items were being made, so
+    # one signal's change came as a notification older than the meter's first value and
+    # was dropped before the segment opened; see the test after this one
     # a horizon far beyond what the test needs: the server must not reach its end while
     # the watch waits to reconnect
     live = Live(tmp_path, Twin(PICK, 600.0, seed=3), speed=5.0, learn_cycles=3)
@@ -311,7 +323,14 @@ def test_the_server_killed_and_restarted_twice_loses_and_repeats_no_edge(tmp_pat
     em = emulate(PICK, lasts[-1] + 5.0, seed=3)
     names = em.timeline.info["machine_signals"]
     spans = []
-    for origin_s, last, edges in zip(origins, lasts, recorded):
+    for number, (origin_s, last, edges) in enumerate(zip(origins, lasts, recorded), 1):
+        # every signal at its value at the segment's start, in its first rows
+        first_rows = initial_values(live.out / f"timeline-{number:04d}.csv")
+        assert set(first_rows) == set(live.twin.signals), number
+        for name, value in first_rows.items():
+            et, evals = em.timeline.edge_times_ns(names.get(name, name))
+            at = np.searchsorted(et / NS, max(origin_s, 0.0) + 1e-6) - 1
+            assert value == evals[at], (number, name, origin_s)
         for name, (t, v) in edges.items():
             et, evals = em.timeline.edge_times_ns(names.get(name, name))
             et, evals = et[1:] / NS, evals[1:]
@@ -328,6 +347,94 @@ def test_the_server_killed_and_restarted_twice_loses_and_repeats_no_edge(tmp_pat
     cycles = [e for e in ev if e["event"] == "cycle"]
     assert all(abs(c["reference_gap_percent"]) < 1.0 for c in cycles[3:])
     assert not result.alarms
+    # the picture of a watch with gaps, drawn from its events afterwards
+    picture = plot_comparison(live.out, live.out / "gaps.png")
+    assert picture.read_bytes()[:4] == b"\x89PNG"
+
+
+def test_import_plcpred_live_loads_no_matplotlib():
+    code = "import sys, plcpred.live; print(sorted(m for m in sys.modules if 'matplotlib' in m))"
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True, timeout=120)
+    assert done.stdout.strip() == "[]"
+
+
+def test_a_change_older_than_another_nodes_first_value_is_in_the_segments_start(tmp_path):
+    """A server gives the values on subscribing one node at a time, as it makes each
+    monitored item, while the machine runs on: a node whose item came early may change
+    before the last item is made, and that change comes as a notification older than
+    the other nodes' first values (issue 41: the restarted twin writing the values it
+    owed meanwhile). A server of the test's own gives exactly that, in order: xXFront's
+    first value 0 from before it changed to 1, the meter's first reading at 0 s,
+    xZDown's first value newer than it (on at 5 ms), then xXFront's change to 1 at
+    -56 ms and back to 0 at 12 ms. The segment starts at the newest first value, every
+    signal at its value then, and no change is lost."""
+    machine = load_machine(PICK)
+    signals = machine_signals(machine)
+    url = f"opc.tcp://127.0.0.1:{free_port()}"
+    t0 = datetime(2026, 11, 28, 8, 0, tzinfo=UTC)
+    lines, stop = [], asyncio.Event()
+
+    async def run():
+        server = Server()
+        await server.init()
+        server.set_endpoint(url)
+        server.set_security_policy([ua.SecurityPolicyType.NoSecurity])
+        idx = await server.register_namespace("urn:plcpred:test")
+        nodes = {}
+        for name in [*signals, "flow_l_min", "supply_bar_g"]:
+            nodes[name] = await server.nodes.objects.add_variable(
+                ua.NodeId(name, idx), name, _variant(name in signals, 0))
+
+        async def put(name, value, at_s):
+            stamp = t0 + timedelta(seconds=at_s)
+            await server.write_attribute_value(nodes[name].nodeid, ua.DataValue(
+                Value=_variant(name in signals, value), SourceTimestamp=stamp,
+                ServerTimestamp=stamp))
+
+        for name in signals:
+            await put(name, 0, -10.0)
+        await put("xZDown", 1, 0.005)
+        await put("flow_l_min", 50.0, 0.0)
+        await put("supply_bar_g", 6.0, 0.0)
+        await server.start()
+        try:
+            watcher = asyncio.create_task(watch(
+                machine, tmp_path / "watch", live_settings(machine, endpoint=url),
+                stop=stop, report=lines.append))
+            loop = asyncio.get_running_loop()
+            end = loop.time() + 60
+            while not any(line.startswith("connected") for line in lines):
+                assert loop.time() < end and not watcher.done(), lines
+                await asyncio.sleep(0.02)
+            await put("xXFront", 1, -0.056)
+            await put("xXFront", 0, 0.012)
+            for k in range(1, 11):
+                await put("flow_l_min", 50.0 + k, 0.1 * k)
+            await put("xZDown", 0, 0.5)
+            stop.set()
+            return await asyncio.wait_for(watcher, 60)
+        finally:
+            await server.stop()
+
+    result = asyncio.run(run())
+    out = tmp_path / "watch"
+    segments = [e for e in events(out) if e["event"] == "segment"]
+    assert len(segments) == 1 and not result.gaps
+    assert segments[0]["start"] == "2026-11-28T08:00:00.005000Z"
+    first_rows = initial_values(out / "timeline-0001.csv")
+    assert first_rows == {name: float(name in ("xXFront", "xZDown")) for name in signals}
+    edges = recorded_edges(out, 1, 0.0)
+    assert {name: list(zip(np.round(t, 6), v)) for name, (t, v) in edges.items()
+            if len(t)} == {"xXFront": [(0.007, 0.0)], "xZDown": [(0.495, 0.0)]}
+    run = read_measured(out / "measured-0001.csv")
+    assert np.allclose(run.time_s, 0.1 * np.arange(1, 11) - 0.005)
+    assert np.allclose(run.flow_l_min, 50.0 + np.arange(1, 11))
+
+
+def _variant(boolean: bool, value):
+    return ua.Variant(bool(value), ua.VariantType.Boolean) if boolean else \
+        ua.Variant(float(value), ua.VariantType.Double)
 
 
 def test_a_dropped_connection_is_filled_from_the_servers_history(tmp_path):
@@ -417,13 +524,11 @@ def test_prometheus_metrics_follow_the_comparison(tmp_path):
 
 
 def _epoch_ns(epoch) -> int:
-    from datetime import UTC, datetime
     d = epoch - datetime(1970, 1, 1, tzinfo=UTC)
     return (d.days * 86_400 + d.seconds) * NS + d.microseconds * 1000
 
 
 def _iso_ns(text: str) -> int:
-    from datetime import datetime
     return _epoch_ns(datetime.fromisoformat(text))
 
 
@@ -446,10 +551,75 @@ def test_live_table_is_checked_and_gives_node_ids(tmp_path):
                       ('node_template = "ns=4;s=MAIN.x"', "node_template must hold {signal}"),
                       ('security_policy = "Basic256Sha256"', "needs certificate"),
                       ("publishing_ms = 1", "outside the physical range"),
-                      ('nodes = { qZ = 3 }', "nodes must be a table")):
+                      ('nodes = { qZ = 3 }', "nodes must be a table"),
+                      ("learn_cycles = 2.5", "learn_cycles must be a whole number"),
+                      ("learn_cycles = -1", "learn_cycles must be >= 0"),
+                      ("diagnose_every_s = 5", "diagnose_every_s = 5 is outside the"),
+                      ('prometheus = "host:port"', "prometheus must be a port (9109) or"),
+                      ("prometheus = 70000", "prometheus must be a port"),
+                      ('plot = "yes"', "plot must be true or false")):
         with pytest.raises(MachineError) as e:
             machine(bad)
         assert "[live]" in str(e.value) and says in str(e.value), bad
+        # placed: the file and the key's line
+        assert str(e.value).startswith(f"{tmp_path / 'm.toml'}:"), str(e.value)
+    # the keys of watch's options: the file's values where no option is given (the
+    # command line passes None for an option left out), the option's where one is
+    m = machine('learn_cycles = 4\ndiagnose_every_s = 900\nprometheus = 9109\nplot = true\n')
+    s = live_settings(m, endpoint="opc.tcp://plc:4840", learn_cycles=None,
+                      diagnose_every_s=None, prometheus=None)
+    assert (s.learn_cycles, s.diagnose_every_s, s.prometheus, s.plot) == (4, 900.0, "9109",
+                                                                          True)
+    s = live_settings(m, endpoint="opc.tcp://plc:4840", learn_cycles=0,
+                      diagnose_every_s=60.0, prometheus="127.0.0.1:9200")
+    assert (s.learn_cycles, s.diagnose_every_s, s.prometheus) == (0, 60.0, "127.0.0.1:9200")
+    s = live_settings(machine('prometheus = "[::1]:9109"'), endpoint="opc.tcp://plc:4840")
+    assert (s.learn_cycles, s.diagnose_every_s, s.prometheus, s.plot) == (10, None,
+                                                                          "[::1]:9109", False)
+
+
+def test_cli_watch_takes_the_live_keys_unless_an_option_is_given(tmp_path, capsys):
+    """The real command line, with nothing listening at the endpoint (so the watch only
+    tries to connect for its second): the settings it starts with are in its first
+    event."""
+    from plcpred.cli import main
+    port = free_port()
+    machine = tmp_path / "m.toml"
+    machine.write_text(PICK.read_text().replace(
+        'program = "codesys_pick_place.st"',
+        f'program = "{SAMPLES / "codesys_pick_place.st"}"') + "\n[live]\nlearn_cycles = 4\n"
+        f'diagnose_every_s = 900\nprometheus = "127.0.0.1:{port}"\nplot = true\n')
+
+    def watched(out, *options) -> dict:
+        code = main(["watch", str(machine), "--out", str(out), "--endpoint",
+                     "opc.tcp://127.0.0.1:1", "--duration", "1s", *options])
+        printed = capsys.readouterr()
+        assert code == 0, printed.err
+        assert "no comparison.png" in printed.out      # plot = true, but no cycle to draw
+        return events(out)[0]["settings"]
+
+    s = watched(tmp_path / "file")
+    assert (s["learn_cycles"], s["diagnose_every_s"], s["prometheus"], s["plot"]) == (
+        4, 900.0, f"127.0.0.1:{port}", True)
+    other = free_port()
+    s = watched(tmp_path / "options", "--learn-cycles", "0", "--diagnose-every", "1min",
+                "--prometheus", f"127.0.0.1:{other}")
+    assert (s["learn_cycles"], s["diagnose_every_s"], s["prometheus"]) == (
+        0, 60.0, f"127.0.0.1:{other}")
+    # --plot where the file does not ask for the picture
+    machine.write_text(machine.read_text().replace("plot = true\n", ""))
+    assert events(tmp_path / "file")[0]["settings"]["plot"] is True
+    s = watched(tmp_path / "flag", "--plot")
+    assert s["plot"] is True
+    # a bad key: one positioned line, exit 2, whatever the command
+    machine.write_text(machine.read_text().replace("learn_cycles = 4", "learn_cycles = 4.5"))
+    for args in (["watch", str(machine), "--out", str(tmp_path / "bad"), "--endpoint",
+                  "opc.tcp://127.0.0.1:1", "--learn-cycles", "3"],
+                 ["predict", str(machine), "--horizon", "10s", "--out", str(tmp_path / "p")]):
+        assert main(args) == 2
+        err = capsys.readouterr().err
+        assert f"{machine}:" in err and "[live]: learn_cycles must be a whole number" in err
+        assert "Traceback" not in err and err.count("\n") == 1, err
 
 
 def _cli(*args, timeout=60):
