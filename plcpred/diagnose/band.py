@@ -9,11 +9,14 @@ less). A diagnosis that reads that error as a fault blames healthy machines, sin
 free parameter absorbs a few per cent.
 
 So the nominal model is allowed to flex within the band before any effect is credited:
-:class:`ModelForm` is a nuisance "effect" with a parameter per consumer (where within its band each
-drive's strokes lie, a factor on each nozzle and leak), fitted like the clock and the meter's lag.
-An effect is a finding only where it beats the nominal model flexed so, on held-out samples
-(:func:`~plcpred.diagnose.core.diagnose`), and :func:`band_pct` states the band in total air for the
-report.
+:class:`ModelForm` is a nuisance "effect" with a parameter per chamber and per nozzle (where
+within its band each chamber's fills lie, a factor on each nozzle and leak), fitted like the
+clock and the meter's lag. An effect is a finding only where it beats the nominal model flexed
+so, on held-out samples (:func:`~plcpred.diagnose.core.diagnose`), and :func:`band_pct` states
+the band in total air for the report. Where the physics plant models a machine better than D1
+(its held-out error is lower), the band is taken around the plant's air instead
+(:func:`plant_factor_range`): the plant has the heat and the exhausts D1 leaves out, so what is
+left to flex is narrower.
 """
 from __future__ import annotations
 
@@ -32,6 +35,10 @@ DRIVE_ABOVE_SHARE = 0.04
 DRIVE_THERMAL_SHARE = 0.08
 # a nozzle's or a leak's D2 flow either way (a worn or a blocked nozzle is 20 % and more)
 PASSIVE_SHARE = PASSIVE_TOLERANCE_SHARE
+# a stroke may take this share more or less than the physics plant's: the plant has the
+# heat, the top-up and the exhaust that D1 leaves out, but not a real machine's heat
+# transfer coefficients, spool ramps, friction and dimensions as built
+PLANT_SHARE = 0.04
 
 
 def drive_factor_range(mm: MachineModel, p: ModelParams) -> tuple[np.ndarray, np.ndarray]:
@@ -51,11 +58,21 @@ def drive_factor_range(mm: MachineModel, p: ModelParams) -> tuple[np.ndarray, np
     return centre - DRIVE_THERMAL_SHARE, centre + DRIVE_ABOVE_SHARE
 
 
+def plant_factor_range(mm: MachineModel) -> tuple[np.ndarray, np.ndarray]:
+    """(low, high) as :func:`drive_factor_range`, for the plant's strokes: within
+    PLANT_SHARE of what the plant draws (on top of the plant, a factor f on a stroke's
+    D1 air adds (f - 1) x D1 to the plant's)."""
+    n = len(mm.drives)
+    return np.full((n, 2), 1.0 - PLANT_SHARE), np.full((n, 2), 1.0 + PLANT_SHARE)
+
+
 class ModelForm(Effect):
     """The nominal model flexed within the band (a nuisance, never a verdict): each
-    drive anywhere within its band, each nozzle and leak within PASSIVE_SHARE of its
-    rating. Consumer by consumer, since heat, dwell and tubing differ between drives,
-    and a catalogue's conductance errs for each nozzle on its own."""
+    drive's chambers anywhere within its band, each nozzle and leak within
+    PASSIVE_SHARE of its rating. Chamber by chamber, since heat, dwell and tubing differ
+    between drives and between a drive's two fills, and a catalogue's conductance errs
+    for each nozzle on its own. ``factor_range`` (default :func:`drive_factor_range`):
+    the band on D1's air, or :func:`plant_factor_range` on top of the plant's."""
     name, title = "model_form", "the activation model's own accuracy"
     expressible = False
 
@@ -63,20 +80,28 @@ class ModelForm(Effect):
         self.factor_range = factor_range
 
     def params(self, mm, ctx):
-        # per drive 0: its strokes at the band's top, 1: at its bottom
-        out = [Param(f"{mm.models[r].name}.shortfall", "share of the band", 0.0, 1.0, 0.5,
-                     (0.0, 0.5, 1.0)) for r in mm.drives]
+        # per drive and direction 0: its strokes at the band's top, 1: at its bottom.
+        # Each chamber on its own: the dwell before a chamber's next fill, which decides
+        # how far it exhausted and cooled, differs between the two
+        out = [Param(f"{mm.models[r].name}.{way}_shortfall", "share of the band", 0.0, 1.0,
+                     0.5, (0.0, 0.5, 1.0), nuisance=True)
+               for r in mm.drives for way in ("extend", "retract")]
         out += [Param(f"{mm.models[r].name}.factor", "", 1.0 - PASSIVE_SHARE,
-                      1.0 + PASSIVE_SHARE, 1.0) for r in mm.passives]
+                      1.0 + PASSIVE_SHARE, 1.0, nuisance=True) for r in mm.passives]
         return out
+
+    @staticmethod
+    def count(mm: MachineModel) -> int:
+        """How many parameters :meth:`params` gives."""
+        return 2 * len(mm.drives) + len(mm.passives)
 
     def apply(self, mm, p, theta):
         q = p.copy()
-        n = len(mm.drives)
+        n = 2 * len(mm.drives)
         if n:
             low, high = self.factor_range if self.factor_range is not None else \
                 drive_factor_range(mm, p)
-            s = np.asarray(theta[:n], dtype=float)[:, None]
+            s = np.asarray(theta[:n], dtype=float).reshape(-1, 2)
             factor = high - s * (high - low)
             q.extend_nl = p.extend_nl * factor[:, 0]
             q.retract_nl = p.retract_nl * factor[:, 1]
@@ -105,3 +130,48 @@ def band_pct(mm: MachineModel, p: ModelParams, drive_nl: float, passive_nl: floa
     most = high_f * drive_nl + (1.0 + PASSIVE_SHARE) * passive_nl
     predicted = drive_nl + passive_nl
     return 100.0 * (predicted - most) / most, 100.0 * (predicted - least) / least
+
+
+class WithinBand(Effect):
+    """``inner`` fitted together with the nominal model flexed within its band
+    (:class:`ModelForm`): the effect's values are then what the logs say beyond the
+    model's own accuracy. Used where a reading fixes the effect's size (a supply the log's
+    pressure column reads), which D1's own error would otherwise pull off that reading.
+    Everything but the fit is ``inner``'s."""
+
+    def __init__(self, inner: Effect, factor_range=None):
+        self.inner = inner
+        self.flex = ModelForm(factor_range)
+        self.name = inner.name
+        self.title = inner.title + " (the model flexed within its accuracy)"
+        self.expressible = inner.expressible
+        self.through_plant = inner.through_plant
+
+    def _own(self, mm, theta):
+        return theta[:len(theta) - ModelForm.count(mm)]
+
+    def applies(self, mm):
+        return self.inner.applies(mm)
+
+    def params(self, mm, ctx):
+        return self.inner.params(mm, ctx) + self.flex.params(mm, ctx)
+
+    def apply(self, mm, p, theta):
+        n = len(theta) - ModelForm.count(mm)
+        return self.flex.apply(mm, self.inner.apply(mm, p, theta[:n]), theta[n:])
+
+    def physical(self, mm, theta):
+        return self.inner.physical(mm, self._own(mm, theta))
+
+    def implausible(self, mm, theta):
+        return self.inner.implausible(mm, self._own(mm, theta))
+
+    def to_machine(self, mm, data, theta):
+        return self.inner.to_machine(mm, data, self._own(mm, theta))
+
+    def tolerance_box(self, mm, ctx):
+        box = self.inner.tolerance_box(mm, ctx)
+        return None if box is None else box + [(-np.inf, np.inf)] * ModelForm.count(mm)
+
+    def tolerance_reason(self, mm, theta, ctx):
+        return self.inner.tolerance_reason(mm, self._own(mm, theta), ctx)

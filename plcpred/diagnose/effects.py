@@ -89,6 +89,9 @@ class Param:
     plant: bool = False
     # a discrete parameter of several drives also swept as one value for all of them
     joint: bool = True
+    # the model's own accuracy, fitted beside an effect (diagnose.band): at a bound it
+    # says nothing about the effect
+    nuisance: bool = False
 
 
 DELAY_GRID_S = tuple(np.round(np.arange(0.0, 0.51, 0.05), 3))
@@ -127,12 +130,34 @@ class Effect:
         """Change the machine file's TOML data in place; return what was changed."""
         return []
 
-    def within_tolerance(self, mm: MachineModel, theta, ctx: dict) -> str | None:
-        """Where fitted values ``theta`` move the file's values no further than a
-        healthy machine's own differ from its file (catalogue conductances, stroke
-        times set by eye, tubes cut on site), why; else None (a fault, or an effect
-        no healthy machine shows)."""
+    def tolerance_box(self, mm: MachineModel, ctx: dict) -> list[tuple[float, float]] | None:
+        """Per parameter, (low, high): the values within which the file's values move no
+        further than a healthy machine's own differ from its file (catalogue
+        conductances, stroke times set by eye, tubes cut on site); None for an effect
+        no healthy machine shows."""
         return None
+
+    def tolerance_reason(self, mm: MachineModel, theta, ctx: dict) -> str:
+        """Why values ``theta`` within :meth:`tolerance_box` are no fault."""
+        return "within a healthy machine's tolerance of its file"
+
+    def within_tolerance(self, mm: MachineModel, theta, ctx: dict) -> str | None:
+        """Where fitted values ``theta`` lie within :meth:`tolerance_box`, why; else
+        None (a fault, or an effect no healthy machine shows)."""
+        box = self.tolerance_box(mm, ctx)
+        if box is None or not all(lo <= float(v) <= hi for v, (lo, hi) in zip(theta, box)):
+            return None
+        return self.tolerance_reason(mm, theta, ctx)
+
+    def clipped_to_tolerance(self, mm: MachineModel, theta, ctx: dict) -> np.ndarray | None:
+        """``theta`` with each value moved to the nearest within :meth:`tolerance_box`
+        (None where the effect has none)."""
+        box = self.tolerance_box(mm, ctx)
+        if box is None:
+            return None
+        lo, hi = (np.array(b, dtype=float) for b in zip(*box)) if box else (
+            np.zeros(0), np.zeros(0))
+        return np.clip(np.asarray(theta, dtype=float), lo, hi)
 
 
 def _supply_pa(machine) -> float:
@@ -160,12 +185,13 @@ class Leak(Effect):
         q.extra_leak_l_min = p.extra_leak_l_min + float(theta[0])
         return q
 
-    def within_tolerance(self, mm, theta, ctx):
+    def tolerance_box(self, mm, ctx):
+        return [(0.0, LEAK_TOLERANCE_SHARE * ctx["mean_l_min"])]
+
+    def tolerance_reason(self, mm, theta, ctx):
         limit = LEAK_TOLERANCE_SHARE * ctx["mean_l_min"]
-        if float(theta[0]) <= limit:
-            return (f"{float(theta[0]):.2g} NL/min always on is within a meter's zero offset "
-                    f"and a healthy machine's fittings ({limit:.2g} NL/min)")
-        return None
+        return (f"{float(theta[0]):.2g} NL/min always on is within a meter's zero offset "
+                f"and a healthy machine's fittings ({limit:.2g} NL/min)")
 
     def conductance(self, mm, flow_l_min: float) -> float:
         """(D2 inverted) the sonic conductance of a leak at the supply that flows
@@ -237,11 +263,13 @@ class PassiveFlow(Effect):
             q.passive_l_min[k] = p.passive_l_min[k] * f
         return q
 
-    def within_tolerance(self, mm, theta, ctx):
-        if all(abs(float(f) - 1.0) <= PASSIVE_TOLERANCE_SHARE for f in theta):
-            return (f"every nozzle within {PASSIVE_TOLERANCE_SHARE:.0%} of its rating "
-                    "(a catalogue's conductance, an orifice's Cd)")
-        return None
+    def tolerance_box(self, mm, ctx):
+        return [(1.0 - PASSIVE_TOLERANCE_SHARE, 1.0 + PASSIVE_TOLERANCE_SHARE)] * len(
+            self._nozzles(mm))
+
+    def tolerance_reason(self, mm, theta, ctx):
+        return (f"every nozzle within {PASSIVE_TOLERANCE_SHARE:.0%} of its rating "
+                "(a catalogue's conductance, an orifice's Cd)")
 
     def _C(self, mm, k) -> float:
         return sonic_conductance(mm.machine.consumers[mm.passives[k]])
@@ -291,12 +319,14 @@ class SupplyPressure(Effect):
                           min(hi, logged + LOGGED_SUPPLY_TOLERANCE_BAR), logged)]
         return [Param("supply_bar_g", "bar(g)", *self._range(mm), mm.machine.supply_bar_g)]
 
-    def within_tolerance(self, mm, theta, ctx):
+    def tolerance_box(self, mm, ctx):
+        p = mm.machine.supply_bar_g
+        return [(p - SUPPLY_TOLERANCE_BAR, p + SUPPLY_TOLERANCE_BAR)]
+
+    def tolerance_reason(self, mm, theta, ctx):
         shift = float(theta[0]) - mm.machine.supply_bar_g
-        if abs(shift) <= SUPPLY_TOLERANCE_BAR:
-            return (f"{shift:+.2f} bar from the file's supply is within a regulator's "
-                    "setting and its gauge")
-        return None
+        return (f"{shift:+.2f} bar from the file's supply is within a regulator's "
+                "setting and its gauge")
 
     def apply(self, mm, p, theta):
         m = mm.machine
@@ -389,15 +419,18 @@ class DeadVolume(Effect):
                         "tube")
         return None
 
-    def within_tolerance(self, mm, theta, ctx):
-        for row, v in zip(mm.drives, theta):
+    def tolerance_box(self, mm, ctx):
+        box = []
+        for row in mm.drives:
             c = mm.machine.consumers[row]
             bore_mm2 = max(swept_areas_mm2(c.kind, c.bore_mm, c.rod_mm or 0.0))
             allowed = (TUBE_TOLERANCE_SHARE * min(tube_volumes_cm3(c))
                        + max(inner_dead_volumes_cm3(c))
                        + bore_mm2 * UNSTATED_DEAD_STROKE_MM / 1000.0)
-            if abs(float(v)) > allowed:
-                return None
+            box.append((-allowed, allowed))
+        return box
+
+    def tolerance_reason(self, mm, theta, ctx):
         return (f"every drive's dead volume within {TUBE_TOLERANCE_SHARE:.0%} of its tubes "
                 "and a few mm of its bore (tubes cut on site, end caps and fittings)")
 
@@ -552,11 +585,12 @@ class SharedSupply(Effect):
         q.refill_fraction, q.refill_tau_s = float(theta[0]), float(theta[1])
         return q
 
-    def within_tolerance(self, mm, theta, ctx):
-        if float(theta[0]) <= REFILL_TOLERANCE_FRACTION:
-            return (f"{float(theta[0]):.0%} of each stroke refilled later is what any "
-                    "supply line's own volume gives back")
-        return None
+    def tolerance_box(self, mm, ctx):
+        return [(0.0, REFILL_TOLERANCE_FRACTION), (-math.inf, math.inf)]
+
+    def tolerance_reason(self, mm, theta, ctx):
+        return (f"{float(theta[0]):.0%} of each stroke refilled later is what any "
+                "supply line's own volume gives back")
 
     def physical(self, mm, theta):
         return {"refill_fraction": float(theta[0]), "refill_tau_s": float(theta[1])}
@@ -600,11 +634,12 @@ class ValveDelay(_Timing):
         q.delay_s = np.clip(p.delay_s + np.asarray(theta, dtype=float), 0.0, None)
         return q
 
-    def within_tolerance(self, mm, theta, ctx):
-        if all(abs(float(d)) <= DELAY_TOLERANCE_S for d in theta):
-            return (f"every valve within {DELAY_TOLERANCE_S * 1000:.0f} ms of the file's "
-                    "switching time (units and coil temperatures differ)")
-        return None
+    def tolerance_box(self, mm, ctx):
+        return [(-DELAY_TOLERANCE_S, DELAY_TOLERANCE_S)] * len(mm.drives)
+
+    def tolerance_reason(self, mm, theta, ctx):
+        return (f"every valve within {DELAY_TOLERANCE_S * 1000:.0f} ms of the file's "
+                "switching time (units and coil temperatures differ)")
 
     def physical(self, mm, theta):
         return {mm.models[r].name: {"switch_delay_s": mm.models[r].delay_s + float(d)}
@@ -666,11 +701,12 @@ class StrokeTime(_Timing):
                                                self._throttled_tau_s(mm, theta)[rows])
         return q
 
-    def within_tolerance(self, mm, theta, ctx):
-        if all(abs(float(f) - 1.0) <= STROKE_TOLERANCE_SHARE for f in theta):
-            return (f"every stroke time within {STROKE_TOLERANCE_SHARE:.0%} of the file's "
-                    "(set at commissioning by eye)")
-        return None
+    def tolerance_box(self, mm, ctx):
+        return [(1.0 - STROKE_TOLERANCE_SHARE, 1.0 + STROKE_TOLERANCE_SHARE)] * len(mm.drives)
+
+    def tolerance_reason(self, mm, theta, ctx):
+        return (f"every stroke time within {STROKE_TOLERANCE_SHARE:.0%} of the file's "
+                "(set at commissioning by eye)")
 
     def _throttled_tau_s(self, mm, theta) -> np.ndarray:
         """The exhaust time constant a slower stroke brings: strokes are slowed by the
@@ -740,10 +776,11 @@ class SensorLag(Effect):
     def physical(self, mm, theta):
         return {"tau_s": float(theta[0])}
 
-    def within_tolerance(self, mm, theta, ctx):
-        if float(theta[0]) <= METER_LAG_FIT_MAX_S:
-            return f"a meter lag of {float(theta[0]):.2g} s is a thermal-mass meter's own"
-        return None
+    def tolerance_box(self, mm, ctx):
+        return [(0.0, METER_LAG_FIT_MAX_S)]
+
+    def tolerance_reason(self, mm, theta, ctx):
+        return f"a meter lag of {float(theta[0]):.2g} s is a thermal-mass meter's own"
 
     def to_machine(self, mm, data, theta):
         data.setdefault("meter", {})["tau_s"] = round(float(theta[0]), 6)
@@ -765,11 +802,12 @@ class MeterGain(Effect):
         q.meter_gain = p.meter_gain * float(theta[0])
         return q
 
-    def within_tolerance(self, mm, theta, ctx):
-        if abs(float(theta[0]) - 1.0) <= METER_GAIN_TOLERANCE:
-            return (f"a meter gain of {float(theta[0]):.3f} is within a thermal-mass "
-                    f"meter's accuracy ({METER_GAIN_TOLERANCE:.0%} of reading)")
-        return None
+    def tolerance_box(self, mm, ctx):
+        return [(1.0 - METER_GAIN_TOLERANCE, 1.0 + METER_GAIN_TOLERANCE)]
+
+    def tolerance_reason(self, mm, theta, ctx):
+        return (f"a meter gain of {float(theta[0]):.3f} is within a thermal-mass "
+                f"meter's accuracy ({METER_GAIN_TOLERANCE:.0%} of reading)")
 
     def physical(self, mm, theta):
         out = {"gain": float(theta[0])}

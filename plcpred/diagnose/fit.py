@@ -525,6 +525,15 @@ def fit_effects(effects: list[Effect], mm: MachineModel, rds: list[RunData],
     return _fit_result(problem, res, u)
 
 
+def params_at(effects: list[Effect], mm: MachineModel, rds: list[RunData],
+              bases: list[ModelParams], ctx: dict, theta: np.ndarray) -> list[ModelParams]:
+    """Per run: ``bases`` with ``effects`` at ``theta`` (a :class:`FitResult`'s values,
+    the clock adjustment and a fitted meter lag last), as a fit of them would give."""
+    masks = [np.ones(len(rd.end_s), bool) for rd in rds]
+    problem, _ = _FitProblem.of(effects, mm, rds, masks, bases, ctx, None, False)
+    return problem.model_params(np.asarray(theta, dtype=float))
+
+
 @dataclass
 class _FitProblem:
     """What a fit varies and what it matches: the effects' parameters, then the clock

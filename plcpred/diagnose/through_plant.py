@@ -200,6 +200,9 @@ class ThroughPlant(Effect):
     def within_tolerance(self, mm, theta, ctx):
         return self.inner.within_tolerance(mm, self.quantise(mm, theta), ctx)
 
+    def tolerance_box(self, mm, ctx):
+        return self.inner.tolerance_box(mm, ctx)
+
     def to_machine(self, mm, data, theta):
         return self.inner.to_machine(mm, data, np.asarray(self.quantise(mm, theta)))
 
