@@ -82,9 +82,13 @@ def consumer_models(machine) -> list[ConsumerModel]:
     for c in machine.consumers:
         if c.kind in CYLINDER_KINDS:
             p_pa = bar_g_to_pa(machine.supply_bar_g, machine.atmosphere_kpa)
+            # D1a/D1b, times the file's calibration of each fill (air_factor)
+            f_ext, f_ret = getattr(c, "air_factor", (1.0, 1.0))
             v_ext, v_ret = consumer_stroke_volumes_nl(c, p_pa, t_supply_k)
+            v_ext, v_ret = v_ext * f_ext, v_ret * f_ret
             st = c.stroke_times()
             swept, swept_held = swept_volumes_nl(c, p_pa, p_atm_pa, t_supply_k)
+            swept = (swept[0] * f_ext, swept[1] * f_ret)
             out.append(ConsumerModel(c.name, c.kind, list(c.valve), "active", v_ext, v_ret,
                                      pressure_bar_g=machine.supply_bar_g,
                                      delay_s=c.switch_delay_s, stroke_time_s=st,

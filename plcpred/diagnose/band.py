@@ -22,7 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .effects import PASSIVE_TOLERANCE_SHARE, Effect, Param
+from ..air.demand import sonic_conductance
+from .effects import PASSIVE_TOLERANCE_SHARE, Effect, Param, consumer_table
 from .fit_model import MachineModel, ModelParams
 
 # a stroke may take this share of D1 more than a settled stroke (bore, stroke and tube
@@ -39,6 +40,8 @@ PASSIVE_SHARE = PASSIVE_TOLERANCE_SHARE
 # heat, the top-up and the exhaust that D1 leaves out, but not a real machine's heat
 # transfer coefficients, spool ramps, friction and dimensions as built
 PLANT_SHARE = 0.04
+# a calibration factor this close to 1 is not written (a meter's own accuracy)
+CALIBRATION_QUANTUM = 0.01
 
 
 def drive_factor_range(mm: MachineModel, p: ModelParams) -> tuple[np.ndarray, np.ndarray]:
@@ -112,6 +115,39 @@ class ModelForm(Effect):
 
     def physical(self, mm, theta):
         return dict(zip([p.name for p in self.params(mm, {})], map(float, theta)))
+
+    def to_machine(self, mm, data, theta):
+        """The flexed model as a calibration of the file: each drive's ``air_factor``
+        (extend, retract) times the factor its fills were flexed by, each nozzle's and
+        leak's C times its factor. Needs ``factor_range`` (the band of the bases the
+        fit started from). Factors within CALIBRATION_QUANTUM of 1 are left out."""
+        changes = []
+        n = 2 * len(mm.drives)
+        if n and self.factor_range is not None:
+            low, high = self.factor_range
+            s = np.asarray(theta[:n], dtype=float).reshape(-1, 2)
+            factors = high - s * (high - low)
+            for row, f in zip(mm.drives, factors):
+                if np.all(np.abs(f - 1.0) < CALIBRATION_QUANTUM):
+                    continue
+                c = mm.machine.consumers[row]
+                new = [round(float(a * b), 3) for a, b in zip(c.air_factor, f)]
+                consumer_table(data, c.name)["air_factor"] = new
+                changes.append(f'consumer "{c.name}": air_factor = {new} (calibrated: '
+                               "its fills take that share of D1)")
+        for row, f in zip(mm.passives, theta[n:]):
+            if abs(float(f) - 1.0) < CALIBRATION_QUANTUM:
+                continue
+            c = mm.machine.consumers[row]
+            C = sonic_conductance(c) * float(f)
+            t = consumer_table(data, c.name)
+            for key in ("orifice_mm", "Cd"):
+                t.pop(key, None)
+            t["C"] = float(f"{C:.6g}")
+            t.setdefault("b", c.b)
+            changes.append(f'consumer "{c.name}": C = {C:.3g} m^3/(s Pa) (calibrated: '
+                           f"x{float(f):.3g})")
+        return changes
 
 
 def band_pct(mm: MachineModel, p: ModelParams, drive_nl: float, passive_nl: float

@@ -146,6 +146,7 @@ class Diagnosis:
     bases: list = field(default_factory=list)       # per run: the aligned nominal model
     alternatives: list[str] = field(default_factory=list)   # as good as the verdict
     machine_model: MachineModel | None = None
+    fit_context: dict = field(default_factory=dict)   # what the effects' fits were given
     # the nominal machine through the physics plant (no parameter; its timing_params
     # fitted), None where it was not made; whether it explains a real part of the gap
     # (then an effect must beat it too), and whether it explains the gap as well as the
@@ -481,7 +482,8 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
     return Diagnosis(machine, g.rds, g.base_score, nominal.heldout, judge.noise,
                      where.contexts, where.step_contexts, where.locations, results,
                      verdict.verdict, verdict.combination, g.fold_kind, warnings,
-                     bases=g.bases, machine_model=g.mm, alternatives=verdict.alternatives,
+                     bases=g.bases, machine_model=g.mm, fit_context=g.ctx,
+                     alternatives=verdict.alternatives,
                      reference=nominal.reference, on_plant=verdict.on_plant,
                      dynamics_explain=verdict.dynamics_explain, flexed=nominal.flexed,
                      band_pct=nominal.band, within_band=verdict.within_band,
@@ -1688,9 +1690,11 @@ def write_fixed_machine(d: Diagnosis, path) -> list[str]:
                 skipped.append(e.name)
                 continue
             changes += e.to_machine(d.machine_model, data, theta)
+    calibrated = _calibrate(d, data)
     header = [f"{machine.name}, corrected by plcpred diagnose from {machine.path.name}",
               f"verdict: {d.verdict}"]
     header += [f"changed: {c}" for c in changes] or ["changed: nothing"]
+    header += [f"calibrated: {c}" for c in calibrated]
     header += [f"not written (the air model cannot express it yet): {s}" for s in skipped]
     if d.combination and d.combination.get("beyond_plant") and changes:
         header.append(("fitted through the physics plant (this file run through it)"
@@ -1700,6 +1704,27 @@ def write_fixed_machine(d: Diagnosis, path) -> list[str]:
     save_machine(data, machine, path, "\n".join(header), by="plcpred diagnose")
     d.fixed_machine = str(path)
     return changes
+
+
+def _calibrate(d: Diagnosis, data: dict) -> list[str]:
+    """Write into ``data`` the model's own accuracy as the logs show it, on top of the
+    verdict's effects: the nominal model flexed within its band (:class:`ModelForm`),
+    fitted on every sample with the effects at their fitted values, as each drive's
+    ``air_factor`` and each nozzle's and leak's C. A healthy machine's strokes take a
+    few per cent less than D1 books; without this, ``predict`` on the corrected file
+    keeps that error however right the verdict. Not where an effect was fitted through
+    the plant (its air is in no D1 figure the fit could start from)."""
+    mm = d.machine_model
+    if mm is None or not mm.models or not d.runs or (
+            d.combination and _through_plant(d.combination["fit"].effects)):
+        return []
+    start = d.combination["fit"].params if d.combination else d.bases
+    # what predict on the corrected file books: D1 with the effects, no plant
+    bases = [dataclasses.replace(p, dynamic=False, variant=()) for p in start]
+    flex = ModelForm(drive_factor_range(mm, bases[0]))
+    masks = [np.ones(len(rd.end_s), bool) for rd in d.runs]
+    fit = fit_effects([flex], mm, d.runs, masks, bases, d.fit_context)
+    return flex.to_machine(mm, data, fit.theta[:len(flex.params(mm, d.fit_context))])
 
 
 def clock_reading(run, offset_s: float) -> str:

@@ -164,7 +164,7 @@ def _supply_pa(machine) -> float:
     return bar_g_to_pa(machine.supply_bar_g, machine.atmosphere_kpa)
 
 
-def _consumer_table(data: dict, name: str) -> dict:
+def consumer_table(data: dict, name: str) -> dict:
     for t in data.get("consumer", []):
         if t.get("name") == name:
             return t
@@ -288,7 +288,7 @@ class PassiveFlow(Effect):
             if abs(f - 1.0) < 1e-3:
                 continue
             m = mm.models[mm.passives[k]]
-            t = _consumer_table(data, m.name)
+            t = consumer_table(data, m.name)
             C = self._C(mm, k) * float(f)
             for key in ("orifice_mm", "Cd"):
                 t.pop(key, None)
@@ -470,7 +470,7 @@ class DeadVolume(Effect):
                 continue
             c = mm.machine.consumers[row]
             dl = float(v) * 1000.0 / _tube_area_mm2(c) / 1000.0     # m
-            t = _consumer_table(data, c.name)
+            t = consumer_table(data, c.name)
             if not c.tube_id_mm:
                 t["tube_id_mm"] = DEFAULT_TUBE_ID_MM
             lengths = [max(0.0, round(x + dl, 6)) for x in c.tube_length_m]
@@ -551,11 +551,11 @@ class IncompleteExhaust(Effect):
             inner, tau = float(theta[2 * k]), float(theta[2 * k + 1])
             name = mm.models[r].name
             if k in timed:
-                _consumer_table(data, name)["partial_strokes"] = True
+                consumer_table(data, name)["partial_strokes"] = True
                 changes.append(f'consumer "{name}": partial_strokes = true')
             if tau < MIN_WRITTEN_TAU_S:
                 continue            # off: the drive's exhausts are complete
-            t = _consumer_table(data, name)
+            t = consumer_table(data, name)
             t["exhaust_tau_s"] = float(f"{tau:.6g}")
             change = f'consumer "{name}": exhaust_tau_s = {tau:.3g}'
             if max(abs(inner - v) for v in self._inner(mm, k)) > 0.05:
@@ -652,7 +652,7 @@ class ValveDelay(_Timing):
                 continue
             m = mm.models[r]
             new = round(max(0.0, m.delay_s + float(d)), 6)
-            _consumer_table(data, m.name)["switch_delay_s"] = new
+            consumer_table(data, m.name)["switch_delay_s"] = new
             changes.append(f'consumer "{m.name}": switch_delay_s = {new:g}')
         return changes
 
@@ -742,7 +742,7 @@ class StrokeTime(_Timing):
             ext, ret = self._reference(mm, k)
             new = [round(max(1e-4, ext * float(f)), 6), round(max(1e-4, ret * float(f)), 6)]
             name = mm.models[mm.drives[k]].name
-            t = _consumer_table(data, name)
+            t = consumer_table(data, name)
             t["stroke_time_s"] = new
             changes.append(f'consumer "{name}": stroke_time_s = {new}')
             if k in self.partial_drives:

@@ -236,6 +236,7 @@ def _cylinder_keys(r: _Reader, table: dict, c: Consumer) -> None:
     c.initial = r.string("initial", "retracted", choices=("retracted", "extended"))
     c.exhaust_tau_s = r.number("exhaust_tau_s", positive=True)
     c.partial_strokes = r.flag("partial_strokes")
+    c.air_factor = r.pair("air_factor", (1.0, 1.0), positive=True)
     if c.partial_strokes and c.stroke_time_s is None:
         raise r.error("partial_strokes needs stroke_time_s (how far a piston gets "
                       "before the next edge)", "partial_strokes")

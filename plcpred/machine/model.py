@@ -84,6 +84,8 @@ class Consumer:
     flow_model: str = "iso6358"
     exhaust_tau_s: float | None = None  # air-model option: incomplete exhaust (off)
     partial_strokes: bool = False       # air-model option: strokes cut short (off)
+    # air-model option: D1's air of each fill (extend, retract) times this (a calibration)
+    air_factor: tuple[float, float] = (1.0, 1.0)
     line: str | None = None             # the [[line]] it hangs on (plant only)
     # (supply Pa, atmosphere Pa, ambient K, file) for stroke times from the plant
     supply_context: tuple = (6.0 * PA_PER_BAR + P_ATM_PA, P_ATM_PA, T0_K, "")

@@ -123,6 +123,11 @@ SECTIONS = (
              "tube and the cylinder's own `dead_volume_cm3`) still holds above "
              'atmosphere, decaying with this time constant after the opposite stroke '
              'ended')),
+        Row(('air_factor',), 'pair', '1',
+            ("activation-model option: each fill's D1 air times this, [extend, retract] "
+             "or one number: a calibration from flow logs (`diagnose --write-machine` "
+             "writes it where the drive's strokes take less or more air than D1 books, "
+             "as real strokes do by a few per cent); the physics plant ignores it")),
         Row(('partial_strokes',), 'flag', 'false',
             ('activation-model option (needs `stroke_time_s`): a stroke that the next '
              'edge cuts short (a pulse shorter than the stroke, a valve that chatters)'
@@ -334,6 +339,7 @@ RANGES = {
     "orifice_mm": (0.001, 1_000.0), "Cd": (0.0, 1.0),
     "pulse_ms": (1e-3, 1e9), "period_s": (1e-3, 1e8), "offset_s": (0.0, 1e9),
     "jitter_s": (0.0, 1e8), "pulses_s": (0.0, 1e9), "exhaust_tau_s": (1e-4, 60.0),
+    "air_factor": (0.05, 20.0),
     "tau_s": (0.0, 600.0), "rate_hz": (1e-4, 1e5), "noise_l_min": (0.0, 1e7),
     "offset_l_min": (-1e6, 1e6), "full_scale_l_min": (0.0, 1e8),
     "payload_kg": (0.0, 1e5), "mount_angle_deg": (-90.0, 90.0), "moving_mass_kg": (0.0, 1e5),

@@ -121,6 +121,22 @@ def test_rig_strokes_reproduce_the_published_table(name, extend, retract):
     assert model.retract_nl * P0_PA / P_ATM_PA == pytest.approx(retract, abs=0.002)
 
 
+def test_air_factor_calibrates_each_fill_of_one_drive():
+    from plcpred.machine import MachineError, machine_from_data, read_machine_data
+    data = read_machine_data(RIG)
+    nominal = {x.name: x for x in consumer_models(machine_from_data(data, RIG))}
+    drive = next(c for c in data["consumer"] if c["name"] == "A")
+    drive["air_factor"] = [0.9, 1.1]
+    calibrated = {x.name: x for x in consumer_models(machine_from_data(data, RIG))}
+    assert calibrated["A"].extend_nl == pytest.approx(0.9 * nominal["A"].extend_nl, rel=1e-12)
+    assert calibrated["A"].retract_nl == pytest.approx(1.1 * nominal["A"].retract_nl,
+                                                       rel=1e-12)
+    assert calibrated["B"].extend_nl == nominal["B"].extend_nl
+    drive["air_factor"] = -1.0
+    with pytest.raises(MachineError, match="air_factor"):
+        machine_from_data(data, RIG)
+
+
 def rig_total_without_leak(machine_file, horizon, choked=True):
     from plcpred import predict
     m = load_machine(SAMPLES / "prototype_rig" / machine_file)

@@ -545,6 +545,40 @@ def test_passive_flow_found_and_fixed_file_reproduces_it(tmp_path):
                                                      abs=0.5)
 
 
+def test_the_fixed_file_carries_what_a_healthy_machines_strokes_take(tmp_path):
+    """Every stroke of a healthy pick-and-place takes 92 % of its D1 air, as real ones do:
+    no fault, but predict on the nominal file books 8 % too much. The written file
+    carries the model's own accuracy as each drive's air_factor, and predicts the logs'
+    air within 1 %."""
+    machine = plcpred.load_machine(PICK)
+
+    def real_strokes(pred, flow):
+        scaled = flow.copy()
+        drives = {c.name for c in machine.consumers if c.is_cylinder}
+        for k, name in enumerate(pred.profile.names):
+            if name in drives:
+                scaled[k] *= 0.92
+        return scaled.sum(axis=0)
+    runs = [run_of(PICK, 30, rate_hz=2.0, tau_s=0.3, noise=0.3, offset_s=2.0 + 4 * s,
+                   seed=s, name=f"r{s}.csv", transform=real_strokes) for s in range(2)]
+    d = diagnose(PICK, runs, effects=["leak"])
+    assert d.verdict == "none", d.report()
+    fixed = tmp_path / "fixed.toml"
+    write_fixed_machine(d, fixed)
+    assert "calibrated: consumer" in fixed.read_text()
+    m = plcpred.load_machine(fixed, allowed_roots=[PICK.parent])
+    for c in m.consumers:
+        if c.is_cylinder:
+            assert all(0.85 < f < 0.99 for f in c.air_factor), (c.name, c.air_factor)
+    horizon_s = 30.0
+    nominal = plcpred.predict(PICK, horizon_s, dt=0.01)
+    truth_nl = real_strokes(nominal, nominal.profile.flow_l_min).sum() * 0.01 / 60.0
+    fixed_nl = plcpred.predict(m, horizon_s, dt=0.01).profile.flow_l_min.sum() * 0.01 / 60.0
+    nominal_nl = nominal.profile.flow_l_min.sum() * 0.01 / 60.0
+    assert nominal_nl / truth_nl > 1.06
+    assert fixed_nl == pytest.approx(truth_nl, rel=0.01)
+
+
 def test_a_large_change_and_the_meter_lag_found_together():
     # knives at 1.53x their flow through a 0.29 s meter, one run: with the knives at the
     # file's flow, a later clock without lag fits the edges better than the true lag, and

@@ -409,7 +409,7 @@ def test_an_unknown_key_names_the_one_meant_or_else_lists_them(tmp_path):
     assert str(ei.value).endswith("did you mean 'bore_mm'?")
     with pytest.raises(MachineError) as ei:
         load_machine(write(tmp_path, GOOD.replace("Cd = 0.8", "Cd = 0.8\ncolour = 1")))
-    assert "unknown key 'colour' (known: C, Cd, a, b, bore_mm," in str(ei.value)
+    assert "unknown key 'colour' (known: C, Cd, a, air_factor, b, bore_mm," in str(ei.value)
 
 
 @pytest.mark.parametrize("key, value, expected", [
