@@ -1338,6 +1338,12 @@ def _at_bound(result: EffectResult, mm, ctx: dict, rds: list[RunData], bases: li
     theta = np.array(result.fit.theta, dtype=float)
     k = 0
     for e, part in result.fit.by_effect():
+        if e.name == SupplyPressure.name and _supply_logged_off(
+                ctx.get("logged_supply_bar_g"), mm.machine):
+            # the log reads a supply off the file's: the bounds are that reading and a
+            # gauge's error, not what is physical, and the reading is the finding
+            k += len(part)
+            continue
         for j, spec in enumerate(e.params(mm, ctx)):
             value = float(part[j]) if j < len(part) else math.nan
             near = AT_BOUND_SHARE * (spec.upper - spec.lower)

@@ -321,6 +321,10 @@ class SupplyPressure(Effect):
 
     def tolerance_box(self, mm, ctx):
         p = mm.machine.supply_bar_g
+        logged = ctx.get("logged_supply_bar_g")
+        if logged is not None and abs(logged - p) > \
+                SUPPLY_TOLERANCE_BAR + LOGGED_SUPPLY_TOLERANCE_BAR:
+            return None         # the log reads a supply beyond it: no healthy value
         return [(p - SUPPLY_TOLERANCE_BAR, p + SUPPLY_TOLERANCE_BAR)]
 
     def tolerance_reason(self, mm, theta, ctx):

@@ -143,3 +143,14 @@ def test_a_fit_beyond_tolerance_that_its_edge_cannot_explain_is_a_fault():
     d = diagnose(RIG, runs, effects=["valve_delay", "leak"])
     assert d.verdict == "valve_delay", d.report()
     assert not d.within_tolerance
+
+
+def test_a_supply_the_log_reads_off_the_file_has_no_tolerance(rig):
+    # the file says the rig's supply; the log's pressure column reads 0.4 bar less: no
+    # value of a healthy machine's tolerance of its file is what the machine runs at
+    effect = EFFECTS["supply_pressure"]
+    p = rig.machine.supply_bar_g
+    logged = {**CTX, "logged_supply_bar_g": p - 0.4}
+    assert effect.tolerance_box(rig, logged) is None
+    assert effect.within_tolerance(rig, [p - 0.05], logged) is None
+    assert effect.within_tolerance(rig, [p - 0.05], {**CTX, "logged_supply_bar_g": p})
