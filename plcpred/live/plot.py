@@ -87,6 +87,26 @@ def _take(w: _Watched, e: dict) -> bool:
     return False
 
 
+def _mark_alarms_and_moments(w, top, low, scale: float, marks: dict | None) -> None:
+    """Each alarm's onset (labelled up to MAX_LABELLED_ALARMS) and each of ``marks``
+    as a vertical line on both axes."""
+    box = {"facecolor": "white", "edgecolor": "none", "alpha": 0.8, "pad": 1}
+    for k, (began, e) in enumerate(w.alarms):
+        for ax in (top, low):
+            ax.axvline(scale * began, color="tab:red", lw=1.2)
+        if k >= MAX_LABELLED_ALARMS:
+            continue                # more would hide one another: lines only
+        low.text(scale * began, 0.45, f" {e.get('alarm', 'gap')} alarm raised at cycle "
+                 f"{e.get('cycle', '?')}, onset here ", transform=low.get_xaxis_transform(),
+                 color="tab:red", fontsize=8, ha="right", bbox=box)
+    for label, at in (marks or {}).items():
+        at_s = (at - w.t0).total_seconds() if isinstance(at, datetime) else float(at)
+        for ax in (top, low):
+            ax.axvline(scale * at_s, color="tab:orange", lw=1, ls="--")
+        top.text(scale * at_s, 0.5, f" {plain(label)}", transform=top.get_xaxis_transform(),
+                 color="tab:orange", fontsize=8, bbox=box)
+
+
 def plot_comparison(out, path=None, marks: dict | None = None, since=None,
                     dpi: int = 100) -> Path:
     """Draw the comparison of the watch that wrote folder ``out`` (its
@@ -146,21 +166,7 @@ def plot_comparison(out, path=None, marks: dict | None = None, since=None,
         top.text(scale * w.cycles[0][0], 1.0, f" learning (cycles 1-{w.learned_to})",
                  transform=top.get_xaxis_transform(), va="top", fontsize=8,
                  color="tab:green")
-    box = {"facecolor": "white", "edgecolor": "none", "alpha": 0.8, "pad": 1}
-    for k, (began, e) in enumerate(w.alarms):
-        for ax in (top, low):
-            ax.axvline(scale * began, color="tab:red", lw=1.2)
-        if k >= MAX_LABELLED_ALARMS:
-            continue                # more would hide one another: lines only
-        low.text(scale * began, 0.45, f" {e.get('alarm', 'gap')} alarm raised at cycle "
-                 f"{e.get('cycle', '?')}, onset here ", transform=low.get_xaxis_transform(),
-                 color="tab:red", fontsize=8, ha="right", bbox=box)
-    for label, at in (marks or {}).items():
-        at_s = (at - w.t0).total_seconds() if isinstance(at, datetime) else float(at)
-        for ax in (top, low):
-            ax.axvline(scale * at_s, color="tab:orange", lw=1, ls="--")
-        top.text(scale * at_s, 0.5, f" {plain(label)}", transform=top.get_xaxis_transform(),
-                 color="tab:orange", fontsize=8, bbox=box)
+    _mark_alarms_and_moments(w, top, low, scale, marks)
     top.legend(loc="upper left", bbox_to_anchor=(0.0, 0.93), fontsize=8)
     low.legend(loc="upper left", fontsize=8)
     top.set_title(f"{plain(w.machine)}: measured air per cycle against the prediction"

@@ -7,7 +7,11 @@ it, with that time as its source time stamp. The served clock runs ``speed`` tim
 fast as the wall clock from ``epoch`` (the machine's start), so a server restarted with
 the same epoch goes on where the machine would be, as a PLC runs on while its OPC UA
 server restarts. With ``history``, the server keeps each node's last values for
-HistoryRead (a client that lost its connection reads what it missed)."""
+HistoryRead (a client that lost its connection reads what it missed).
+
+The values are worked out by the twin in a process of its own (:meth:`Twin.process`,
+kept for a server restarted on the same twin), a stretch ahead of the one being
+written: however long a closed-loop run takes, the event loop only writes."""
 from __future__ import annotations
 
 import asyncio
@@ -25,7 +29,7 @@ from .twin import Twin
 
 NAMESPACE_URI = "urn:plcpred:twin"
 MAX_SPEED = 1000.0
-WALL_CHUNK_S = 0.5        # values are worked out this far ahead (wall time) in a thread
+WALL_CHUNK_S = 0.5        # values are worked out this far ahead (wall time)
 MIN_CHUNK_S = 5.0         # ... and at least this much machine time
 _EPOCH = datetime(1970, 1, 1, tzinfo=UTC)
 
@@ -67,13 +71,12 @@ async def serve(twin: Twin, endpoint: str, speed: float = 1.0, epoch: datetime |
     if start_s >= twin.horizon_s:
         raise LiveError(f"--epoch {epoch.isoformat()}: at --speed {speed:g} the machine "
                         f"would be {start_s:g} s in, past the horizon of {twin.horizon_s:g} s")
-    horizons = [h for h in twin.run_horizons() if h > start_s] or [twin.horizon_s]
-    run = await _in_thread(twin.run, horizons.pop(0))
+    worker = twin.process()
+    values = await _in_thread(worker.call, "values_at", start_s)
     # a restarted machine's values carry its clock from the first moment a client may
     # connect: a stamp of the wall clock would misplace the new segment's start
     first_stamp = None if epoch is None else source_time(epoch, round(start_s * NS))
-    server, nodes, boolean = await _server(twin, endpoint, twin.values_at(run, start_s),
-                                           first_stamp, history)
+    server, nodes, boolean = await _server(twin, endpoint, values, first_stamp, history)
     try:
         report(f"serving {twin.nominal.name} at {endpoint}: {len(twin.signals)} signals, "
                "meter and supply" + ("; holding at the start" if hold is not None else ""))
@@ -91,7 +94,7 @@ async def serve(twin: Twin, endpoint: str, speed: float = 1.0, epoch: datetime |
                 Value=value.Value, SourceTimestamp=stamp, ServerTimestamp=stamp), history)
         if started is not None:
             started(epoch)
-        written = await _publish(server, twin, run, horizons, nodes, boolean, speed, epoch,
+        written = await _publish(server, twin, worker, nodes, boolean, speed, epoch,
                                  start_s, report, history)
     finally:
         await server.stop()
@@ -140,38 +143,46 @@ async def _put(server, nodeid, value: ua.DataValue, history: int) -> None:
         await server.iserver.history_manager.storage.save_node_value(nodeid, value)
 
 
-async def _publish(server, twin: Twin, run, horizons: list, nodes, boolean, speed: float,
+async def _publish(server, twin: Twin, worker, nodes, boolean, speed: float,
                    epoch: datetime, start_s: float, report, history: int = 0) -> int:
-    """Write every value when the served clock reaches it, working out the next stretch
-    in a thread while this one is written, and the next longer run while the runs go."""
+    """Write every value when the served clock reaches it, the twin's process working
+    out the next stretch while this one is written."""
     wall0 = time.time() - (datetime.now(UTC) - epoch).total_seconds()
     report(f"machine clock from {epoch.isoformat()} at {speed:g}x"
            + (f", from {start_s:.3f} s" if start_s else ""))
     chunk_s = max(MIN_CHUNK_S, speed * WALL_CHUNK_S)
-    next_run = _in_thread(twin.run, horizons.pop(0)) if horizons else None
-    done_s, written = start_s, 0
-    ahead = _in_thread(twin.events, run, done_s, min(done_s + chunk_s, run.horizon_s))
+    done_s, written, tiled = start_s, 0, False
+    ahead = _in_thread(worker.call, "events", done_s, min(done_s + chunk_s, twin.horizon_s))
     while done_s < twin.horizon_s:
-        end_s = min(done_s + chunk_s, run.horizon_s)
+        end_s = min(done_s + chunk_s, twin.horizon_s)
         t_ns, idx, values = await ahead
-        if end_s >= run.horizon_s and next_run is not None:
-            run = await next_run
-            next_run = _in_thread(twin.run, horizons.pop(0)) if horizons else None
-        following = min(end_s + chunk_s, run.horizon_s)
-        if following > end_s:
-            ahead = _in_thread(twin.events, run, end_s, following)
+        if end_s < twin.horizon_s:
+            ahead = _in_thread(worker.call, "events", end_s,
+                               min(end_s + chunk_s, twin.horizon_s))
         written += await _write(server, nodes, boolean, t_ns, idx, values, wall0, speed, epoch,
                                 history)
         done_s = end_s
-    if next_run is not None:
-        next_run.cancel()
+        if not tiled and end_s < twin.horizon_s:
+            tiled = await _report_tiling(worker, report)
     return written
 
 
+async def _report_tiling(worker, report) -> bool:
+    """Say once when the served values come from a repeating period (the closed loop
+    runs no further); True once said, or once the runs have reached the horizon."""
+    status = await _in_thread(worker.call, "status")
+    periods, runs = status["periods_s"], status["runs"]
+    if any(p is None for p in periods.values()):
+        return bool(runs) and runs[-1][1] >= status["horizon_s"]
+    report("repeating: " + ", ".join(f"{name} every {p:g} s" for name, p in periods.items())
+           + f" (runs to {max(h for _, h in runs):g} s)")
+    return True
+
+
 def _in_thread(fn, *args) -> asyncio.Future:
-    """``fn(*args)`` in a daemon thread: a server stopped (Ctrl-C, SIGTERM, its task
-    cancelled) ends at once instead of waiting for a closed-loop run it no longer needs,
-    as the event loop's own worker threads would make it."""
+    """``fn(*args)`` (a request to the twin's process) in a daemon thread: a server
+    stopped (Ctrl-C, SIGTERM, its task cancelled) ends at once instead of waiting for an
+    answer it no longer needs, as the event loop's own worker threads would make it."""
     loop = asyncio.get_running_loop()
     future = loop.create_future()
 
