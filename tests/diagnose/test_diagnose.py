@@ -559,7 +559,7 @@ def test_the_fixed_file_carries_what_a_healthy_machines_strokes_take(tmp_path):
             if name in drives:
                 scaled[k] *= 0.92
         return scaled.sum(axis=0)
-    runs = [run_of(PICK, 30, rate_hz=2.0, tau_s=0.3, noise=0.3, offset_s=2.0 + 4 * s,
+    runs = [run_of(PICK, 20, rate_hz=2.0, tau_s=0.3, noise=0.3, offset_s=2.0 + 4 * s,
                    seed=s, name=f"r{s}.csv", transform=real_strokes) for s in range(2)]
     d = diagnose(PICK, runs, effects=["leak"])
     assert d.verdict == "none", d.report()
@@ -570,7 +570,7 @@ def test_the_fixed_file_carries_what_a_healthy_machines_strokes_take(tmp_path):
     for c in m.consumers:
         if c.is_cylinder:
             assert all(0.85 < f < 0.99 for f in c.air_factor), (c.name, c.air_factor)
-    horizon_s = 30.0
+    horizon_s = 20.0
     nominal = plcpred.predict(PICK, horizon_s, dt=0.01)
     truth_nl = real_strokes(nominal, nominal.profile.flow_l_min).sum() * 0.01 / 60.0
     fixed_nl = plcpred.predict(m, horizon_s, dt=0.01).profile.flow_l_min.sum() * 0.01 / 60.0
