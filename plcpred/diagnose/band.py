@@ -23,7 +23,13 @@ from __future__ import annotations
 import numpy as np
 
 from ..air.demand import sonic_conductance
-from .effects import PASSIVE_TOLERANCE_SHARE, Effect, Param, consumer_table
+from .effects import (
+    PASSIVE_TOLERANCE_SHARE,
+    Effect,
+    Param,
+    consumer_table,
+    write_conductance,
+)
 from .fit_model import MachineModel, ModelParams
 
 # a stroke may take this share of D1 more than a settled stroke (bore, stroke and tube
@@ -140,11 +146,7 @@ class ModelForm(Effect):
                 continue
             c = mm.machine.consumers[row]
             C = sonic_conductance(c) * float(f)
-            t = consumer_table(data, c.name)
-            for key in ("orifice_mm", "Cd"):
-                t.pop(key, None)
-            t["C"] = float(f"{C:.6g}")
-            t.setdefault("b", c.b)
+            write_conductance(data, c, C)
             changes.append(f'consumer "{c.name}": C = {C:.3g} m^3/(s Pa) (calibrated: '
                            f"x{float(f):.3g})")
         return changes

@@ -1274,14 +1274,11 @@ def _as_good_within_tolerance(combination: dict, g: _Ground, judge: _Judge) -> b
     on that flat; the least departure from the file that explains the logs is what a
     healthy machine claims."""
     fit: FitResult = combination["fit"]
-    theta = np.array(fit.theta, dtype=float)
-    k = 0
-    for e, n in zip(fit.effects, fit.counts):
-        clipped = e.clipped_to_tolerance(g.mm, theta[k:k + n], g.ctx)
-        if clipped is None:
-            return False            # an effect no healthy machine shows
-        theta[k:k + n] = clipped
-        k += n
+    clipped = [e.clipped_to_tolerance(g.mm, part, g.ctx) for e, part in fit.by_effect()]
+    if any(c is None for c in clipped):
+        return False                # an effect no healthy machine shows
+    # the clock adjustment and a fitted meter lag follow the effects' values
+    theta = np.concatenate(clipped + [np.asarray(fit.theta[sum(fit.counts):], float)])
     bases = _plant_bases(g.bases) if combination.get("beyond_plant") else g.bases
     try:
         params = params_at(fit.effects, g.mm, g.rds, bases, g.ctx, theta)
@@ -1730,7 +1727,8 @@ def _calibrate(d: Diagnosis, data: dict) -> list[str]:
     flex = ModelForm(drive_factor_range(mm, bases[0]))
     masks = [np.ones(len(rd.end_s), bool) for rd in d.runs]
     fit = fit_effects([flex], mm, d.runs, masks, bases, d.fit_context)
-    return flex.to_machine(mm, data, fit.theta[:len(flex.params(mm, d.fit_context))])
+    (_, theta), = fit.by_effect()
+    return flex.to_machine(mm, data, theta)
 
 
 def clock_reading(run, offset_s: float) -> str:

@@ -155,8 +155,8 @@ class Effect:
         box = self.tolerance_box(mm, ctx)
         if box is None:
             return None
-        lo, hi = (np.array(b, dtype=float) for b in zip(*box)) if box else (
-            np.zeros(0), np.zeros(0))
+        lo = np.array([low for low, _ in box], dtype=float)
+        hi = np.array([high for _, high in box], dtype=float)
         return np.clip(np.asarray(theta, dtype=float), lo, hi)
 
 
@@ -169,6 +169,16 @@ def consumer_table(data: dict, name: str) -> dict:
         if t.get("name") == name:
             return t
     raise KeyError(name)
+
+
+def write_conductance(data: dict, consumer, C: float) -> None:
+    """Give ``consumer`` (a nozzle or leak) the sonic conductance ``C`` in the machine
+    file's ``data``, in place of its orifice and Cd; its b stays."""
+    t = consumer_table(data, consumer.name)
+    for key in ("orifice_mm", "Cd"):
+        t.pop(key, None)
+    t["C"] = float(f"{C:.6g}")
+    t.setdefault("b", consumer.b)
 
 
 class Leak(Effect):
@@ -288,12 +298,8 @@ class PassiveFlow(Effect):
             if abs(f - 1.0) < 1e-3:
                 continue
             m = mm.models[mm.passives[k]]
-            t = consumer_table(data, m.name)
             C = self._C(mm, k) * float(f)
-            for key in ("orifice_mm", "Cd"):
-                t.pop(key, None)
-            t["C"] = float(f"{C:.6g}")
-            t.setdefault("b", mm.machine.consumers[mm.passives[k]].b)
+            write_conductance(data, mm.machine.consumers[mm.passives[k]], C)
             changes.append(f'consumer "{m.name}": C = {C:.3g} m^3/(s Pa) (x{f:.3g})')
         return changes
 

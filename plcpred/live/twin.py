@@ -255,27 +255,28 @@ class _Loop:
             out[~on] = exact(folded[~on])
         return out
 
-    def cum_nl(self, times_s: np.ndarray) -> np.ndarray:
-        """What the machine drew through the meter's point by each time (NL)."""
+    def _series(self, times_s: np.ndarray, column: int, exact, per_period: float = 0.0
+                ) -> np.ndarray:
+        """A series of the run at ``times_s``: ``exact(times)`` within the run, past its
+        end the table's ``column`` at the time folded into the last period, plus
+        ``per_period`` for each period folded back."""
         folded, k = self._fold(times_s)
         past = k > 0
         out = np.empty(len(folded))
         if (~past).any():
-            out[~past] = self._run_cum_nl(folded[~past])
+            out[~past] = exact(folded[~past])
         if past.any():
-            out[past] = self._from_table(folded[past], 2, self._run_cum_nl) \
-                + k[past] * self.period_nl
+            out[past] = self._from_table(folded[past], column, exact)
+            if per_period:
+                out[past] += k[past] * per_period
         return out
 
+    def cum_nl(self, times_s: np.ndarray) -> np.ndarray:
+        """What the machine drew through the meter's point by each time (NL)."""
+        return self._series(times_s, 2, self._run_cum_nl, self.period_nl)
+
     def supply_bar_g(self, times_s: np.ndarray) -> np.ndarray:
-        folded, k = self._fold(times_s)
-        past = k > 0
-        out = np.empty(len(folded))
-        if (~past).any():
-            out[~past] = self.plant.line_pressure_bar_g(folded[~past])
-        if past.any():
-            out[past] = self._from_table(folded[past], 3, self.plant.line_pressure_bar_g)
-        return out
+        return self._series(times_s, 3, self.plant.line_pressure_bar_g)
 
     def edges_between(self, k: int, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
         """(times ns, values) of served signal ``k``'s changes in [lo, hi)."""

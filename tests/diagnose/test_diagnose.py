@@ -1284,20 +1284,25 @@ def test_a_gap_no_effect_tried_explains_is_unexplained_with_its_place():
     assert d.summary()["residual_left_l_min"] > 0.05 * 30
 
 
-def _runs_at_5_bar(logged_bar_g):
-    """Two logs of pick_place with every flow at 5 bar(g) where its file says 6 (D1 and
-    choked nozzles scale with the absolute supply), the logs' pressure column reading
-    ``logged_bar_g`` (None: no column)."""
+def _runs_at_supply(real_bar_g, logged_bar_g, horizon_s=90, share=1.0):
+    """Two logs of pick_place with every flow at ``real_bar_g`` where its file says 6 (D1
+    and choked nozzles scale with the absolute supply), times ``share`` (what real
+    strokes take of D1), the logs' pressure column reading ``logged_bar_g`` (None: no
+    column)."""
     machine = plcpred.load_machine(PICK)
-    ratio = (5e5 + 101325.0) / (machine.supply_bar_g * 1e5 + 101325.0)
+    ratio = (real_bar_g * 1e5 + 101325.0) / (machine.supply_bar_g * 1e5 + 101325.0)
     runs = []
     for s in range(2):
-        run = run_of(PICK, 90, rate_hz=5.0, tau_s=0.3, noise=0.3, offset_s=2.0 + 4 * s,
-                     seed=s, name=f"r{s}.csv",
-                     transform=lambda pred, flow: flow.sum(axis=0) * ratio)
+        run = run_of(PICK, horizon_s, rate_hz=5.0, tau_s=0.3, noise=0.3,
+                     offset_s=2.0 + 4 * s, seed=s, name=f"r{s}.csv",
+                     transform=lambda pred, flow: flow.sum(axis=0) * ratio * share)
         supply = None if logged_bar_g is None else np.full(len(run.time_s), logged_bar_g)
         runs.append(MeasuredRun(run.name, run.time_s, run.flow_l_min, supply))
     return runs
+
+
+def _runs_at_5_bar(logged_bar_g):
+    return _runs_at_supply(5.0, logged_bar_g)
 
 
 @pytest.mark.parametrize("logged_bar_g", [5.0, None])
@@ -1319,15 +1324,7 @@ def test_a_logged_supply_is_read_beyond_the_models_own_accuracy():
     7 % below what D1 books at any supply (as real strokes are). Fitted alone, D1's own
     error pulls the supply down to the edge of the log's reading, where it is no verdict;
     fitted with the model flexed within its accuracy, it is the reading."""
-    machine = plcpred.load_machine(PICK)
-    ratio = (7e5 + 101325.0) / (machine.supply_bar_g * 1e5 + 101325.0)
-    runs = []
-    for s in range(2):
-        run = run_of(PICK, 40, rate_hz=5.0, tau_s=0.3, noise=0.3, offset_s=2.0 + 4 * s,
-                     seed=s, name=f"r{s}.csv",
-                     transform=lambda pred, flow: flow.sum(axis=0) * ratio * 0.93)
-        runs.append(MeasuredRun(run.name, run.time_s, run.flow_l_min,
-                                np.full(len(run.time_s), 7.0)))
+    runs = _runs_at_supply(7.0, 7.0, horizon_s=40, share=0.93)
     d = diagnose(PICK, runs, effects=["supply_pressure", "meter_gain"])
     assert d.verdict == "supply_pressure", d.report()
     supply = next(e for e in d.effects if e.name == "supply_pressure")
