@@ -76,6 +76,8 @@ DOWN_TO_NOISE = 1.1
 # noise, the drives' physics (the plant) has nothing left to explain
 NOT_OF_THE_DRIVES = ("leak", "passive_flow", "sensor_lag", "meter_gain")
 MAX_CELLS_PER_RUN = 200_000
+LONG_RUN_CELLS = 100_000
+READING_CELLS = 10
 # effects that scale the whole machine's air alike, as the model's own error does: a
 # verdict among them needs the total to lie outside the model-form band as well as the
 # flow to beat it. (A leak's flow in idle, one nozzle's or one drive's air have shapes of
@@ -410,11 +412,15 @@ def _short(physical: dict, depth: int = 0) -> str:
     return text if depth or len(text) <= 90 else text[:87] + "..."
 
 
-def _grid_dt(span_s: float) -> float:
+def _grid_dt(span_s: float, interval_s: float) -> float:
     """10 ms (fine for any meter's intervals and lag), doubled until the run has at most
-    MAX_CELLS_PER_RUN cells."""
+    MAX_CELLS_PER_RUN cells, and further, while a reading still spans READING_CELLS
+    cells, until it has at most LONG_RUN_CELLS: a long log's fits cost in proportion to
+    its cells, and a reading averages what happened within it."""
     dt = 0.01
     while span_s / dt > MAX_CELLS_PER_RUN:
+        dt *= 2.0
+    while span_s / dt > LONG_RUN_CELLS and 2.0 * dt * READING_CELLS <= interval_s:
         dt *= 2.0
     return dt
 
@@ -577,7 +583,8 @@ def _align_run(machine: Machine, aligned: _Aligned, run: MeasuredRun, tl, off,
     # a log read far along a given clock is rendered over its own window (and the
     # meter's settling before it), not from the machine's start
     start_s = 0.0 if off is None else render_start_s(float(run.time_s[0]) - off)
-    rm = RunModel(mm, tl, _grid_dt(tl.horizon_ns / 1e9 - start_s), start_s=start_s)
+    rm = RunModel(mm, tl, _grid_dt(tl.horizon_ns / 1e9 - start_s, run.interval_s),
+                  start_s=start_s)
     rd = align(dataclasses.replace(run, sampling=run.sampling or "mean"), rm,
                mm.nominal(meter_tau or 0.0), window, meter_tau, off)
     _check_run(rd, rd.readings(mm.nominal(rd.meter_tau_s)), machine.name,
@@ -587,8 +594,11 @@ def _align_run(machine: Machine, aligned: _Aligned, run: MeasuredRun, tl, off,
     aligned.rds.append(rd)
     if run.sampling is not None:
         return None
+    # the instantaneous readings' clock lies within an interval of the means' (they
+    # differ by where in its interval a reading stands): searched there alone
     return align(dataclasses.replace(run, sampling="instant"), rm,
-                 mm.nominal(meter_tau or 0.0), window, meter_tau, off)
+                 mm.nominal(meter_tau or 0.0), window, meter_tau, off,
+                 near_s=rd.offset_s if off is None else None)
 
 
 def _offset_window(run: MeasuredRun, max_offset_s: float | None, warnings: list[str]

@@ -267,7 +267,21 @@ def _fine_offsets(correlations: _Correlations, coarse: float, taus: list[float],
     for tau in taus:
         # a coarse offset may be late by up to the lag
         step = max(rm.dt_s, tau / 50.0, 0.0 if instant else g / (5.0 if quick else 25.0))
-        fine = np.arange(coarse - 1.5 * g - tau, coarse + 1.5 * g + step / 2, step)
+        span = (coarse - 1.5 * g - tau, coarse + 1.5 * g + step / 2)
+        if instant:
+            fine = np.arange(span[0], span[1], step)
+        else:
+            # interval means change smoothly with the offset, over a sampling interval:
+            # their best offset on a grid five times finer than it lies within one step
+            # of that grid's best, and only there is the fine grid read
+            wide = max(step, g / 5.0)
+            coarse_grid = np.arange(span[0], span[1], wide)
+            corr = correlations(tau, list(coarse_grid), shared)
+            if corr is None:
+                continue
+            best = float(coarse_grid[int(np.argmax(corr))])
+            fine = np.arange(max(span[0], best - wide), min(span[1], best + wide + step / 2),
+                             step) if wide > step else coarse_grid
         corr = correlations(tau, list(fine), shared)
         if corr is None:
             continue

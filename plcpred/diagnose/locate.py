@@ -4,7 +4,8 @@ residual stands out of the noise.
 
 A sample's context is the consumer with the most predicted air in the sample's interval
 (cylinders by their strokes, nozzles while on; leaks are always on and never a context);
-a sample with no stroke and no nozzle is ``idle``. For SFC programs each sample also has
+a sample with no stroke and no nozzle (or only the fringe of one: less than 2 % of the
+largest air a consumer takes in one sample) is ``idle``. For SFC programs each sample also has
 the step active at its midpoint.
 """
 from __future__ import annotations
@@ -19,6 +20,7 @@ from ..physics.meter import cumulative_nl
 from ..sequencer.timeline import NS
 
 IDLE = "idle"
+IDLE_SHARE = 0.02
 STANDS_OUT_SIGMA = 3.0
 
 
@@ -56,7 +58,10 @@ def sample_contexts(rd, params) -> np.ndarray:
     v = np.vstack(vols)
     k = np.argmax(v, axis=0)
     out = np.array(labels, dtype=object)[k]
-    out[v.max(axis=0) <= 1e-9] = IDLE
+    # a reading that only touches a stroke (its air spread over the grid cell the
+    # reading's edge falls in) is idle: the threshold is a share of the largest air any
+    # consumer takes in one reading, so that the labels do not depend on the grid
+    out[v.max(axis=0) <= max(IDLE_SHARE * float(v.max()), 1e-9)] = IDLE
     return out
 
 

@@ -25,10 +25,10 @@ from plcpred.diagnose import (
 from plcpred.diagnose.core import write_fixed_machine
 from plcpred.diagnose.effects import CUT_STROKE_EFFECTS, StrokeTime
 from plcpred.diagnose.fit import DiagnosisError
-from plcpred.diagnose.fit_model import MachineModel, RunModel
+from plcpred.diagnose.fit_model import MachineModel, RunModel, lagged_cumulative_nl
 from plcpred.diagnose.noise import noise_level_l_min
 from plcpred.machine import machine_from_data, read_machine_data
-from plcpred.physics.meter import first_order_lag
+from plcpred.physics.meter import cumulative_nl, first_order_lag
 
 ROOT = Path(__file__).resolve().parents[2]
 RIG = ROOT / "samples" / "prototype_rig" / "rig.toml"
@@ -239,6 +239,21 @@ def test_first_order_lag_of_a_step():
     # 0.2 s after the step: 1 - 1/e
     assert y[99 + 200] == pytest.approx(1 - math.exp(-1), abs=2e-3)
     assert first_order_lag(x, 0.001, 0.0) is x
+
+
+def test_lagged_cumulative_is_the_lag_then_the_sum():
+    # the fits' one-pass metering against the two functions it stands for: a settled
+    # start, a step, noise; and no lag at all
+    rng = np.random.default_rng(7)
+    cells = np.concatenate([np.full(50, 0.3), np.full(400, 2.0)]) + rng.random(450)
+    for tau in (0.0, 0.05, 0.4, 3.0):
+        want = cumulative_nl(first_order_lag(cells, 0.02, tau))
+        got = lagged_cumulative_nl(cells, 0.02, tau)
+        assert got.shape == want.shape and got[0] == 0.0
+        assert np.allclose(got, want, rtol=1e-12, atol=1e-12)
+    # a wrong initial state (starting from rest) would be off by a lag's worth of air
+    rest = cumulative_nl(first_order_lag(cells, 0.02, 0.4, from_rest=True))
+    assert abs(lagged_cumulative_nl(cells, 0.02, 0.4)[-1] - rest[-1]) > 0.1
 
 
 def test_noise_level_of_white_noise_with_steps():
