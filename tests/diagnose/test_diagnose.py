@@ -916,11 +916,11 @@ def test_closed_loop_is_told_from_timers():
 
 
 def test_slower_stroke_in_a_closed_loop_is_found_with_its_drive_and_factor():
-    # the X slide 1.8x slower: every cycle grows, so within a minute the nominal
+    # the X slide 1.8x slower: every cycle grows, so within 40 s the nominal
     # prediction is out of step with the log; painting slower strokes onto the
     # predicted edges cannot follow it, running the program again can
     real = _slower(PICK, "X slide", 1.8)
-    d, best = _stroke_time_found(real, PICK, 60, 4.0, 5.0, ["valve_delay", "leak"],
+    d, best = _stroke_time_found(real, PICK, 40, 4.0, 5.0, ["valve_delay", "leak"],
                                  "waiting")
     assert best.physical["X slide"]["factor"] == pytest.approx(1.8, rel=0.05)
     assert best.physical["Z lift"]["factor"] == 1.0

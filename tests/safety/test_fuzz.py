@@ -14,8 +14,8 @@ import fuzzing as F
 
 # cases per channel: each channel must produce both results and clean errors (the
 # mutators keep some inputs valid and break others), and nothing bad
-RUNS = {"programs": 80, "machines": 30, "commands": 40, "truths": 30, "flow logs": 25,
-        "io traces": 25, "twincat": 30, "outs": 30}
+RUNS = {"programs": 80, "machines": 30, "commands": 40, "truths": 30, "flow logs": 15,
+        "io traces": 15, "twincat": 30, "outs": 30}
 
 
 @pytest.fixture(scope="module")
