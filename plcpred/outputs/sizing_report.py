@@ -5,6 +5,7 @@ from __future__ import annotations
 import base64
 import datetime
 import html
+import math
 import os
 import re
 from collections import Counter
@@ -18,7 +19,16 @@ from ..air.cycles import arrival_period_s
 from ..air.sizing import receiver_deficit
 from ..output import SHOWN_CONSUMERS, atomic_write_text, write_json
 from .demand_plot import demand_layers, plot_demand
-from .plotting import bin_width, envelope, md_cell, plain, pyplot, save_fig, time_axis
+from .plotting import (
+    Envelope,
+    bin_width,
+    bins,
+    md_cell,
+    plain,
+    pyplot,
+    save_fig,
+    time_axis,
+)
 
 
 def _cycle_window(profile, sizing) -> tuple[float, float, str]:
@@ -57,39 +67,158 @@ def plot_sizing(profile, sizing, path, title="Sizing") -> None:
     save_fig(fig, path)
 
 
+# windows worked out at once: ten years of a 4 s cycle are 79 million, of which the plot
+# keeps a few thousand numbers. Arrays of half a MB the allocator keeps and reuses;
+# chunks of a few MB it hands back and the system faults in again each time (at 500,000
+# the system time was as long as the work)
+WINDOW_CHUNK = 65_536
+DEFICIT_BINS = 42
+
+
 @dataclass
 class SizingWindows:
     """The horizon cut into windows of one steady cycle (else of a minute, or a
-    twentieth of a short horizon) from 0: each one's start, air (NL, exact: they add
-    up to the horizon's total), whether it is whole (the last may be cut by the
-    horizon) and the receiver's largest deficit over the design flow in it (NL)."""
+    twentieth of a short horizon) from 0, reduced to what the sizing plot draws. A whole
+    window's value is its air (NL; for windows that are not cycles its mean flow,
+    NL/min); the last window may be cut by the horizon, and only whole windows have
+    values. Worked out a chunk of windows at a time, so that the memory follows the
+    plot, not the horizon."""
     what: str                       # "cycle", "minute" or "window"
     width_s: float
-    start_s: np.ndarray
-    nl: np.ndarray
-    whole: np.ndarray
-    deficit_nl: np.ndarray
+    n: int                          # windows, the cut one included
+    n_whole: int
+    k: int                          # whole windows per group
+    groups_s: np.ndarray            # the groups' edges (s): every k-th whole window's start
+    #                                 and the last whole one's end
+    env: Envelope                   # per group: its first start, least, mean, greatest value
+    least: float                    # over every whole window (nan if none)
+    greatest: float
+    mean: float
+    total_nl: float                 # every window's air: the horizon's total
+    deficit_max_nl: float           # the largest of the windows' largest deficits
+    deficit_bins_nl: np.ndarray     # the histogram of each window's largest deficit over
+    deficit_counts: np.ndarray      # the design flow: bin edges (NL) and windows per bin
 
 
-def sizing_windows(profile, sizing, deficit) -> SizingWindows:
-    """:class:`SizingWindows` of a profile, ``deficit`` the receiver's deficit at the
-    end of each grid cell (:func:`~plcpred.air.sizing.receiver_deficit`)."""
+def _window_width(profile, sizing) -> tuple[float, str]:
     horizon = profile.horizon_s
     if sizing.cycle_s and sizing.cycle_s < horizon:
-        width, what = float(sizing.cycle_s), "cycle"
-    elif horizon >= 600:
-        width, what = 60.0, "minute"
-    else:
-        width, what = max(profile.dt_s, horizon / 20), "window"
-    edges = np.append(np.arange(0.0, horizon - 1e-9 * horizon, width), horizon)
-    nl = np.diff(profile.cumulative_nl_at(edges))
-    whole = np.diff(edges) >= width * (1 - 1e-6)
-    # each window's cells: those whose end lies in it (the deficit is at cell ends)
+        return float(sizing.cycle_s), "cycle"
+    if horizon >= 600:
+        return 60.0, "minute"
+    return max(profile.dt_s, horizon / 20), "window"
+
+
+def sizing_windows(profile, sizing, deficit, k: int | None = None,
+                   chunk: int | None = None) -> SizingWindows:
+    """:class:`SizingWindows` of a profile, ``deficit`` the receiver's deficit at the
+    end of each grid cell (:func:`~plcpred.air.sizing.receiver_deficit`), the whole
+    windows in groups of ``k`` (default: one group per plotted point,
+    :func:`~plcpred.outputs.plotting.bin_width`), about ``chunk`` windows at a time
+    (default: :data:`WINDOW_CHUNK`, or as many as the profile has rectangles)."""
+    horizon = profile.horizon_s
+    width, what = _window_width(profile, sizing)
+    # window j starts at j * width, as np.arange(0.0, stop, width) has them; the last
+    # ends at the horizon, and only it can be cut (j * width is exact to far below a
+    # millionth of a window)
+    n = max(1, math.ceil((horizon - 1e-9 * horizon) / width))
+    n_whole = n - int(horizon - (n - 1) * width < width * (1 - 1e-6))
+    k = k or bin_width(n_whole)
+    deficit = np.asarray(deficit, dtype=float)
+    # every cell from the first on is some window's (windows tile the horizon): their
+    # largest deficit is the grid's, and it sets the histogram's bins before the first chunk
+    deficit_max = float(deficit.max())
+    top = max(deficit_max, sizing.deficit_nl, 1e-9)
+    # from 0, so cycles that all reach the same deficit read as one bar at its size
+    deficit_bins = np.linspace(0.0, top * 1.05, DEFICIT_BINS + 1)
+    counts = np.zeros(DEFICIT_BINS, dtype=np.int64)
+    if chunk is None:
+        # a repeating profile's cumulative costs one period whatever the chunk; one that
+        # does not repeat merges all its rectangles at each call: chunks of at least as
+        # many windows as it has rectangles hold no more than that merge does
+        n_rects = sum(len(r[0]) for r in profile.rects) if profile.templates is None else 0
+        chunk = max(WINDOW_CHUNK, n_rects)
+    step = k * max(1, chunk // k)                       # whole groups: none is cut
+    parts: list[tuple] = []
+    total_nl, value_sum = 0.0, 0.0
+    for a in range(0, n, step):
+        b = min(n, a + step)
+        j = np.arange(a, b + 1, dtype=float)
+        edges = j * width
+        if b == n:
+            edges[-1] = horizon
+        nl = np.diff(profile.cumulative_nl_at(edges))
+        total_nl += float(nl.sum())
+        d = _largest_deficits(profile, deficit, edges[:-1], None if b == n else edges[-1])
+        counts += _histogram(d, deficit_bins)
+        m = max(0, min(b, n_whole) - a)
+        if m:
+            values = nl[:m] if what == "cycle" else nl[:m] / width * 60.0
+            value_sum += float(np.sum(values))
+            parts.append((_per_group(edges[:m], k, np.min), _per_group(values, k, np.min),
+                          _per_group(values, k, np.mean), _per_group(values, k, np.max)))
+    env = Envelope(*(np.concatenate([p[i] for p in parts]) if parts else np.zeros(0)
+                     for i in range(4)), k)
+    return SizingWindows(
+        what, width, n, n_whole, k, _group_edges(n_whole, width, k), env,
+        float(env.lo.min()) if n_whole else math.nan,
+        float(env.hi.max()) if n_whole else math.nan,
+        value_sum / n_whole if n_whole else math.nan, total_nl, deficit_max,
+        deficit_bins, counts)
+
+
+def _per_group(values, k: int, reduce) -> np.ndarray:
+    """``values`` reduced in groups of ``k`` as :func:`bins` does, a last chunk of
+    fewer than ``k`` to one group too (``bins`` leaves a series shorter than a group as
+    it is)."""
+    return bins(values, k, reduce) if len(values) >= k else reduce(values)[None]
+
+
+def _largest_deficits(profile, deficit, starts_s, next_start_s) -> np.ndarray:
+    """The largest deficit in each window of a run of them (their starts, and the start
+    of the window after the run, None at the horizon): over the cells whose end lies in
+    it (the deficit is at cell ends), or the cell that holds a window shorter than a
+    cell."""
     cell_end = profile.edges_s[1:]
-    first = np.minimum(np.searchsorted(cell_end, edges[:-1], side="right"),
-                       len(deficit) - 1)
-    deficit_nl = np.maximum.reduceat(np.asarray(deficit, dtype=float), first)
-    return SizingWindows(what, width, edges[:-1], nl, whole, deficit_nl)
+    last = len(deficit) - 1
+    first = np.minimum(_cells_ending_by(cell_end, starts_s), last)
+    after = (last + 1 if next_start_s is None else
+             min(int(np.searchsorted(cell_end, next_start_s, side="right")), last))
+    # the run's cells up to the next window's first (at least one past the run's last
+    # first cell): each window reduces to its own, as it would over the whole grid
+    cells = deficit[first[0]:max(after, first[-1] + 1)]
+    return np.maximum.reduceat(cells, first - first[0])
+
+
+def _cells_ending_by(cell_end, starts_s) -> np.ndarray:
+    """``np.searchsorted(cell_end, starts_s, side="right")`` (the cells that end by each
+    start) for sorted starts, worked from the cells between the first and last start:
+    ten years of 4 s windows on a 1000 s grid are 250 windows a cell, and looking each
+    one up on the grid took as long as the rest of the plot."""
+    lo, hi = np.searchsorted(cell_end, starts_s[[0, -1]], side="right")
+    # the starts before each of those cells' ends: the windows whose first it is not yet
+    before = np.searchsorted(starts_s, cell_end[lo:hi], side="left")
+    per_cell = np.diff(before, prepend=0, append=len(starts_s))
+    return np.repeat(np.arange(lo, hi + 1), per_cell)
+
+
+def _histogram(values, edges) -> np.ndarray:
+    """``np.histogram(values, edges)[0]`` (bins closed on the left, the last on both
+    sides, values outside left out) without its sort of every value."""
+    inside = values[(values >= edges[0]) & (values <= edges[-1])]
+    at = np.minimum(np.searchsorted(edges, inside, side="right") - 1, len(edges) - 2)
+    return np.bincount(at, minlength=len(edges) - 1)
+
+
+def _group_edges(n_whole: int, width: float, k: int) -> np.ndarray:
+    """The edges of the whole windows in groups of ``k`` (s): every k-th window's start
+    and the last whole window's end (its start plus a width)."""
+    if not n_whole:
+        return np.zeros(1)
+    end = (n_whole - 1) * width + width
+    idx = np.arange(0, n_whole + 1, k)
+    groups = np.where(idx < n_whole, idx * width, end)
+    return groups if groups[-1] >= end else np.append(groups, end)
 
 
 def _noun(w: SizingWindows, plural: bool = False) -> str:
@@ -98,15 +227,11 @@ def _noun(w: SizingWindows, plural: bool = False) -> str:
     return f"window{s} of {w.width_s:.3g} s" if w.what == "window" else w.what + s
 
 
-def window_layers(profile, w: SizingWindows, k: int):
-    """The whole windows in groups of ``k``: the groups' edges (s), the layers of
+def window_layers(profile, w: SizingWindows):
+    """The whole windows in their groups of ``w.k``: the groups' edges (s), the layers of
     :func:`demand_layers` and each layer's mean air per window in each group (NL; for windows
     that are not cycles its mean flow, NL/min), one row per layer."""
-    n = int(w.whole.sum())
-    edges = np.append(w.start_s[:n], w.start_s[n - 1] + w.width_s if n else 0.0)
-    groups = edges[::k]
-    if groups[-1] < edges[-1]:
-        groups = np.append(groups, edges[-1])
+    groups = w.groups_s
     layers, flows = demand_layers(profile, SHOWN_CONSUMERS, groups)
     return groups, layers, (flows * w.width_s / 60.0 if w.what == "cycle" else flows)
 
@@ -117,22 +242,20 @@ def _draw_air_per_window(ax, profile, sizing, w: SizingWindows) -> None:
     there are more windows than pixels)."""
     scale, unit = time_axis(profile.horizon_s)
     per_cycle = w.what == "cycle"
-    values = w.nl[w.whole] if per_cycle else w.nl[w.whole] / w.width_s * 60.0
     ax.set_xlim(0, profile.horizon_s * scale)
     ax.set_xlabel(f"time ({unit})")
     ax.set_ylabel("air per cycle (NL)" if per_cycle else "mean flow (NL/min)")
     ax.grid(True, alpha=0.3)
-    if not len(values):
+    if not w.n_whole:
         return
-    k = bin_width(len(values))
-    groups, layers, stacks = window_layers(profile, w, k)
+    groups, layers, stacks = window_layers(profile, w)
     if layers:
         ax.stackplot(groups * scale, np.column_stack([stacks, stacks[:, -1:]]), step="post",
                      alpha=0.85, labels=[plain(label) for label, _, _ in layers])
-    if k > 1:
-        env = envelope(w.start_s[w.whole], values, k)
+    if w.k > 1:
+        env = w.env
         ax.fill_between(env.t_s * scale, env.lo, env.hi, step="post", color="black",
-                        alpha=0.15, lw=0, label=f"least to greatest of {k} "
+                        alpha=0.15, lw=0, label=f"least to greatest of {w.k} "
                         f"{_noun(w, plural=True)}")
     if per_cycle and sizing.nl_per_cycle:
         ax.axhline(sizing.nl_per_cycle, color="black", ls="--", lw=0.8,
@@ -140,11 +263,11 @@ def _draw_air_per_window(ax, profile, sizing, w: SizingWindows) -> None:
     elif not per_cycle:
         ax.axhline(sizing.mean_l_min, color="black", ls="--", lw=1,
                    label=f"mean {sizing.mean_l_min:.1f} NL/min")
-    spread = (values.max() - values.min()) / max(abs(values.mean()), 1e-12)
-    ax.set_title(f"each {_noun(w)} over the horizon: {len(values)} whole, they differ by "
-                 f"{100 * spread:.1f} % ({values.min():.3g} to {values.max():.3g})",
+    spread = (w.greatest - w.least) / max(abs(w.mean), 1e-12)
+    ax.set_title(f"each {_noun(w)} over the horizon: {w.n_whole} whole, they differ by "
+                 f"{100 * spread:.1f} % ({w.least:.3g} to {w.greatest:.3g})",
                  fontsize=10)
-    ax.set_ylim(0, values.max() * 1.3 if values.max() > 0 else 1)
+    ax.set_ylim(0, w.greatest * 1.3 if w.greatest > 0 else 1)
     h, lab = ax.get_legend_handles_labels()
     ax.legend(h[::-1], lab[::-1], loc="upper right", fontsize=7, framealpha=0.9,
               ncol=2)
@@ -152,12 +275,11 @@ def _draw_air_per_window(ax, profile, sizing, w: SizingWindows) -> None:
 
 def _draw_deficits(ax, sizing, w: SizingWindows) -> None:
     """How many windows reach each largest deficit, the horizon's largest marked."""
-    d = w.deficit_nl
-    top = max(float(d.max()) if len(d) else 0.0, sizing.deficit_nl, 1e-9)
-    # from 0, so cycles that all reach the same deficit read as one bar at its size
-    ax.hist(d, bins=np.linspace(0.0, top * 1.05, 43), color="#fdae6b", edgecolor="#e6550d",
-            lw=0.5, label=f"{len(d)} {_noun(w, plural=True)}")
-    ax.set_xlim(0, top * 1.1)
+    edges = w.deficit_bins_nl
+    # the counts drawn as the histogram of the windows would be: one weighted value a bin
+    ax.hist(edges[:-1], bins=edges, weights=w.deficit_counts, color="#fdae6b",
+            edgecolor="#e6550d", lw=0.5, label=f"{w.n} {_noun(w, plural=True)}")
+    ax.set_xlim(0, max(w.deficit_max_nl, sizing.deficit_nl, 1e-9) * 1.1)
     ax.axvline(sizing.deficit_nl, color="#d62728", lw=1.3,
                label=f"largest {sizing.deficit_nl:.3g} NL at {sizing.deficit_at_s:g} s")
     ax.set_xlabel(f"largest deficit over the design flow in a {_noun(w)} (NL)")

@@ -1,6 +1,8 @@
 """The plots and the diagnosis report say what the data say: checked through the arrays
 they draw (the small helpers of plcpred.outputs' plot modules), not through pixels."""
 import copy
+import dataclasses
+import itertools
 import re
 from types import SimpleNamespace
 
@@ -11,7 +13,7 @@ from conftest import SAMPLES
 from plcpred.air import predict
 from plcpred.air.sizing import receiver_deficit, size_prediction
 from plcpred.diagnose import diagnose, read_measured
-from plcpred.machine import load_machine
+from plcpred.machine import load_machine, machine_from_data, read_machine_data
 from plcpred.outputs.diagnosis_report import (
     SIGN_NOTE,
     diagnosis_conclusion,
@@ -33,6 +35,7 @@ from plcpred.outputs.sizing_report import plot_sizing, sizing_windows, window_la
 from plcpred.plant import emulate
 
 PICK_PLACE = SAMPLES / "pick_place.toml"
+SORTER = SAMPLES / "sorter.toml"
 RIG = SAMPLES / "prototype_rig" / "rig.toml"
 RIG_NOLEAK = SAMPLES / "prototype_rig" / "rig_noleak.toml"
 
@@ -121,29 +124,99 @@ def pick_place_sized():
     return r.profile, size_prediction(r)
 
 
+def _deficit(profile, s):
+    return receiver_deficit(profile.total_flow_l_min, profile.dt_s, s.design_flow_l_min)[2]
+
+
 def test_air_per_cycle_adds_up_to_the_total(pick_place_sized):
     profile, s = pick_place_sized
-    _, _, deficit = receiver_deficit(profile.total_flow_l_min, profile.dt_s,
-                                     s.design_flow_l_min)
-    w = sizing_windows(profile, s, deficit)
+    w = sizing_windows(profile, s, _deficit(profile, s), k=1)
     assert w.what == "cycle" and w.width_s == pytest.approx(s.cycle_s)
-    assert w.nl.sum() == pytest.approx(profile.total_nl, rel=1e-9)
-    assert w.whole.sum() == 15 and not w.whole[-1]       # 61 s: 15 cycles and a second
+    assert w.total_nl == pytest.approx(profile.total_nl, rel=1e-9)
+    assert (w.n, w.n_whole) == (16, 15)                 # 61 s: 15 cycles and a second
+    cut_nl = np.diff(profile.cumulative_nl_at([60.0, 61.0]))[0]
+    assert w.env.mean.sum() + cut_nl == pytest.approx(profile.total_nl, rel=1e-9)
     # a steady machine: every whole cycle takes the steady air per cycle
-    assert w.nl[w.whole][1:] == pytest.approx(s.nl_per_cycle, rel=1e-3)
-    # the receiver is sized on the largest deficit of any cycle
-    assert w.deficit_nl.max() == pytest.approx(s.deficit_nl, rel=1e-9)
+    assert w.env.mean[1:] == pytest.approx(s.nl_per_cycle, rel=1e-3)
+    # the receiver is sized on the largest deficit of any cycle, each cycle counted once
+    assert w.deficit_max_nl == pytest.approx(s.deficit_nl, rel=1e-9)
+    assert w.deficit_counts.sum() == 16
 
 
 def test_a_machine_without_a_cycle_is_cut_in_windows():
     r = predict(load_machine(RIG), "20s")
     s = size_prediction(r)
-    _, _, deficit = receiver_deficit(r.profile.total_flow_l_min, r.profile.dt_s,
-                                     s.design_flow_l_min)
-    w = sizing_windows(r.profile, s, deficit)
-    assert w.what == "window" and len(w.nl) == 20
-    assert w.nl.sum() == pytest.approx(r.profile.total_nl, rel=1e-9)
-    assert w.deficit_nl.max() == pytest.approx(s.deficit_nl, rel=1e-9)
+    w = sizing_windows(r.profile, s, _deficit(r.profile, s))
+    assert w.what == "window" and w.n == w.n_whole == 20
+    assert w.total_nl == pytest.approx(r.profile.total_nl, rel=1e-9)
+    assert w.deficit_max_nl == pytest.approx(s.deficit_nl, rel=1e-9)
+
+
+def _windows_one_by_one(profile, s, deficit, width):
+    """What the sizing plot draws, from every window's own numbers (as it was drawn
+    before the windows were reduced in chunks): starts, values and whether whole, each
+    one's largest deficit, and the histogram's bins."""
+    horizon = profile.horizon_s
+    edges = np.append(np.arange(0.0, horizon - 1e-9 * horizon, width), horizon)
+    nl = np.diff(profile.cumulative_nl_at(edges))
+    whole = np.diff(edges) >= width * (1 - 1e-6)
+    cell_end = profile.edges_s[1:]
+    largest = []
+    for a, b in itertools.pairwise(edges):
+        # the cells whose end lies in the window, or the one that holds it
+        lo = min(np.searchsorted(cell_end, a, side="right"), len(deficit) - 1)
+        hi = len(deficit) if b == horizon else np.searchsorted(cell_end, b, side="right")
+        largest.append(deficit[lo:max(hi, lo + 1)].max())
+    largest = np.array(largest)
+    top = max(largest.max(), s.deficit_nl, 1e-9)
+    return edges[:-1], nl, whole, largest, np.linspace(0.0, top * 1.05, 43)
+
+
+def _jittered_sorter(dt_s):
+    """The sorter with parts that come up to 0.1 s early or late (every 1.2 s, every
+    third metal): windows of 4 s or a minute hold different parts, no two alike."""
+    data = read_machine_data(SORTER)
+    for t in data["input"]:
+        t["jitter_s"] = 0.1
+    r = predict(machine_from_data(data, SORTER), "1203s", dt=dt_s)
+    return r.profile, size_prediction(r)
+
+
+@pytest.mark.parametrize("dt_s", [None, 10.0])      # cells shorter and longer than a window
+@pytest.mark.parametrize("cycle_s,k", [(4.0, 7), (None, 3)])    # 4 s windows, minutes
+def test_windows_reduced_in_chunks_draw_what_the_windows_one_by_one_do(dt_s, cycle_s, k):
+    profile, s = _jittered_sorter(dt_s)
+    assert s.cycle_s is None                # jittered: sized without a steady cycle
+    s = dataclasses.replace(s, cycle_s=cycle_s)
+    deficit = _deficit(profile, s)
+    width = cycle_s or 60.0
+    start, nl, whole, largest, hist_bins = _windows_one_by_one(profile, s, deficit, width)
+    values = nl[whole] if cycle_s else nl[whole] / width * 60.0
+    env = envelope(start[whole], values, k)
+    # the case the chunks must get right: windows that differ, a last one cut, groups
+    # of k with a shorter last one, deficits spread over the histogram
+    assert not whole[-1] and whole[:-1].all() and whole.sum() % k
+    assert values.max() > 1.05 * values.min()
+    assert np.count_nonzero(np.histogram(largest, hist_bins)[0]) > 3
+    for chunk in (None, 5 * k + 1, 1):                  # one chunk, several, a group each
+        w = sizing_windows(profile, s, deficit, k=k, chunk=chunk)
+        assert (w.what, w.width_s, w.k) == ("cycle" if cycle_s else "minute", width, k)
+        assert (w.n, w.n_whole) == (len(nl), whole.sum())
+        assert np.array_equal(w.env.t_s, env.t_s)
+        for got, expected in ((w.env.lo, env.lo), (w.env.mean, env.mean),
+                              (w.env.hi, env.hi)):
+            assert np.array_equal(got, expected), chunk
+        assert (w.least, w.greatest) == (values.min(), values.max())
+        assert w.mean == pytest.approx(values.mean(), rel=1e-12)
+        assert w.total_nl == pytest.approx(nl.sum(), rel=1e-12)
+        assert w.deficit_max_nl == largest.max()
+        assert np.array_equal(w.deficit_bins_nl, hist_bins)
+        assert np.array_equal(w.deficit_counts, np.histogram(largest, hist_bins)[0])
+        whole_edges = np.append(start[whole], start[whole][-1] + width)
+        assert np.array_equal(w.groups_s, np.append(whole_edges[::k], whole_edges[-1]))
+    # in one chunk, the mean is the windows' mean to the last bit
+    w = sizing_windows(profile, s, deficit, k=k)
+    assert w.mean == values.mean()
 
 
 def test_sizing_plot_is_written(pick_place_sized, tmp_path):
@@ -218,14 +291,17 @@ def test_diagnosis_pictures(rig_diagnosis, tmp_path):
 
 def test_air_per_cycle_by_consumer_adds_up(pick_place_sized):
     profile, s = pick_place_sized
-    _, _, deficit = receiver_deficit(profile.total_flow_l_min, profile.dt_s,
-                                     s.design_flow_l_min)
-    w = sizing_windows(profile, s, deficit)
-    groups, _, stacks = window_layers(profile, w, 1)
-    assert len(groups) == w.whole.sum() + 1
-    assert stacks.sum(axis=0) == pytest.approx(w.nl[w.whole], rel=1e-9)
-    grouped = window_layers(profile, w, 4)[2].sum(axis=0)    # mean per cycle of 4
-    assert grouped[0] == pytest.approx(w.nl[:4].mean(), rel=1e-9)
+    deficit = _deficit(profile, s)
+    w = sizing_windows(profile, s, deficit, k=1)
+    groups, _, stacks = window_layers(profile, w)
+    assert len(groups) == w.n_whole + 1
+    assert stacks.sum(axis=0) == pytest.approx(w.env.mean, rel=1e-9)
+    w4 = sizing_windows(profile, s, deficit, k=4)
+    grouped = window_layers(profile, w4)[2].sum(axis=0)    # mean per cycle of 4
+    assert len(grouped) == 4                                # 15 cycles: 4, 4, 4, 3
+    assert grouped == pytest.approx(w4.env.mean, rel=1e-9)
+    assert grouped[0] == pytest.approx(w.env.mean[:4].mean(), rel=1e-9)
+    assert grouped[-1] == pytest.approx(w.env.mean[12:].mean(), rel=1e-9)
 
 
 def test_a_date_time_clock_is_shown_from_its_first_reading():
