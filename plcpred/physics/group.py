@@ -4,8 +4,11 @@ A group is either one drive on the ideal supply (the machine's regulated pressur
 every drive and passive consumer on one ``[[line]]``: a volume fed by a regulator, through which the
 drives exchange air (docs/reference/physics.md: what D4 adds, shared supply).
 
-The state is integrated with scipy's LSODA (stiff when chambers are nearly full, not
-stiff while pistons move) in *pieces*: a piece ends at the next discrete event (a valve
+The state is integrated by :mod:`.rosenbrock` (ROS34PW2, a linearly implicit method with
+a finite-difference Jacobian kept over steps: the equations are stiff when chambers are
+nearly full, not stiff while pistons move; scipy's LSODA, the reference it replaced, stays
+behind ``METHOD = "lsoda"`` for the equality tests) in *pieces*: a piece ends at the next
+discrete event (a valve
 reaching a chamber, a piston breaking away, reaching an end stop or stopping, the group
 settling). Within a piece every drive is either stuck (v = 0) or sliding one way, so the
 right-hand side is smooth. Pieces are kept with their dense output, so that
@@ -31,6 +34,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import PlcpredError
+from . import rosenbrock
 from .chamber import (
     CP_J_KG_K,
     R_J_KG_K,
@@ -40,6 +44,20 @@ from .chamber import (
     signed_mass_flow_kg_s,
 )
 from .units import P_ATM_PA, PA_PER_BAR
+
+# "rosenbrock" (ROS34PW2, numpy only) or "lsoda" (scipy's LSODA at rtol 1e-6, the
+# reference the equality tests compare with). The Rosenbrock path's tolerances: relative,
+# and factors on LSODA's absolute ones (1 Pa, 1 mK, 10 nm, 1 um/s, 1e-11 kg), i.e. 10 Pa,
+# 10 mK, 0.1 um, 100 um/s and 1e-9 kg. Air and edge timelines then agree with LSODA within
+# 0.05 % and to the scan on the samples (tests/plant/test_integrator.py). Pressures looser
+# than 10 Pa let a filling chamber overshoot its supply by the error, and a piston
+# breaking away there stopped and broke away again without end (the rig at 2.5 bar(g)).
+METHOD = "rosenbrock"
+LSODA_RTOL = 1e-6
+RTOL = 1e-4
+ATOL_FACTOR = 10.0
+ATOL_FACTOR_V = 100.0      # pistons' velocities
+ATOL_FACTOR_MASS = 100.0   # the masses drawn (they feed nothing back)
 
 MAX_PIECE_S = 30.0
 SETTLE_P_REL = 5e-4
@@ -175,15 +193,26 @@ class Piece:
         out[:, ~self.sol.cum] += (self.x0 - self.sol.x_start)[~self.sol.cum]
         return out
 
+    def end_state(self) -> np.ndarray:
+        """The state at ``t1`` of a piece that ends where its solution does (the
+        solution's last value is kept with it: a reused piece needs no interpolation)."""
+        d = self.sol
+        return d.end + np.where(d.cum, self.x0, self.x0 - d.x_start)
+
 
 class _Dense:
     """The solver's dense output with what a reused piece needs."""
 
     def __init__(self, fn, t_max, x_start, cum):
         self.fn, self.t_max, self.x_start, self.cum = fn, t_max, x_start, cum
+        self.end = np.asarray(fn(t_max), dtype=float)     # relative to x_start
 
-    def __call__(self, rel):
-        return self.fn(rel)
+    def __call__(self, rel, cols=None):
+        if cols is None:
+            return self.fn(rel)
+        if isinstance(self.fn, rosenbrock.HermiteDense):
+            return self.fn(rel, cols)
+        return self.fn(rel)[cols]
 
 
 class Group:
@@ -235,6 +264,10 @@ class Group:
         self._ident = repr((self.drives, self.supply, self.passives, atmosphere_pa,
                             ambient_k))
         self.integrated_pieces = 0
+        # the Rosenbrock path's factors on the absolute tolerances (see ATOL_FACTOR)
+        self._atol_factors = np.full(self.size, ATOL_FACTOR)
+        self._atol_factors[5 * n:6 * n] = ATOL_FACTOR_V
+        self._atol_factors[cum] = ATOL_FACTOR_MASS
         self._tiny = 0
         self._settled_upto = 0      # pieces before this index have dropped their control
         self.reused_pieces = 0
@@ -316,13 +349,18 @@ class Group:
             qs1, qs2 = max(qs1, 0.0), max(qs2, 0.0)
         return qs1, qe1, qs2, qe2
 
-    def rhs(self, t, x, control: Control):
+    def rhs(self, t, x, control: Control, u=None, modes=None):
+        """d(state)/dt; ``u``: the valves' openings when they are constant over a piece
+        (they are unless a valve ramps), ``modes``: (moving, direction) as lists, so
+        that each call neither recomputes them nor does arithmetic on numpy scalars."""
         n = self.n
         xs = x.tolist()
         t_sup, t_amb = self.supply.temperature_k, self.t_amb
         p_sup = xs[7 * n] if self.has_line else self.supply.pressure_pa
-        u = control.u_at(t).tolist()
-        moving, direction = control.moving, control.direction
+        if u is None:
+            u = control.u_at(t).tolist()
+        moving, direction = modes if modes is not None else (control.moving.tolist(),
+                                                             control.direction.tolist())
         out = [0.0] * self.size
         drawn = 0.0
         for i in range(n):
@@ -367,6 +405,83 @@ class Group:
             out[7 * n + 1] = q_reg
             out[7 * n + 2:] = q_pass.tolist()
         return np.array(out)
+
+    def piece_rhs(self, control: Control, t0: float):
+        """:meth:`rhs` for one piece as a closure ``f(tr, x)`` of the time ``tr`` from
+        ``t0``: the same equations (D2, D4, the motion of docs/reference/physics.md), with
+        each drive's constants, valve openings and motion mode bound once, since the
+        integrator calls it a few thousand times per piece. A valve ramp or a line
+        (the supply follows the state) goes through :meth:`rhs`."""
+        if np.any(control.slope != 0.0) or self.has_line:
+            u = None if np.any(control.slope != 0.0) else control.u_at(t0).tolist()
+            modes = (control.moving.tolist(), control.direction.tolist())
+            rhs = self.rhs
+            return lambda tr, x: rhs(t0 + tr, x, control, u, modes)
+        n, size = self.n, self.size
+        t_sup, t_amb, p_atm = self.supply.temperature_k, self.t_amb, self.p_atm
+        p_sup = self.supply.pressure_pa
+        flow = signed_mass_flow_kg_s
+        rates = chamber_rates
+        u = control.u_at(t0).tolist()
+        drives = []
+        for i in range(n):
+            P = self._par[i]
+            moving = bool(control.moving[i])
+            d = float(control.direction[i])
+            k = 0 if d > 0 else 1
+            u1, u2 = u[i]
+            drives.append((
+                i, P, u1, u2, moving, d, P.F_coulomb[k], P.F_static[k], P.v_stribeck[k],
+                P.beta[k], P.vented2, P.check,
+                P.rod_area * p_atm + P.load + P.spring0))
+        cp = CP_J_KG_K
+
+        def f(tr, x):
+            xs = x.tolist()
+            out = [0.0] * size
+            for (i, P, u1, u2, moving, d, fc, fs, vs, beta, vented2, check,
+                 const_force) in drives:
+                p1, p2, t1, t2 = xs[i], xs[n + i], xs[2 * n + i], xs[3 * n + i]
+                y, v = xs[4 * n + i], xs[5 * n + i]
+                # the four paths of the valve (as _path_flows)
+                qs1 = u1 * flow(P.Cs1, P.bs1, P.ms1, p_sup, t_sup, p1, t1) if u1 > 0 else 0.0
+                qe1 = (1.0 - u1) * flow(P.Ce1, P.be1, P.me1, p1, t1, p_atm, t_amb) \
+                    if u1 < 1 else 0.0
+                if vented2:
+                    qs2 = qe2 = 0.0
+                else:
+                    qs2 = u2 * flow(P.Cs2, P.bs2, P.ms2, p_sup, t_sup, p2, t2) \
+                        if u2 > 0 else 0.0
+                    qe2 = (1.0 - u2) * flow(P.Ce2, P.be2, P.me2, p2, t2, p_atm, t_amb) \
+                        if u2 < 1 else 0.0
+                if check:
+                    qs1, qs2 = max(qs1, 0.0), max(qs2, 0.0)
+                vel = v if moving else 0.0
+                stroke = P.stroke
+                # D4: enthalpy in at the source's temperature, out at the chamber's
+                h1 = cp * (qs1 * (t_sup if qs1 > 0 else t1) - qe1 * (t1 if qe1 > 0 else t_amb))
+                heat1 = P.heat * (P.wall1 + P.pi_bore * y) * (t_amb - t1)
+                dp1, dt1 = rates(p1, t1, P.dead1 + P.area1 * y, P.area1 * vel, qs1 - qe1,
+                                 h1, heat1)
+                if vented2:
+                    dp2 = dt2 = 0.0
+                else:
+                    h2 = cp * (qs2 * (t_sup if qs2 > 0 else t2)
+                               - qe2 * (t2 if qe2 > 0 else t_amb))
+                    heat2 = P.heat * (P.wall2 + P.pi_bore * (stroke - y)) * (t_amb - t2)
+                    dp2, dt2 = rates(p2, t2, P.dead2 + P.area2 * (stroke - y),
+                                     -P.area2 * vel, qs2 - qe2, h2, heat2)
+                if moving:
+                    force = p1 * P.area1 - p2 * P.area2 - const_force - P.spring_rate * y
+                    # Stribeck friction (friction_n), the direction fixed over the piece
+                    fr = d * (fc + (fs - fc) * math.exp(-(abs(v) / vs) ** 2.0)) + beta * v
+                    acc = (force - fr) / P.mass
+                else:
+                    acc = 0.0
+                out[i], out[n + i], out[2 * n + i], out[3 * n + i] = dp1, dp2, dt1, dt2
+                out[4 * n + i], out[5 * n + i], out[6 * n + i] = vel, acc, qs1 + qs2
+            return np.array(out)
+        return f
 
     # ------------------------------------------------------------------ modes and events
     def _switch_state(self, i, x) -> tuple[bool, bool]:
@@ -444,20 +559,46 @@ class Group:
             dev = max(dev, abs(x[7 * n] - p_sup) / p_sup / SETTLE_P_REL)
         return float(dev)
 
+    def _settle_event(self, targets):
+        """:meth:`_deviation` - 1 against targets fixed over a piece (no check valve can
+        hold a chamber above them), in plain floats: it is evaluated after every step."""
+        n = self.n
+        t1, t2, p_sup = targets
+        pairs = [(i, p, 1.0 / p) for i, p in enumerate(t1.tolist())]
+        pairs += [(n + i, p, 1.0 / p) for i, p in enumerate(t2.tolist())]
+        temps = range(2 * n, 4 * n)
+        t_amb = self.t_amb
+        line = 7 * n if self.has_line else None
+        inv_p, inv_t = 1.0 / SETTLE_P_REL, 1.0 / SETTLE_T_K
+
+        def settle(tr, x):
+            xs = x.tolist()
+            dev_p = max((abs(xs[k] - p) * inv for k, p, inv in pairs), default=0.0)
+            if line is not None:
+                dev_p = max(dev_p, abs(xs[line] - p_sup) / p_sup)
+            dev_t = max((abs(xs[k] - t_amb) for k in temps), default=0.0)
+            return max(dev_p * inv_p, dev_t * inv_t) - 1.0
+        return settle
+
     def _line_equilibrium(self, on) -> float:
         """The line pressure at which the regulator feeds exactly the passive flows."""
         if not self.has_line:
             return self.supply.pressure_pa
-        # scipy costs a third of a second to import: only the runs that need it pay
-        from scipy.optimize import brentq
-
         def gap(p):
             q = self._passive_flows(p, on).sum() if self.k else 0.0
             return self._regulator(p) - q
         lo, hi = self.p_atm * 1.0001, self.supply.pressure_pa
         if gap(hi) >= 0.0 or gap(lo) <= 0.0:
             return hi if gap(hi) >= 0.0 else lo
-        return brentq(gap, lo, hi, xtol=1e-3)
+        # the gap falls with the line pressure (the regulator closes, the nozzles draw
+        # more): bisection to a millipascal, about 30 halvings
+        while hi - lo > 1e-3:
+            mid = 0.5 * (lo + hi)
+            if gap(mid) > 0.0:
+                lo = mid
+            else:
+                hi = mid
+        return 0.5 * (lo + hi)
 
     def _snap(self, x, targets) -> None:
         """Put a settled group in its final state; book the air the snap moves."""
@@ -657,7 +798,7 @@ class Group:
             self.reused_pieces += 1
         dense, t_len = hit
         piece = Piece(t0, t0 + t_len, self.x.copy(), dense, c.copy())
-        x_end = piece.state([t0 + t_len])[0]
+        x_end = piece.end_state()
         return piece, x_end, t0 + t_len
 
     def _solve(self, tb):
@@ -669,12 +810,13 @@ class Group:
         x0[self.cum] = 0.0
         budget = max(MAX_PIECE_EVALUATIONS // max(1, n), MAX_PIECE_EVALUATIONS // 10)
         calls = [0]
+        rhs = self.piece_rhs(c, t0)
 
         def f(tr, x):
             calls[0] += 1
             if calls[0] > budget:
                 raise _OverBudget()
-            return self.rhs(t0 + tr, x, c)
+            return rhs(tr, x)
 
         events = []
         for i in range(n):
@@ -695,9 +837,12 @@ class Group:
         if not np.any(c.moving):
             targets = self._targets(x0, c)
             if targets is not None:
-                def settle(tr, x):
-                    xt = x.copy()
-                    return self._deviation(xt, self._targets(xt, c)) - 1.0
+                if np.any(self.check):      # targets follow the chambers (check valves)
+                    def settle(tr, x):
+                        xt = x.copy()
+                        return self._deviation(xt, self._targets(xt, c)) - 1.0
+                else:
+                    settle = self._settle_event(targets)
                 settle.terminal, settle.direction = True, -1
                 events.append(settle)
         atol = np.concatenate([np.full(2 * n, 1.0), np.full(2 * n, 1e-3), np.full(n, 1e-8),
@@ -705,11 +850,37 @@ class Group:
                                np.concatenate([[1.0], np.full(1 + self.k, 1e-11)])
                                if self.has_line else []])
         span = tb - t0
-        # scipy costs a third of a second to import: only a run that integrates pays it
+        if METHOD == "lsoda":
+            t_len, sol_fn = self._solve_lsoda(f, span, x0, events, atol, t0, budget)
+        else:
+            try:
+                sol_fn, t_len, _ = rosenbrock.solve(
+                    f, span, x0, RTOL, atol * self._atol_factors, events,
+                    first_step=min(1e-5, span), free=~self.cum)
+            except _OverBudget:
+                raise PlantError(self._too_stiff(t0, budget)) from None
+            except (ArithmeticError, ValueError, np.linalg.LinAlgError) as e:
+                raise PlantError(f"the plant cannot integrate drive(s) {self._names()} from "
+                                 f"{t0:.6g} s ({type(e).__name__}: {e}); check sizes, "
+                                 "conductances and loads for values far outside real drives"
+                                 ) from None
+        # an event at the very start: move on by at least a few of the clock's own
+        # steps, or late in a long run (4,100 s on) the piece adds nothing to the clock
+        # and the same event is found again without end
+        min_len_s = max(1e-9, 8.0 * float(np.spacing(t0)))
+        if t_len < min_len_s:
+            t_len = min(min_len_s, span)
+        dense = _Dense(sol_fn, t_len, x0, self.cum)
+        return dense, t_len
+
+    def _solve_lsoda(self, f, span, x0, events, atol, t0, budget):
+        """The reference integration (scipy's LSODA), kept for the equality tests:
+        (length, dense output)."""
+        # scipy costs a third of a second to import: only this reference path pays it
         from scipy.integrate import solve_ivp
         try:
             sol = solve_ivp(f, (0.0, span), x0, method="LSODA", dense_output=True,
-                            events=events or None, rtol=1e-6, atol=atol,
+                            events=events or None, rtol=LSODA_RTOL, atol=atol,
                             first_step=min(1e-5, span))
         except _OverBudget:
             raise PlantError(self._too_stiff(t0, budget)) from None
@@ -721,15 +892,7 @@ class Group:
         if sol.status < 0:
             raise PlantError(f"the plant cannot integrate drive(s) {self._names()} from "
                              f"{t0:.6g} s: {sol.message}")
-        # an event at the very start: move on by at least a few of the clock's own
-        # steps, or late in a long run (4,100 s on) the piece adds nothing to the clock
-        # and the same event is found again without end
-        min_len_s = max(1e-9, 8.0 * float(np.spacing(t0)))
-        t_len = float(sol.t[-1])
-        if t_len < min_len_s:
-            t_len = min(min_len_s, span)
-        dense = _Dense(sol.sol, t_len, x0, self.cum)
-        return dense, t_len
+        return float(sol.t[-1]), sol.sol
 
     def _names(self) -> str:
         return ", ".join(f'"{d.name}"' for d in self.drives) or "(none)"
@@ -792,35 +955,47 @@ class Group:
                 return None
             self._step(math.inf)
 
-    def state_at(self, times_s: np.ndarray) -> np.ndarray:
-        """States on a grid of times within [0, t] (rows), from the pieces. Pieces that
-        share one dense solution (reused ones) are evaluated in one call."""
+    def state_at(self, times_s: np.ndarray, cols=None) -> np.ndarray:
+        """States on a grid of times within [0, t] (rows), from the pieces; ``cols``:
+        only these states (indices; the outputs each need a few of a group's 7 per
+        drive). Pieces that share one dense solution (reused ones) are evaluated in one
+        call."""
         times_s = np.asarray(times_s, dtype=float)
+        cols = np.arange(self.size) if cols is None else np.asarray(cols, dtype=int)
         pieces = self.pieces
         starts = np.array([p.t0 for p in pieces])
         idx = np.clip(np.searchsorted(starts, times_s, side="right") - 1, 0, len(pieces) - 1)
-        base = np.empty((len(pieces), self.size))     # what each piece adds to its solution
-        rates = np.zeros((len(pieces), self.size))
+        base = np.empty((len(pieces), len(cols)))     # what each piece adds to its solution
+        rates = np.zeros((len(pieces), len(cols)))
         dense_of = np.full(len(pieces), -1)
         denses: dict[int, int] = {}
         dense_list = []
+        cum = self.cum[cols]
         for k, p in enumerate(pieces):
+            x0 = p.x0[cols]
             if p.sol is None:
-                base[k] = p.x0
-                rates[k] = p.rest_rates
+                base[k] = x0
+                rates[k] = p.rest_rates[cols]
             else:
-                base[k] = np.where(self.cum, p.x0, p.x0 - p.sol.x_start)
+                base[k] = np.where(cum, x0, x0 - p.sol.x_start[cols])
                 j = denses.setdefault(id(p.sol), len(dense_list))
                 if j == len(dense_list):
                     dense_list.append(p.sol)
                 dense_of[k] = j
         rel = times_s - starts[idx]
-        out = base[idx] + rel[:, None] * rates[idx]
+        out = base[idx]
+        drawing = np.any(rates != 0.0, axis=1)[idx]     # rest pieces that draw air
+        if np.any(drawing):
+            out[drawing] += rel[drawing, None] * rates[idx[drawing]]
+        # each dense solution's times, found by one sort instead of a scan per solution
         which = dense_of[idx]
+        order = np.argsort(which, kind="stable")
+        bounds = np.searchsorted(which[order], np.arange(-1, len(dense_list) + 1))
         for j, dense in enumerate(dense_list):
-            sel = which == j
-            if np.any(sel):
-                out[sel] += np.atleast_2d(dense(np.clip(rel[sel], 0.0, dense.t_max))).T
+            sel = order[bounds[j + 1]:bounds[j + 2]]
+            if len(sel):
+                out[sel] += np.atleast_2d(dense(np.clip(rel[sel], 0.0, dense.t_max),
+                                                cols)).T
         return out
 
 

@@ -35,15 +35,24 @@ def first_order_lag(flow_l_min: np.ndarray, dt_s: float, tau_s: float,
     """A first-order sensor ``tau * dy/dt + y = x`` sampled on a grid of ``dt_s``, with
     the input held over each cell (exact for piecewise-constant input):
     ``y[n] = a y[n-1] + (1 - a) x[n]``, ``a = exp(-dt/tau)``. Starts settled at ``x[0]``
-    (or at 0 with ``from_rest``)."""
+    (or at 0 with ``from_rest``).
+
+    The recursion is solved by doubling (``y[n] += a^s y[n-s]`` for s = 1, 2, 4, ...),
+    log2(n) passes of numpy: within 1e-14 of the sequential filter relative to the
+    largest value, as fast as scipy's ``lfilter`` and without its 0.3 s import."""
     if not tau_s or tau_s <= 0 or len(flow_l_min) == 0:
         return flow_l_min
-    # scipy costs a third of a second to import: only the runs that need it pay
-    from scipy.signal import lfilter
-
     a = math.exp(-dt_s / tau_s)
     x = np.asarray(flow_l_min, dtype=float)
-    y, _ = lfilter([1.0 - a], [1.0, -a], x, zi=[0.0 if from_rest else a * x[0]])
+    y = (1.0 - a) * x
+    if not from_rest:
+        y[0] += a * x[0]
+    # after pass k, y[n] holds the recursion's terms of x[n - 2^k + 1 .. n]
+    factor, shift, n = a, 1, len(y)
+    while shift < n and factor > 0.0:
+        y[shift:] += factor * y[:-shift]
+        factor *= factor
+        shift *= 2
     return y
 
 

@@ -13,11 +13,12 @@ from __future__ import annotations
 import dataclasses
 import math
 
+from . import group as _group
 from .drive import drive_params
 from .group import Group, PlantError, Supply
 from .units import pa_to_bar_g
 
-_CACHE: dict = {}
+_CACHE: dict = {}      # keyed by the integrator too: the equality tests run both
 SEARCH_STEPS = 12
 MAX_THROTTLED_S = 20.0   # slower strokes than this are not set by flow controls
 TIME_TOL_REL = 0.01
@@ -46,7 +47,7 @@ def _stroke(drive, extend: bool, supply_pa: float, atmosphere_pa: float, ambient
 def stroke_times_s(drive, supply_pa: float, atmosphere_pa: float, ambient_k: float
                    ) -> tuple[float | None, float | None]:
     """(extend, retract) seconds from valve switch to end of stroke (see module note)."""
-    key = ("times", drive, supply_pa, atmosphere_pa, ambient_k)
+    key = ("times", _group.METHOD, drive, supply_pa, atmosphere_pa, ambient_k)
     if key not in _CACHE:
         _CACHE[key] = (_stroke(drive, True, supply_pa, atmosphere_pa, ambient_k),
                        _stroke(drive, False, supply_pa, atmosphere_pa, ambient_k))
@@ -59,7 +60,8 @@ def throttle_to(drive, wanted_s: tuple[float, float], supply_pa: float,
     ``wanted_s`` (extend, retract); a stroke that is already slower than wanted, or whose
     exhaust C the file gives, or slower than MAX_THROTTLED_S, stays as it is. Returns
     (drive, achieved times)."""
-    key = ("throttle", drive, wanted_s, supply_pa, atmosphere_pa, ambient_k, explicit_exhaust)
+    key = ("throttle", _group.METHOD, drive, wanted_s, supply_pa, atmosphere_pa, ambient_k,
+           explicit_exhaust)
     if key in _CACHE:
         return _CACHE[key]
     C = list(drive.C_exhaust)

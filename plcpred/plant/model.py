@@ -149,18 +149,24 @@ class PlantModel:
         """Normal litres each consumer has drawn from its supply by each time (for a drive
         on a line: from the line; the line's regulator appears as ``line:<name>``)."""
         out: dict[str, np.ndarray] = {}
-        states = {id(g): g.state_at(edges_s) for g in self.groups}
+        # only the drawn masses are sampled: each group's columns 6n.. (its drives'),
+        # and on a line the regulator's and its passives'
+        states = {}
+        for g in self.groups:
+            cols = list(range(6 * g.n, g.size if g.has_line else 7 * g.n))
+            states[id(g)] = (g.state_at(edges_s, cols), 6 * g.n)
         for c in self.machine.consumers:
             group, index = self.where.get(c.name, (None, -1))
             if group is not None:
-                x = states[id(group)]
+                x, first = states[id(group)]
                 col = 6 * group.n + index if c.is_cylinder else index
-                out[c.name] = mass_to_nl(x[:, col])
+                out[c.name] = mass_to_nl(x[:, col - first])
             else:
                 out[c.name] = mass_to_nl(self._passive_mass_kg(c, edges_s))
         for g in self.groups:
             if g.has_line:
-                out[f"line:{g.supply.line}"] = mass_to_nl(states[id(g)][:, 7 * g.n + 1])
+                x, first = states[id(g)]
+                out[f"line:{g.supply.line}"] = mass_to_nl(x[:, 7 * g.n + 1 - first])
         for ln in self.machine.lines:       # a line nobody draws from
             out.setdefault(f"line:{ln.name}", np.zeros(len(edges_s)))
         return out
@@ -212,12 +218,14 @@ class PlantModel:
         g, i = self.where[name]
         if group_states is None:
             group_states = {}
-        if id(g) not in group_states:
-            group_states[id(g)] = g.state_at(times_s)
-        x = group_states[id(g)]
         n = g.n
+        if id(g) not in group_states:
+            # pressures and positions only: columns 0..2n and 4n..5n
+            cols = list(range(2 * n)) + list(range(4 * n, 5 * n))
+            group_states[id(g)] = g.state_at(times_s, cols)
+        x = group_states[id(g)]
         to_bar_g = lambda p: (p - self.atm_pa) / PA_PER_BAR  # noqa: E731
-        return {"position_mm": x[:, 4 * n + i] * 1000.0, "p_cap_bar_g": to_bar_g(x[:, i]),
+        return {"position_mm": x[:, 2 * n + i] * 1000.0, "p_cap_bar_g": to_bar_g(x[:, i]),
                 "p_rod_bar_g": to_bar_g(x[:, n + i])}
 
     def line_pressure_bar_g(self, times_s: np.ndarray) -> np.ndarray:
@@ -227,5 +235,5 @@ class PlantModel:
         wanted = meter.line if meter is not None else None
         for g in self.groups:
             if g.has_line and wanted in (None, g.supply.line):
-                return (g.state_at(times_s)[:, 7 * g.n] - self.atm_pa) / PA_PER_BAR
+                return (g.state_at(times_s, [7 * g.n])[:, 0] - self.atm_pa) / PA_PER_BAR
         return np.full(len(times_s), self.machine.supply_bar_g)
