@@ -24,6 +24,7 @@ import numpy as np
 
 from ..air.demand import sonic_conductance
 from .effects import (
+    HOT_FILL_SHARE,
     PASSIVE_TOLERANCE_SHARE,
     Effect,
     Param,
@@ -39,7 +40,7 @@ DRIVE_ABOVE_SHARE = 0.04
 # and this share less: an incomplete top-up after a hot fill and an exhaust cut short
 # (settled strokes take about 0.96 x D1, short dwells and fast cycles less). Wider, it
 # would hold a supply a bar low (14 % less air) for a healthy machine's
-DRIVE_THERMAL_SHARE = 0.08
+DRIVE_THERMAL_SHARE = HOT_FILL_SHARE
 # a nozzle's or a leak's D2 flow either way (a worn or a blocked nozzle is 20 % and more)
 PASSIVE_SHARE = PASSIVE_TOLERANCE_SHARE
 # a stroke may take this share more or less than the physics plant's: the plant has the

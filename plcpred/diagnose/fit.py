@@ -193,6 +193,24 @@ class _Correlations:
                                             0.0)
         return out
 
+    def of_changes(self, tau: float, offset_s: float) -> tuple[float, int]:
+        """(the correlation of the readings' changes from one to the next with the log's,
+        readings used) at one offset, over the samples within the prediction there: a
+        step in the log (a leak that opens) is one change among hundreds, where it
+        lowers the readings' own correlation over the whole log."""
+        run, rm = self.run, self.rm
+        idx = _common_samples(run, offset_s, offset_s, rm.horizon_s)
+        if len(idx) < 5:
+            return -2.0, len(idx)
+        cum = self.lagged.get(tau)
+        if cum is None:
+            p = self.params.copy()
+            p.meter_tau_s = tau
+            cum = self.lagged[tau] = rm.metered_cumulative_nl(p, self.cells)
+        r = rm.readings(self.params, run.reading_starts_s()[idx] - offset_s,
+                        run.time_s[idx] - offset_s, cum_nl=cum)
+        return _pearson(np.diff(r), np.diff(run.flow_l_min[idx])), len(idx)
+
     def cost(self, tau: float, offset_s: float) -> float:
         """Minus the correlation at one offset (2 where too few samples overlap)."""
         c = self(tau, [offset_s])
@@ -217,15 +235,32 @@ class _Alignment(NamedTuple):
 def _search_offset(correlations: _Correlations, taus: list[float], window_s: float,
                    quick: bool, near_s: float | None) -> _Alignment:
     """The offset and lag that correlate best among the coarse candidates' fine offsets
-    (or near ``near_s`` alone), a rival clock that would use more of the log noted."""
+    (or near ``near_s`` alone). A rival clock as good that uses more of the log is
+    taken instead, and the report says so: a cycling machine correlates alike whole
+    cycles later, and a clock that drops part of the log (the part before a leak
+    opened, whose step lowers the whole log's correlation) must not win by dropping it."""
     run, rm = correlations.run, correlations.rm
     g = correlations.grid_s
     candidates = [near_s] if near_s is not None else _coarse_offsets(
         run, rm, correlations.cells, window_s)
     best, scored = _best_candidate(correlations, candidates, taus, quick)
-    offset_s = best[1]
-    return _Alignment(offset_s, best[2], offset_s - g, offset_s + g,
-                      _rival_notes(run, rm, scored, best, g))
+    taken = best
+    if len(scored) > 1 and run.sampling != "instant":
+        taken = _covering_alike(correlations, scored, best)
+    rival = _covering_rival(run, rm, scored, taken, g)
+    if rival is not None:
+        taken = rival
+    notes = []
+    if taken is not best:
+        used = len(_common_samples(run, best[1], best[1], rm.horizon_s))
+        n = len(_common_samples(run, taken[1], taken[1], rm.horizon_s))
+        notes.append(
+            f"{run.name}: a clock {best[1] - taken[1]:+.1f} s from the one taken "
+            f"correlates as well or better ({best[0]:.4f} against {taken[0]:.4f}) but "
+            f"would use {used} of the log's readings instead of {n}: the one that uses "
+            "more is taken; check it, or give --offset")
+    offset_s = taken[1]
+    return _Alignment(offset_s, taken[2], offset_s - g, offset_s + g, notes)
 
 
 def _best_candidate(correlations: _Correlations, candidates: list[float],
@@ -259,11 +294,11 @@ def _best_candidate(correlations: _Correlations, candidates: list[float],
 def _fine_offsets(correlations: _Correlations, coarse: float, taus: list[float],
                   shared: tuple | None, quick: bool, here: tuple) -> tuple[tuple, tuple]:
     """(``here`` (correlation, offset, lag) improved by the fine offsets around
-    ``coarse`` at each lag, the best (correlation, offset) among them alone)."""
+    ``coarse`` at each lag, the best (correlation, offset, lag) among them alone)."""
     run, rm = correlations.run, correlations.rm
     g = correlations.grid_s
     instant = run.sampling == "instant"
-    own = (-2.0, coarse)
+    own = (-2.0, coarse, taus[0])
     for tau in taus:
         # a coarse offset may be late by up to the lag
         step = max(rm.dt_s, tau / 50.0, 0.0 if instant else g / (5.0 if quick else 25.0))
@@ -286,32 +321,52 @@ def _fine_offsets(correlations: _Correlations, coarse: float, taus: list[float],
         if corr is None:
             continue
         k = int(np.argmax(corr))
-        own = max(own, (float(corr[k]), float(fine[k])))
+        own = max(own, (float(corr[k]), float(fine[k]), tau))
         if corr[k] > here[0] + (0.0 if instant else 2e-3):
             here = (float(corr[k]), float(fine[k]), tau)
     return here, own
 
 
-def _rival_notes(run: MeasuredRun, rm: RunModel, scored: list[tuple], best: tuple,
-                 g: float) -> list[str]:
-    """A note where a clock as good as ``best``'s would use more of the log: the one
-    taken may have slipped by whole cycles (a cycling machine looks alike a cycle
-    later), and the readings it leaves out are lost to the diagnosis. (Clocks whole
+# candidate clocks whose readings' changes correlate this close to the best's are alike:
+# the one that uses most of the log is taken
+CHANGES_MARGIN = 0.01
+
+
+def _covering_alike(correlations: _Correlations, scored: list[tuple], best: tuple
+                    ) -> tuple:
+    """Among the candidates' own best clocks, the one that uses most of the log of those
+    whose readings' changes correlate with the log's as well as the best does
+    (:meth:`_Correlations.of_changes`, within CHANGES_MARGIN); ``best`` where it is one
+    of them (a clock that drops the log's start, where a leak had not yet opened, wins
+    the readings' own correlation by dropping it)."""
+    run, rm = correlations.run, correlations.rm
+    used = len(_common_samples(run, best[1], best[1], rm.horizon_s))
+    judged = [(*correlations.of_changes(tau, o), c, o, tau) for c, o, tau in scored]
+    top = max(j[0] for j in judged)
+    more = [j for j in judged if j[0] >= top - CHANGES_MARGIN
+            and j[1] >= used + max(3, RIVAL_MORE_SHARE * len(run.time_s))]
+    if not more:
+        return best
+    _, _, c, o, tau = max(more, key=lambda j: (j[1], j[2]))
+    return c, o, tau
+
+
+def _covering_rival(run: MeasuredRun, rm: RunModel, scored: list[tuple], best: tuple,
+                    g: float) -> tuple | None:
+    """(correlation, offset, lag) of the candidate clock, more than a sampling interval
+    or two from ``best``'s, that correlates within RIVAL_MARGIN of it and uses
+    materially more of the log's readings (the one using most), or None. (Clocks whole
     cycles apart that use the whole log alike give the same diagnosis.)"""
     offset_s = best[1]
     used = len(_common_samples(run, offset_s, offset_s, rm.horizon_s))
-    rivals = [(c, o, n) for c, o in scored if abs(o - offset_s) > 2.0 * g + 1.0
+    rivals = [(n, c, o, tau) for c, o, tau in scored if abs(o - offset_s) > 2.0 * g + 1.0
               and c >= best[0] - RIVAL_MARGIN
               and (n := len(_common_samples(run, o, o, rm.horizon_s)))
               >= used + max(3, RIVAL_MORE_SHARE * len(run.time_s))]
     if not rivals:
-        return []
-    c, o, n = max(rivals)
-    note = (f"{run.name}: the log's clock fits as well {o - offset_s:+.1f} s from "
-            f"the one taken (correlation {c:.4f} against {best[0]:.4f}), which "
-            f"would use {n} of its readings instead of {used}: check it, or give "
-            "--offset")
-    return [note]
+        return None
+    _, c, o, tau = max(rivals)
+    return c, o, tau
 
 
 def _lag_at_offset(correlations: _Correlations, taus: list[float], offset_s: float

@@ -432,6 +432,31 @@ def test_alignment_finds_a_known_offset():
     assert d.verdict == "none"
 
 
+def test_a_clock_that_drops_part_of_the_log_loses_to_one_that_keeps_it():
+    """A leak that opens mid-log lowers the readings' correlation over the whole log, so
+    a clock that drops the log's start (the prediction's horizon ends the log sooner)
+    correlates better. Where the readings' changes correlate alike at both, the clock
+    that uses materially more of the log is taken; where they do not, the better one."""
+    from types import SimpleNamespace
+
+    from plcpred.diagnose.fit import _covering_alike
+
+    t = np.arange(0.0, 101.0)
+    run = MeasuredRun("log.csv", t, np.ones_like(t))
+    rm = SimpleNamespace(horizon_s=60.0)         # the clock at 0 keeps 60 readings, at 60: 40
+
+    def judge(changes):
+        return SimpleNamespace(run=run, rm=rm, of_changes=lambda tau, o: (
+            changes[o], int(((t - 1.0 >= o) & (t - o <= 60.0)).sum())))
+    scored = [(0.95, 60.0, 0.3), (0.80, 0.0, 0.4)]
+    best = scored[0]
+    assert _covering_alike(judge({60.0: 0.99, 0.0: 0.985}), scored, best) == scored[1]
+    assert _covering_alike(judge({60.0: 0.99, 0.0: 0.95}), scored, best) == best
+    # keeping about as much of the log is no reason to move
+    assert _covering_alike(judge({20.0: 0.99, 0.0: 0.99}), [(0.95, 20.0, 0.3)] + scored[1:],
+                           (0.95, 20.0, 0.3)) == (0.95, 20.0, 0.3)
+
+
 def test_instantaneous_readings_are_found_and_read_so():
     # a PLC polling the meter's analogue output logs the flow at that moment: once a
     # second behind a 0.1 s meter, most strokes fall between two readings

@@ -56,6 +56,32 @@ def test_a_dead_volume_within_the_tubes_cut_on_site_is_no_fault(rig):
     assert effect.within_tolerance(rig, [tubes[0]] + [0.0] * (len(tubes) - 1), CTX) is None
 
 
+def test_less_dead_volume_goes_as_far_as_d1s_own_excess(rig):
+    # a healthy fill takes less than D1 books: the tube's air counted from zero (a real
+    # fill starts at atmosphere) and up to 8 % of a stroke for a hot fill. Taking that
+    # volume away is no fault; adding it is
+    effect = EFFECTS["dead_volume"]
+    m = rig.machine
+    box = effect.tolerance_box(rig, CTX)
+    p = rig.nominal()
+    supply_abs_pa = (m.supply_bar_g * 1e5 + m.atmosphere_kpa * 1e3)
+    nl_per_cm3 = 1e-3 * supply_abs_pa / 100e3 * 293.15 / (m.ambient_c + 273.15)
+    for k, row in enumerate(rig.drives):
+        c = m.consumers[row]
+        tube = min(tube_volumes_cm3(c))
+        fill = p.extend_nl[k] if c.kind == "single_acting" else min(p.extend_nl[k],
+                                                                     p.retract_nl[k])
+        lo, hi = box[k]
+        expected_extra = m.atmosphere_kpa * 1e3 / supply_abs_pa * tube + 0.08 * fill / nl_per_cm3
+        assert -lo - hi == pytest.approx(expected_extra, rel=1e-6), c.name
+        below = [0.0] * len(rig.drives)
+        below[k] = lo * 0.99
+        assert effect.within_tolerance(rig, below, CTX), c.name
+        above = [0.0] * len(rig.drives)
+        above[k] = -lo * 0.99
+        assert effect.within_tolerance(rig, above, CTX) is None, c.name
+
+
 def test_incomplete_exhaust_has_no_tolerance(rig):
     effect = EFFECTS["incomplete_exhaust"]
     theta = [p.init for p in effect.params(rig, CTX)]
