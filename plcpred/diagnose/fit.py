@@ -246,7 +246,7 @@ def _search_offset(correlations: _Correlations, taus: list[float], window_s: flo
     best, scored = _best_candidate(correlations, candidates, taus, quick)
     taken = best
     if len(scored) > 1 and run.sampling != "instant":
-        taken = _covering_alike(correlations, scored, best)
+        taken = covering_alike(correlations, scored, best)
     rival = _covering_rival(run, rm, scored, taken, g)
     if rival is not None:
         taken = rival
@@ -332,7 +332,7 @@ def _fine_offsets(correlations: _Correlations, coarse: float, taus: list[float],
 CHANGES_MARGIN = 0.01
 
 
-def _covering_alike(correlations: _Correlations, scored: list[tuple], best: tuple
+def covering_alike(correlations: _Correlations, scored: list[tuple], best: tuple
                     ) -> tuple:
     """Among the candidates' own best clocks, the one that uses most of the log of those
     whose readings' changes correlate with the log's as well as the best does

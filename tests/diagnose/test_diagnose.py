@@ -439,7 +439,7 @@ def test_a_clock_that_drops_part_of_the_log_loses_to_one_that_keeps_it():
     that uses materially more of the log is taken; where they do not, the better one."""
     from types import SimpleNamespace
 
-    from plcpred.diagnose.fit import _covering_alike
+    from plcpred.diagnose.fit import covering_alike
 
     t = np.arange(0.0, 101.0)
     run = MeasuredRun("log.csv", t, np.ones_like(t))
@@ -450,10 +450,10 @@ def test_a_clock_that_drops_part_of_the_log_loses_to_one_that_keeps_it():
             changes[o], int(((t - 1.0 >= o) & (t - o <= 60.0)).sum())))
     scored = [(0.95, 60.0, 0.3), (0.80, 0.0, 0.4)]
     best = scored[0]
-    assert _covering_alike(judge({60.0: 0.99, 0.0: 0.985}), scored, best) == scored[1]
-    assert _covering_alike(judge({60.0: 0.99, 0.0: 0.95}), scored, best) == best
+    assert covering_alike(judge({60.0: 0.99, 0.0: 0.985}), scored, best) == scored[1]
+    assert covering_alike(judge({60.0: 0.99, 0.0: 0.95}), scored, best) == best
     # keeping about as much of the log is no reason to move
-    assert _covering_alike(judge({20.0: 0.99, 0.0: 0.99}), [(0.95, 20.0, 0.3)] + scored[1:],
+    assert covering_alike(judge({20.0: 0.99, 0.0: 0.99}), [(0.95, 20.0, 0.3)] + scored[1:],
                            (0.95, 20.0, 0.3)) == (0.95, 20.0, 0.3)
 
 
