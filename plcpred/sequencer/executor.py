@@ -21,10 +21,12 @@ from __future__ import annotations
 
 import builtins
 import copy
+import dataclasses
 import hashlib
 import math
 import pickle
 import re
+import tempfile
 import time as _time
 from array import array
 from dataclasses import dataclass, field
@@ -46,10 +48,11 @@ from .compiler import (
     compile_program,
     stdfb_member,
 )
+from .islands import SlotCells, find_islands, island_snap, island_timers, slot_cell
 from .plant import CylinderPlant, valve_command
 from .sfc import ActionSpec, SfcRuntime, SfcSpec
 from .stdfb import TOF, TON, TONR, TP, make_standard_fb
-from .timeline import DEFAULT_MAX_CHANGES, NS, Signal, Timeline, wrap_array
+from .timeline import DEFAULT_MAX_CHANGES, NS, Signal, SpilledColumn, Timeline, wrap_array
 
 _TIMERS = (TON, TOF, TP, TONR)
 NEVER = 1 << 62      # "no event" in integer nanoseconds
@@ -57,6 +60,11 @@ MAX_KEYS = 20_000   # fixed points remembered when looking for a repeating state
 MAX_PART_VARIANTS = 16      # recorded responses kept per rest state (part replay)
 MAX_PART_CHANGES = 200_000  # a response longer than this is not recorded
 MAX_OPEN_PARTS = 8          # parts recorded at once (from different rest states)
+MAX_PART_REPLAYS = 2_000    # a part holding more replays of others is not recorded
+EAGER_MERGE = 2_000_000     # islands' edges merged into arrays at once up to this many
+SPILL_REPLAYS = 1 << 20     # replays held in memory before most go to a file
+KEEP_REPLAYS = 4 * MAX_PART_REPLAYS     # the last ones, which a part may still hold
+_REPLAY = np.dtype([("at", np.int32), ("start", np.int64), ("pid", np.int32)])
 
 
 class SequencerError(PlcpredError):
@@ -780,6 +788,7 @@ class _InputImage:
                     slots.append(cyl.switches[role])
             self.switch_at.append(tuple(at))
         self.drive = [False] * len(slots)
+        self.live = list(range(len(schedules)))     # the schedules with edges to come
         self.write = _value_setter(slots)
         # inputs the program never writes keep what was written: the image is written
         # again only when it changed (else every scan, as a PLC does)
@@ -806,11 +815,18 @@ class _InputImage:
         drive, switch_queue, due, unread = self.drive, self.switch_queue, self.due, self.unread
         nxt = NEVER
         self.stale = True
-        for j, (sch, _, _) in enumerate(self.schedules):
+        ended = None
+        schedules = self.schedules
+        for j in self.live:
+            sch = schedules[j][0]
             drive[j] = sch.advance(t)
             e = sch.next_ns()
-            if e is not None and e < nxt:
+            if e is None:
+                ended = [j] if ended is None else ended + [j]
+            elif e < nxt:
                 nxt = e
+        if ended:       # held, or past their last edge: their value stays what it is
+            self.live = [j for j in self.live if j not in ended]
         while switch_queue and switch_queue[0][0] <= t:
             u, k = heappop(switch_queue)
             if u == due[k]:
@@ -862,6 +878,73 @@ class _Recorder:
         self.max_events = max_events
         self.scan = scan
         self.tt, self.ss, self.vv = array("q"), array("i"), array("d")
+        # replayed parts kept by reference: where each replay lies among the executed
+        # changes, its start, which part (``parts``: times from the start, signals, values)
+        self.at, self.start, self.pid = array("i"), array("q"), array("i")
+        self.parts: list = []
+        # the replays of a long run go to an unnamed temporary file a block at a time
+        # (16 bytes each: a year of a part every 4 s would hold 126 MB), all but the
+        # last few, which a part being recorded may still hold
+        self.spill = None
+        self.spilled = 0
+
+    @property
+    def n_replays(self) -> int:
+        return self.spilled + len(self.at)
+
+    def replayed(self, t_s: int, pid: int) -> None:
+        self.at.append(len(self.tt))
+        self.start.append(t_s)
+        self.pid.append(pid)
+        if len(self.at) >= SPILL_REPLAYS:
+            self._spill(len(self.at) - KEEP_REPLAYS)
+
+    def _spill(self, n: int) -> None:
+        if self.spill is None:
+            # lives as long as the timeline reading it (unnamed: gone with the process)
+            self.spill = tempfile.TemporaryFile(prefix="plcpred-replays-")  # noqa: SIM115
+        block = np.empty(n, dtype=_REPLAY)
+        block["at"], block["start"], block["pid"] = (self.at[:n], self.start[:n],
+                                                     self.pid[:n])
+        self.spill.write(block.tobytes())
+        del self.at[:n], self.start[:n], self.pid[:n]
+        self.spilled += n
+
+    def since(self, i0: int, a0: int):
+        """(times, signals, values) of the changes from executed change ``i0`` and
+        replay ``a0`` on, in time order (a part that held replays of others); None when
+        those replays were spilled already (the part is too long to record)."""
+        if a0 < self.spilled:
+            return None
+        a0 -= self.spilled
+        t = np.frombuffer(self.tt, dtype=np.int64)[i0:]
+        s = np.frombuffer(self.ss, dtype=np.int32)[i0:]
+        v = np.frombuffer(self.vv, dtype=np.float64)[i0:]
+        if len(self.at) == a0:
+            return t.copy(), s.copy(), v.copy()
+        out, done = [], 0
+        for p, st, k in zip(self.at[a0:], self.start[a0:], self.pid[a0:]):
+            p -= i0
+            out.append((t[done:p], s[done:p], v[done:p]))
+            done = p
+            pt, ps, pv = self.parts[k]
+            out.append((pt + st, ps, pv))
+        out.append((t[done:], s[done:], v[done:]))
+        return tuple(np.concatenate([o[j] for o in out]) for j in range(3))
+
+    def replays(self):
+        """The replays as :class:`Timeline` takes them (spilled ones mapped from their
+        file, read as they are needed), or None."""
+        if not self.n_replays:
+            return None
+        if self.spill is None:
+            return (np.frombuffer(self.at, dtype=np.int32),
+                    np.frombuffer(self.start, dtype=np.int64),
+                    np.frombuffer(self.pid, dtype=np.int32), self.parts)
+        self._spill(len(self.at))
+        self.spill.flush()
+        return tuple(SpilledColumn(self.spill, _REPLAY, name, self.spilled)
+                     for name in ("at", "start", "pid")) + (self.parts,)
 
     def record(self, t, values, before):
         """The signals that changed since ``before`` (all of them at the first scan)."""
@@ -906,6 +989,12 @@ class _Run:
     always_step: bool           # every scan executed (scan stepping, or TIME() read)
     can_tile: bool
     can_replay: bool
+    slots: list = field(default_factory=list)   # the recorded signals' (object, attribute)
+    # the compared state and the cylinders in it: the whole machine's, or one island's
+    # (a run of the islands' own, :meth:`Sequencer._run_islands`)
+    snap: object = None
+    own_cylinders: list | None = None
+    own_timers: list | None = None
     scan_loop: tuple = field(init=False, default=())
     repeats: _Repeats = field(default_factory=_Repeats)
     t: int = 0
@@ -927,9 +1016,15 @@ class _Run:
         # what the per-scan loop (Sequencer._scan_to_rest) reads, bound once a run: the
         # loop starts again after every fixed point
         image, inst = self.image, self.inst
+        if self.snap is None:
+            self.snap = inst.snap
+        if self.own_cylinders is None:
+            self.own_cylinders = image.cylinders
+        if self.own_timers is None:
+            self.own_timers = inst.timers
         self.scan_loop = (image, self.scan, self.horizon_ns, self.always_step, image.update,
                           image.write, image.drive, image.rewrite, image.valves_now,
-                          self.values_now, self.rec.record, inst.scan, inst.snap,
+                          self.values_now, self.rec.record, inst.scan, self.snap,
                           inst.all_ran_since)
 
 
@@ -961,6 +1056,7 @@ class Sequencer:
             compiled = compile_program(program, observed | (
                 compiled.observed if compiled is not None else frozenset()))
         self.compiled = compiled
+        self._found: dict = {}      # signal -> how _locate found it
 
     # ------------------------------------------------------------------ setup
     def _signals(self, inst: ProgramInstance):
@@ -1037,14 +1133,21 @@ class Sequencer:
         return resolve_signal(self.machine, self.program, signal)
 
     def _locate(self, inst, signal):
+        """(object, attribute, type) of a machine file's signal in instance ``inst``; how
+        it was found is kept, so that the next instance (each island's run makes one)
+        follows it without parsing and resolving the path again."""
+        found = self._found.get(signal)
+        if found is not None:
+            return _follow(inst, *found)
         name = self._resolve(signal)
         hit = inst.locate(name)
         slot = (self.compiled.address_slots or {}).get(name.upper())
         if hit is None and slot is not None:
             hit = (inst.g, slot, self.compiled.globals_types[slot][1])
+        steps = []
         try:
             if hit is None:
-                hit = self._locate_path(inst, name, f"signal '{signal}'")
+                hit = self._locate_path(inst, name, f"signal '{signal}'", steps)
             if hit is None:
                 raise SequencerError(f"signal '{signal}' is not a variable of the program")
         except SequencerError as e:
@@ -1054,9 +1157,14 @@ class Sequencer:
             # (exit 2, as every machine-file error), named by the table that gives it
             raise MachineError(str(self.machine.path), _naming_table(self.machine, signal),
                                str(e)) from None
+        root = steps[0] if steps else hit
+        owner = -1 if root[0] is inst.g else next(
+            (k for k, p in enumerate(inst.programs) if p is root[0]), None)
+        if owner is not None:
+            self._found[signal] = ((owner,) + tuple(root[1:3]), steps[1:])
         return hit
 
-    def _locate_path(self, inst, name: str, what: str):
+    def _locate_path(self, inst, name: str, what: str, steps: list | None = None):
         """A signal given as a path into a variable: members (``fbCyl.q``,
         ``PRG.stCell.xOut``), array elements (``aValve[3]``, ``fbCyl[2, 1].q``) and bits of
         an integer (``wValves.3``). Each step is looked up in the declared types (no name
@@ -1075,6 +1183,8 @@ class Sequencer:
         if hit is None:
             return None
         root = hit[:2]
+        steps = [] if steps is None else steps
+        steps.append(hit)
         while at < len(name):
             step = _PATH_STEP.match(name, at)
             if step is None:
@@ -1088,10 +1198,14 @@ class Sequencer:
                     raise SequencerError(f"{what}: bit {bit} of something that is not an "
                                          "integer, or not at the end")
                 hit = (BitView(obj, attr, int(bit)), "V", types.BOOL)
+                steps.append(("bit", int(bit)))
             elif member is not None:
                 hit = (getattr(obj, attr),) + self._member(t, member.upper(), what)
+                steps.append(("member",) + hit[1:])
             else:
                 hit = self._element(getattr(obj, attr), t, indices, root, what)
+                at_ = [int(x) - lo for x, (lo, _) in zip(indices.split(","), t.dims)]
+                steps.append(("element", at_, hit[2]))
         if hit[2].cat not in ("bool", "int", "real", "time"):
             raise SequencerError(f"{what} is a {hit[2].cat}, not a BOOL, number or TIME")
         return hit
@@ -1132,7 +1246,7 @@ class Sequencer:
     # ------------------------------------------------------------------ run
     def run(self, horizon_ns: int, scan_stepping: bool = False,
             tiling: bool = True, max_events: int = DEFAULT_MAX_CHANGES,
-            replay: bool = True, on_time=None) -> Timeline:
+            replay: bool = True, on_time=None, islands: bool = True) -> Timeline:
         """Unfold the program over ``[0, horizon_ns]`` and return the timeline. A run
         whose program keeps changing signals (more than ``max_events`` changes held in
         memory) stops with an error naming the signal that changes most.
@@ -1142,9 +1256,23 @@ class Sequencer:
         before, and the scheduled edges ahead fall on the same scans relative to the
         first as they did then, the recorded response up to the return to that state is
         copied instead of executed (``replay=False``: always execute). ``on_time(t_ns)``,
-        if given, hears of the time the run has reached at each rest (a progress bar)."""
+        if given, hears of the time the run has reached at each rest (a progress bar).
+
+        A machine that replays and whose program splits into independent parts (islands:
+        the stations of a line, each with its own part sensor, :mod:`.islands`) runs
+        once per island with only that island's inputs scheduled, each repeating or
+        replaying on its own, and the islands' edges merged (``islands=False``: the
+        machine as a whole)."""
         wall0 = _time.perf_counter()
         r = self._start(horizon_ns, scan_stepping, tiling, max_events, replay)
+        plan = self._island_plan(r) if islands and r.can_replay else None
+        if plan is not None:
+            return self._run_islands(plan, horizon_ns, tiling, max_events, on_time, wall0)
+        self._unfold(r, on_time)
+        return self._timeline(r, wall0, scan_stepping)
+
+    def _unfold(self, r: _Run, on_time=None) -> None:
+        """Scan, rest, replay or tile ``r`` to its horizon."""
         scan_to_rest, after_rest = self._scan_to_rest, self._after_rest
         try:
             while scan_to_rest(r) and after_rest(r):
@@ -1154,14 +1282,115 @@ class Sequencer:
             raise
         except Exception as e:  # a fault inside the compiled program
             raise r.inst.positioned(e) from None
-        return self._timeline(r, wall0, scan_stepping)
 
-    def _start(self, horizon_ns, scan_stepping, tiling, max_events, replay) -> _Run:
+    # ------------------------------------------------------------------ islands
+    def _island_plan(self, r: _Run):
+        """The island runs of ``r``'s machine: [(the schedules it drives, its cells, its
+        cylinders, its signals)], or None when the program is one island, or only one
+        island has inputs (the whole machine runs then)."""
+        # inputs that no schedule changes and the program never writes hold one value
+        written = self.compiled.written
+        constant = set()
+        if written is not None:
+            for sch, obj, attr in r.image.schedules:
+                if sch.next_ns() is None and attr.upper() not in written:
+                    cell = slot_cell(r.inst, obj, attr, (ItemView, BitView))
+                    if cell is not None:
+                        constant.add(cell)
+        part = find_islands(self.program, self.compiled, r.inst, constant)
+        if part is None:
+            return None
+        where = SlotCells(r.inst, part, (ItemView, BitView))
+        join = {}
+
+        def find(i):
+            while join.get(i, i) != i:
+                i = join[i]
+            return i
+
+        def island(obj, attr):
+            i = where.island(obj, attr)
+            if i is None:
+                raise LookupError
+            return find(i)
+
+        try:
+            for cyl in r.image.cylinders:    # the plant joins a valve and its switches
+                ids = {island(o, a) for o, a in cyl.valves + list(cyl.switches.values())}
+                low = min(ids)
+                for i in ids:
+                    if i != low:
+                        join[i] = low
+            sched = [island(obj, attr) for _, obj, attr in r.image.schedules]
+            cyls = [island(*(cyl.valves + list(cyl.switches.values()))[0])
+                    for cyl in r.image.cylinders]
+            sigs = [island(o, a) for o, a in r.slots]
+        except LookupError:
+            return None
+        cells = {}
+        for cell, i in part.cells.items():
+            cells.setdefault(find(i), []).append(cell)
+        sched = [find(j) for j in sched]
+        # an island whose inputs change runs on its own; the islands no schedule changes
+        # (a free-running ioniser, what never moves) run together, and repeat
+        changing = [j for j, (sch, _, _) in enumerate(r.image.schedules)
+                    if sch.next_ns() is not None]
+        groups = [{i} for i in sorted({sched[j] for j in changing})]
+        rest = set(cells) - set().union(*groups)
+        if rest & {find(k) for k in sigs}:       # (islands nothing shows do not matter)
+            groups.append(rest)
+        if len(groups) < 2:
+            return None
+        runs = []
+        for mine in groups:
+            runs.append(([j for j in changing if sched[j] in mine],
+                         [c for k in mine for c in cells[k]],
+                         [j for j, k in enumerate(cyls) if find(k) in mine],
+                         np.array([find(k) in mine for k in sigs], dtype=bool)))
+        return runs
+
+    def _run_islands(self, plan, horizon_ns, tiling, max_events, on_time, wall0) -> Timeline:
+        """Run each island of ``plan`` on its own and merge their edges by time: within a
+        scan the executor records changes in signal order, so (time, signal) sorts them
+        as one run would."""
+        tt, ss, vv, scans, rec, sources = [], [], [], 0, None, []
+        for n, (driven, cells, cyls, mine) in enumerate(plan):
+            r = self._start(horizon_ns, False, tiling, max_events, True,
+                            driven=set(driven), cells=cells, cylinders=cyls)
+            progress = None if on_time is None else (
+                lambda t, n=n: on_time((n * horizon_ns + t) // len(plan)))
+            self._unfold(r, progress)
+            sources.append((self._timeline(r, wall0, False), mine))
+            scans += r.scans
+            rec = r.rec
+        info = {"scans": scans, "scan_ms": self.scan_ns / 1e6,
+                "wall_s": _time.perf_counter() - wall0, "mode": "event-driven",
+                "period_s": None, "tiled_from_s": None, "islands": len(plan),
+                "machine_signals": dict(self.signal_names)}
+        if sum(tl.n_changes for tl, _ in sources) > min(max_events, EAGER_MERGE):
+            # a long horizon: the runs are kept and merged as they are read (a signal's
+            # edges come from its island's run)
+            return Timeline(rec.signals, [], [], [], horizon_ns, info,
+                            max_changes=max_events, sources=sources)
+        for tl, mine in sources:
+            keep = mine[tl.signal_idx]
+            tt.append(tl.time_ns[keep])
+            ss.append(tl.signal_idx[keep])
+            vv.append(tl.values[keep])
+        t, s, v = np.concatenate(tt), np.concatenate(ss), np.concatenate(vv)
+        order = np.lexsort((s, t))
+        return Timeline(rec.signals, t[order], s[order], v[order], horizon_ns, info,
+                        max_changes=max_events)
+
+    def _start(self, horizon_ns, scan_stepping, tiling, max_events, replay,
+               driven=None, cells=None, cylinders=None) -> _Run:
         """The program instantiated, the machine's inputs and cylinders wired to it, the
-        recorded signals chosen, and what this run may skip (tiling, replay)."""
+        recorded signals chosen, and what this run may skip (tiling, replay). An island's
+        run: only the schedules ``driven`` change (the others hold their initial value),
+        and the compared state is that of ``cells`` and ``cylinders`` (indices)."""
         inst = ProgramInstance(self.program, self.compiled)
         ins, outs = self._signals(inst)
-        schedules, cylinders = self._machine_io(inst, horizon_ns)
+        schedules, all_cylinders = self._machine_io(inst, horizon_ns, driven)
         steps = []
         multi = len(inst.programs) > 1
         for name, prog in zip(inst.names, inst.programs):
@@ -1172,7 +1401,7 @@ class Sequencer:
         # initial inputs: schedules and switches (others keep their declared values)
         for sch, obj, attr in schedules:
             setattr(obj, attr, sch.initial)
-        image = _InputImage(schedules, cylinders, self.compiled.written)
+        image = _InputImage(schedules, all_cylinders, self.compiled.written)
         signals = ([Signal(n, "input", t.cat) for n, _, _, t in ins]
                    + [Signal(n, "step", "bool") for n, _, _ in steps]
                    + [Signal(n, "output", t.cat) for n, _, _, t in outs])
@@ -1193,17 +1422,30 @@ class Sequencer:
         if can_replay:
             for sch, _, _ in schedules:
                 sch.log = []          # the edges consumed while a part is recorded
+        slots = ([(o, a) for _, o, a, _ in ins] + [(sfc, i) for _, sfc, i in steps]
+                 + [(o, a) for _, o, a, _ in outs])
+        snap = own = timers = None
+        if cells is not None:
+            # an island's run: the other islands rest (their inputs held) and what they
+            # show is dropped, so only this island's state, cylinders and timers decide
+            # when it rests and what it replays
+            snap = island_snap(inst, cells, self.compiled.left_out or {})
+            own = [all_cylinders[k] for k in cylinders]
+            timers = island_timers(inst, cells)
         return _Run(inst, horizon_ns, self.scan_ns, image,
                     _Recorder(signals, max_events, self.scan_ns), values_now, left,
-                    always_step, can_tile, can_replay)
+                    always_step, can_tile, can_replay, slots, snap, own, timers)
 
-    def _machine_io(self, inst, horizon_ns) -> tuple[list, list]:
-        """(the machine's input schedules as (schedule, obj, attr), its cylinders)."""
+    def _machine_io(self, inst, horizon_ns, driven=None) -> tuple[list, list]:
+        """(the machine's input schedules as (schedule, obj, attr), its cylinders); with
+        ``driven``, the schedules of other indices hold their initial value."""
         machine = self.machine
         schedules, cylinders = [], []
         if machine is None:
             return schedules, cylinders
-        for spec in machine.inputs:
+        for j, spec in enumerate(machine.inputs):
+            if driven is not None and j not in driven:
+                spec = dataclasses.replace(spec, pulses_s=[], period_s=None, jitter_s=0.0)
             obj, attr, _ = self._locate(inst, spec.signal)
             sch = Schedule(spec, horizon_ns)
             schedules.append((sch, obj, attr))
@@ -1290,18 +1532,23 @@ class Sequencer:
                 return False
             r.t = t + scan
             return True
-        if r.next_input <= t:
-            r.next_input = r.image.update(t)
-        nxt, running = self._next_event(r)
-        if r.can_replay and nxt is not None and nxt == r.next_input and not running \
-                and not any(c._until < NEVER for c in r.image.cylinders) \
-                and not any(sfc.next_event_ns(t) is not None for sfc in r.inst.sfcs):
+        key = None
+        while True:
+            if r.next_input <= t:
+                r.next_input = r.image.update(t)
+            nxt, running = self._next_event(r)
+            if not (r.can_replay and nxt is not None and nxt == r.next_input and not running
+                    and not any(c._until < NEVER for c in r.own_cylinders)
+                    and not any(sfc.next_event_ns(t) is not None for sfc in r.inst.sfcs)):
+                break
             # at rest: only a scheduled input can change anything
-            done = self._replay_at_rest(r, max(t + scan, -(-nxt // scan) * scan))
-            if done is not None:
-                r.t = done            # back at rest in the same state
-                r.next_input = 0
-                return True
+            done, key = self._replay_at_rest(r, max(t + scan, -(-nxt // scan) * scan), key)
+            if done is None:
+                break
+            # back at rest in the same state, at the fixed point the recorded part ended
+            # in: go on from here as from that one (no scan to confirm it)
+            r.t = t = done
+            r.next_input = 0
         if r.can_tile and self._repeated(r):
             return False
         if nxt is None:
@@ -1325,7 +1572,7 @@ class Sequencer:
         # has not run since it expired: that task calls it at its next run
         running = False
         seen_by_all = r.inst.last_run_by_all_ns()
-        for tm in r.inst.timers:
+        for tm in r.own_timers:
             e = tm.next_event_ns()
             if e is not None and e > t:
                 running = True
@@ -1352,43 +1599,53 @@ class Sequencer:
         return nxt, running
 
     # ------------------------------------------------------------------ replay, tiling
-    def _replay_at_rest(self, r: _Run, t_next: int):
+    def _replay_at_rest(self, r: _Run, t_next: int, key=None):
         """At rest at ``r.t`` (the next scan that can change anything: ``t_next``): close
         the part recorded since this state was last left, replay one that matches the
-        edges ahead (the time it ends, at rest in the same state), else start recording
-        one. None when nothing was replayed."""
+        edges ahead, else start recording one. (The time a replayed part ends, at rest
+        in the same state, and that state's key), or (None, None) when nothing was
+        replayed. ``key``: the state's key when known (a part was just replayed: the
+        objects are as they were before it)."""
         t, rec, left, rep = r.t, r.rec, r.left, r.repeats
         schedules = r.image.schedules
-        key = self._rest_key(r.inst, t, r.image.cylinders, rep.timeless)
+        if key is None:
+            key = self._rest_key(r.snap, t, r.own_cylinders, rep.timeless, r.inst.sfcs)
         if key is not None:
             start = rep.opened.pop(key, None)
-            if start is not None:         # back in a state a part began in
-                t_s, i0, at, shown_at = start
+            changes = None if start is None else rec.since(*start[1])
+            if changes is not None:       # back in a state a part began in
+                t_s, _, at, shown_at = start
+                ct, cs, cv = changes
+                ct = ct - t_s
+                cs, cv = cs.tobytes(), cv.tobytes()
+                rec.parts.append((ct, np.frombuffer(cs, dtype=np.int32),
+                                  np.frombuffer(cv, dtype=np.float64)))
                 rep.parts.setdefault(key, []).append((
-                    self._edges_seen([sch.log[k:] for (sch, _, _), k in
-                                      zip(schedules, at)], t_s, r.scan),
-                    t - t_s, np.frombuffer(rec.tt, dtype=np.int64)[i0:] - t_s,
-                    np.frombuffer(rec.ss, dtype=np.int32)[i0:].tobytes(),
-                    np.frombuffer(rec.vv, dtype=np.float64)[i0:].tobytes(),
-                    shown_at, left.values(r.values)))
-            done = self._replay(rep.parts.get(key, ()), schedules, t_next, r.scan,
-                                r.horizon_ns, rec.tt, rec.ss, rec.vv, left, r.values)
+                    self._edges_seen([(j, sch.log[k:]) for j, ((sch, _, _), k) in
+                                      enumerate(zip(schedules, at))], t_s, r.scan),
+                    t - t_s, ct, cs, cv, shown_at, left.values(r.values),
+                    len(rec.parts) - 1))
+            # a replayed part is kept as a reference (a long run holds each part once)
+            done = self._replay(rep.parts.get(key, ()), r.image, t_next, r.scan,
+                                r.horizon_ns, rec, left, r.values)
             if done is not None:
                 if left:
-                    r.prev_values = r.values_now()   # counts the part advanced
+                    r.prev_values = r.values = r.values_now()   # counts the part advanced
                 if len(rec.tt) > rec.max_events:
                     raise rec.too_many(done)
-                return done
+                return done, key
             if len(rep.parts.get(key, ())) < MAX_PART_VARIANTS \
                     and len(rep.parts) < MAX_KEYS and len(rep.opened) < MAX_OPEN_PARTS:
-                rep.opened[key] = (t_next, len(rec.tt), [len(sch.log) for sch, _, _ in
+                rep.opened[key] = (t_next, (len(rec.tt), rec.n_replays),
+                                   [len(sch.log) for sch, _, _ in
                                                          schedules], left.values(r.values))
-        for k in [k for k, v in rep.opened.items() if len(rec.tt) - v[1] > MAX_PART_CHANGES]:
+        for k in [k for k, v in rep.opened.items() if len(rec.tt) - v[1][0] > MAX_PART_CHANGES
+                  or rec.n_replays - v[1][1] > MAX_PART_REPLAYS]:
             del rep.opened[k]         # not a part that ends: stop recording it
         if not rep.opened:
             for sch, _, _ in schedules:
                 sch.log.clear()
-        return None
+        return None, None
 
     def _repeated(self, r: _Run) -> bool:
         """Is the whole state at this fixed point one an earlier fixed point had (the
@@ -1402,7 +1659,8 @@ class Sequencer:
         shown = hash(values if not left else left.kept(values))
         key = None
         if shown in rep.seen_values:
-            key = _digest(self._state_key(r.inst, t, r.image.schedules, r.image.cylinders))
+            key = _digest(self._state_key(r.inst, r.snap, t, r.image.schedules,
+                                          r.own_cylinders))
         elif len(rep.seen_values) < MAX_KEYS:
             rep.seen_values.add(shown)
         else:
@@ -1438,67 +1696,100 @@ class Sequencer:
                 "tiled_from_s": tiled_from[1] / NS if tiled_from else None,
                 "machine_signals": dict(self.signal_names)}
         return Timeline(rec.signals, time_ns, sig, val, r.horizon_ns, info, tiled=tiled_from,
-                        max_changes=rec.max_events, drift=r.drift)
+                        max_changes=rec.max_events, drift=r.drift, replays=rec.replays())
 
     @staticmethod
-    def _rest_key(inst, t, cylinders, timeless: set):
+    def _rest_key(snap, t, cylinders, timeless: set, sfcs=()):
         """The state at rest, or None when it holds a time (a finished timer's age, an
         SFC step's): replaying a part would leave that time behind. ``timeless`` holds
         the keys already found free of times (a key with a time in it differs later)."""
         def at(x):
-            return inst.snap(x), tuple((cyl.plant.key(x), tuple(cyl.prev)) for cyl in cylinders)
-        key = at(t)
-        if key in timeless:
-            return key
-        if key != at(t + 1_000_003):
-            return None
+            return snap(x), tuple((cyl.plant.key(x), tuple(cyl.prev)) for cyl in cylinders)
+        for sfc in sfcs:
+            sfc.rest_key = True     # step times nothing reads left out
+        try:
+            key = at(t)
+            if key in timeless:
+                return key
+            if key != at(t + 1_000_003):
+                return None
+        finally:
+            for sfc in sfcs:
+                sfc.rest_key = False
         if len(timeless) < MAX_KEYS:
             timeless.add(key)
         return key
 
     @staticmethod
     def _edges_seen(logs, t_s: int, scan: int) -> tuple:
-        """Scheduled edges as (schedule, scan that sees it relative to ``t_s``, value)."""
+        """Scheduled edges as (schedule, scan that sees it relative to ``t_s``, value),
+        from (schedule index, edges) pairs."""
         return tuple(sorted((j, -(-e // scan) * scan - t_s, v)
-                            for j, log in enumerate(logs) for e, v in log))
+                            for j, log in logs for e, v in log))
 
-    def _replay(self, variants, schedules, t_s: int, scan: int, horizon_ns: int,
-                tt, ss, vv, left: _LeftOut, values):
+    def _replay(self, variants, image, t_s: int, scan: int, horizon_ns: int,
+                rec, left: _LeftOut, values):
         """Copy a recorded part starting at scan ``t_s`` if the scheduled edges ahead
         match one (and the shown signals the state leaves out allow it); the time it
         ends (at rest again), or None."""
         now = left.values(values)
-        for edges, dur, ct, cs, cv, shown_start, shown_end in variants:
+        # schedules past their last edge (or held) have none ahead
+        live = [image.schedules[j][0] for j in image.live]
+        for edges, dur, ct, cs, cv, shown_start, shown_end, pid in variants:
             end = t_s + dur
             if end > horizon_ns:
                 continue
-            ahead = [sch.upcoming(end) for sch, _, _ in schedules]
-            if any(a is None for a in ahead) or self._edges_seen(ahead, t_s, scan) != edges:
+            ahead = [(j, sch.upcoming(end)) for j, sch in zip(image.live, live)]
+            if any(a is None for _, a in ahead) or self._edges_seen(ahead, t_s, scan) != edges:
                 continue
+            shifted = cv
             if left:
-                cv = left.replayed(now, shown_start, shown_end, cs, cv)
-                if cv is None:
+                shifted = left.replayed(now, shown_start, shown_end, cs, cv)
+                if shifted is None:
                     continue
                 left.advance(now, shown_start, shown_end)
-            # the changes as raw bytes: the typed arrays take them without a Python loop
-            tt.frombytes((ct + t_s).astype(np.int64).tobytes())
-            ss.frombytes(cs)
-            vv.frombytes(cv)
-            for sch, _, _ in schedules:
+            if shifted is cv:
+                rec.replayed(t_s, pid)
+            else:
+                # the changes as raw bytes: the typed arrays take them without a loop
+                rec.tt.frombytes((ct + t_s).astype(np.int64).tobytes())
+                rec.ss.frombytes(cs)
+                rec.vv.frombytes(shifted)
+            for sch in live:
                 sch.advance(end)
             return end
         return None
 
     @staticmethod
-    def _state_key(inst, t, schedules, cylinders):
+    def _state_key(inst, snap, t, schedules, cylinders):
         parts = []
         for sch, _, _ in schedules:
             k = sch.key(t)
             if k is None:
                 return None
             parts.append(k)
-        return (inst.snap(t), tuple(parts), tuple([cyl.state_key(t) for cyl in cylinders]),
+        return (snap(t), tuple(parts), tuple([cyl.state_key(t) for cyl in cylinders]),
                 inst.phase(t))
+
+
+def _follow(inst, root, steps):
+    """Where :meth:`Sequencer._locate` found a signal, in instance ``inst``: ``root`` is
+    (program index or -1 for the globals, attribute, type), then each step of a path."""
+    owner, attr, t = root
+    obj = inst.g if owner < 0 else inst.programs[owner]
+    hit, first = (obj, attr, t), (obj, attr)
+    for step in steps:
+        obj, attr, t = hit
+        if step[0] == "bit":
+            hit = (BitView(obj, attr, step[1]), "V", types.BOOL)
+        elif step[0] == "member":
+            hit = (getattr(obj, attr), step[1], step[2])
+        else:
+            items = getattr(obj, attr)
+            for k in step[1][:-1]:
+                items = items[k]
+            hit = (ItemView(items, step[1][-1], first), "V", step[2])
+    return hit
 
 
 _BIT_AT_END = re.compile(r"\.\s*\d+\s*$")
@@ -1604,6 +1895,13 @@ def _slot_expressions(slots) -> tuple[dict, str, list[str]]:
     prologue: most slots are the globals' or one program's)."""
     names, parts, index = {}, [], {}
     for obj, attr in slots:
+        if isinstance(obj, ItemView):
+            # the element read where it lies, not through the view's property (a wide
+            # machine's signals are mostly elements: 600 property calls a scan)
+            k = index.setdefault(id(obj.items), len(index))
+            names[f"o{k}"] = obj.items
+            parts.append(f"a{k}[{int(obj.k)}]")
+            continue
         if not (isinstance(attr, int) or _ATTR.fullmatch(attr)):
             raise ValueError(f"internal: slot {attr!r} is not a generated attribute name")
         k = index.setdefault(id(obj), len(index))

@@ -119,6 +119,7 @@ class SfcRuntime:
         self.ctl = [ActionControl() for _ in spec.actions]
         self.ran = [False] * len(spec.actions)
         self.started = False
+        self.rest_key = False
 
     def t(self, i: int, now: int) -> int:
         return now - self.t0[i] if self.x[i] else self.tlast[i]
@@ -194,9 +195,29 @@ class SfcRuntime:
         return best
 
     def key(self, rel):
-        if rel is None:
-            times = tuple(self.t0[i] if a else self.tlast[i] for i, a in enumerate(self.x))
-        else:
-            times = tuple(rel - self.t0[i] if a else self.tlast[i]
-                          for i, a in enumerate(self.x))
-        return (tuple(self.x), times, self.started) + tuple(c.key(rel) for c in self.ctl)
+        """The chart's state, its step times from ``rel``. With ``rest_key`` set (the
+        executor's key of a state at rest, for part replay): step times only of steps
+        whose time the program reads, and a time compared only with constants only up
+        to the largest (past it every comparison stays as it is), so that a chart
+        resting in a step nothing times holds no time and its parts replay."""
+        if not self.rest_key:
+            if rel is None:
+                times = tuple(self.t0[i] if a else self.tlast[i]
+                              for i, a in enumerate(self.x))
+            else:
+                times = tuple(rel - self.t0[i] if a else self.tlast[i]
+                              for i, a in enumerate(self.x))
+            return (tuple(self.x), times, self.started) + tuple(
+                c.key(rel) for c in self.ctl)
+        spec, times = self.spec, []
+        for i, a in enumerate(self.x):
+            limits = spec.thresholds.get(i)
+            if i not in spec.t_read and not limits:
+                times.append(None)
+            elif rel is None:
+                times.append(self.t0[i] if a else self.tlast[i])
+            else:
+                elapsed = rel - self.t0[i] if a else self.tlast[i]
+                times.append(elapsed if i in spec.t_read else min(elapsed, max(limits) + 1))
+        return (tuple(self.x), tuple(times), self.started) + tuple(
+            c.key(rel) for c in self.ctl)

@@ -45,11 +45,18 @@ class Timeline:
     A machine that repeats its cycle is stored as the edges up to the end of the first
     repetition plus the period (``tiled``): ``to_csv`` and ``n_changes`` work from that in
     bounded memory however long the horizon, and the full arrays are built only when
-    asked for, refused with :class:`TimelineTooLarge` beyond ``max_changes``."""
+    asked for, refused with :class:`TimelineTooLarge` beyond ``max_changes``.
+
+    Likewise a run that replays recorded parts (``replays``: for each replay the number of
+    executed edges before it, its start time and which part, and the parts' edges with
+    times from their start) holds each part once and 20 bytes a replay, and one merged
+    from several runs (``sources``: (timeline, which signals it gives) pairs, the
+    islands of a program) holds the runs."""
 
     def __init__(self, signals: list[Signal], time_ns, signal_idx, values, horizon_ns: int,
                  info: dict | None = None, tiled: tuple[int, int] | None = None,
-                 max_changes: int = DEFAULT_MAX_CHANGES, drift: dict | None = None):
+                 max_changes: int = DEFAULT_MAX_CHANGES, drift: dict | None = None,
+                 replays: tuple | None = None, sources: list | None = None):
         self.signals = list(signals)
         self._base = (np.asarray(time_ns, dtype=np.int64),
                       np.asarray(signal_idx, dtype=np.int32),
@@ -61,7 +68,11 @@ class Timeline:
         # shows ``step`` higher than the one before, modulo its integer width
         self.drift = {int(k): v for k, v in (drift or {}).items() if v[0]}
         self.max_changes = int(max_changes)
-        self._full = None if tiled is not None else self._base
+        self._replays = replays if replays is not None and len(replays[0]) else None
+        self._sources = sources or None
+        self._count = None
+        self._full = None if (tiled is not None or self._replays is not None
+                              or self._sources is not None) else self._base
         self._period = None
         self._index = {s.name.upper(): i for i, s in enumerate(self.signals)}
 
@@ -82,6 +93,14 @@ class Timeline:
         """How many rows ``timeline.csv`` has (without building the arrays)."""
         if self._full is not None:
             return len(self._full[0])
+        if self._replays is not None:
+            _, _, pid, parts = self._replays
+            sizes = np.array([len(p[0]) for p in parts], dtype=np.int64)
+            return len(self._base[0]) + int(_times_replayed(pid, len(parts)) @ sizes)
+        if self._sources is not None:
+            if self._count is None:
+                self._count = sum(tl.count_of(mine) for tl, mine in self._sources)
+            return self._count
         t1, t2 = self.tiled
         pt, _, _, reps = self._period_edges()
         if not reps:
@@ -89,6 +108,17 @@ class Timeline:
         p = t2 - t1
         last = self.horizon_ns - reps * p  # the last repetition keeps edges <= last
         return len(self._base[0]) + (reps - 1) * len(pt) + int(np.count_nonzero(pt <= last))
+
+    def count_of(self, mine: np.ndarray) -> int:
+        """How many changes the signals ``mine`` marks (booleans by signal index) have."""
+        if self._full is not None:
+            return int(np.count_nonzero(mine[self._full[1]]))
+        if self._replays is not None:
+            _, _, pid, parts = self._replays
+            per_part = np.array([np.count_nonzero(mine[p[1]]) for p in parts], dtype=np.int64)
+            return int(np.count_nonzero(mine[self._base[1]])) + int(
+                _times_replayed(pid, len(parts)) @ per_part)
+        return sum(int(np.count_nonzero(mine[c[1]])) for c in self.chunks())
 
     def _materialize(self):
         if self._full is None:
@@ -98,6 +128,10 @@ class Timeline:
                     f"{n:,} signal changes over {self.horizon_s:g} s exceed the limit of "
                     f"{self.max_changes:,} held in memory (--max-events); timeline.csv "
                     "streams any length, the air model needs a shorter --horizon")
+            if self._replays is not None or self._sources is not None:
+                parts = list(self.chunks(max(n, 1)))
+                self._full = tuple(np.concatenate([p[k] for p in parts]) for k in range(3))
+                return self._full
             t, s, v = self._base
             reps = self._period_edges()[3]
             if reps:
@@ -147,11 +181,74 @@ class Timeline:
             for a in range(0, max(len(t), 1), rows):
                 yield t[a:a + rows], s[a:a + rows], v[a:a + rows]
             return
+        if self._replays is not None:
+            yield from self._replayed_chunks(rows)
+            return
+        if self._sources is not None:
+            yield from self._merged_chunks(rows)
+            return
         yield self._base
         pt, _, _, reps = self._period_edges()
         per_chunk = max(1, rows // max(len(pt), 1))
         for k0 in range(1, reps + 1, per_chunk):
             yield self._repetitions(k0, min(reps, k0 + per_chunk - 1))
+
+    def _replayed_chunks(self, rows: int):
+        """The executed edges with each replayed part's in between, in about ``rows``."""
+        t, s, v = self._base
+        parts = self._replays[3]
+        out, n, done = [], 0, 0
+        for p, st, k in _replays_in_blocks(self._replays):
+            if p > done:
+                out.append((t[done:p], s[done:p], v[done:p]))
+                n += p - done
+                done = p
+            pt, ps, pv = parts[k]
+            out.append((pt + st, ps, pv))
+            n += len(pt)
+            if n >= rows:
+                yield tuple(np.concatenate([o[j] for o in out]) for j in range(3))
+                out, n = [], 0
+        out.append((t[done:], s[done:], v[done:]))
+        yield tuple(np.concatenate([o[j] for o in out]) for j in range(3))
+
+    def _merged_chunks(self, rows: int):
+        """The sources' edges (each only its own signals) merged by time, and within a
+        time by signal (the order one run records a scan's changes in)."""
+        streams = [_own(tl, mine, rows) for tl, mine in self._sources]
+        empty = (np.zeros(0, np.int64), np.zeros(0, np.int32), np.zeros(0, np.float64))
+        held, ended = [empty] * len(streams), [False] * len(streams)
+
+        def pull(k) -> None:
+            nxt = next(streams[k], None)
+            if nxt is None:
+                ended[k] = True
+            else:
+                held[k] = tuple(np.concatenate([a, b]) for a, b in zip(held[k], nxt))
+
+        while True:
+            for k in range(len(streams)):
+                while not ended[k] and not len(held[k][0]):
+                    pull(k)
+            if not any(len(h[0]) for h in held):
+                return
+            # everything up to the earliest last time among the sources still running
+            # can go, once those ending at that time hold all of it (a time may span
+            # two chunks)
+            lasts = [h[0][-1] for h, e in zip(held, ended) if not e and len(h[0])]
+            upto = min(lasts) if lasts else None
+            if upto is not None:
+                for k in range(len(streams)):
+                    while not ended[k] and len(held[k][0]) and held[k][0][-1] == upto:
+                        pull(k)
+            take = []
+            for k, h in enumerate(held):
+                cut = len(h[0]) if upto is None else int(np.searchsorted(h[0], upto, "right"))
+                take.append(tuple(x[:cut] for x in h))
+                held[k] = tuple(x[cut:] for x in h)
+            t, s, v = (np.concatenate([x[j] for x in take]) for j in range(3))
+            order = np.lexsort((s, t))
+            yield t[order], s[order], v[order]
 
     # ------------------------------------------------------------------ access
     @property
@@ -227,9 +324,15 @@ class Timeline:
     def executed_edge_times_ns(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """``edge_times_ns`` over the part the executor ran (for a tiled run: up to the
         end of the first period, which the rest repeats), without building the whole."""
+        if self._sources is not None:
+            return self._source(name).executed_edge_times_ns(name)
         t, s, v = self._base
         m = s == self._idx(name)
         return t[m], v[m]
+
+    def _source(self, name: str):
+        i = self._idx(name)
+        return next(tl for tl, mine in self._sources if mine[i])
 
     def edge_times_ns(self, name: str, until_ns: int | None = None
                       ) -> tuple[np.ndarray, np.ndarray]:
@@ -238,6 +341,10 @@ class Timeline:
         signal's edges of the period (the whole timeline is not built)."""
         i = self._idx(name)
         end = self.horizon_ns if until_ns is None else min(int(until_ns), self.horizon_ns)
+        if self._sources is not None:
+            return self._source(name).edge_times_ns(name, until_ns)
+        if self._full is None and self._replays is not None:
+            return self._replayed_edges(i, end)
         if self._full is not None:
             t, s, v = self._full
             m = (s == i) & (t <= end)
@@ -258,6 +365,39 @@ class Timeline:
                 "the air model needs a shorter --horizon")
         tt, _, vv = self._repetitions(1, reps, only=i, until_ns=end)
         return np.concatenate([t[m], tt]), np.concatenate([v[m], vv])
+
+    def _replayed_edges(self, i: int, end: int) -> tuple[np.ndarray, np.ndarray]:
+        """One signal's edges of a run that replayed parts, up to ``end``."""
+        t, s, v = self._base
+        _, _, pid, parts = self._replays
+        mine = [(pt[ps == i], pv[ps == i]) for pt, ps, pv in parts]
+        counts = np.array([len(m[0]) for m in mine], dtype=np.int64)
+        total = int(_times_replayed(pid, len(parts)) @ counts)
+        if total > self.max_changes:
+            raise TimelineTooLarge(
+                f"{total:,} changes of {self.names[i]} over "
+                f"{self.horizon_s:g} s exceed the limit of {self.max_changes:,} held in "
+                "memory (--max-events); the air model needs a shorter --horizon")
+        base = s == i
+        # the executed edges and the replays' in time order: a replay comes before the
+        # executed edges from its position on
+        tt, vv = [], []
+        at = np.flatnonzero(base)
+        done = 0
+        for p, st, k in _replays_in_blocks(self._replays):
+            j = int(np.searchsorted(at, p))
+            if j > done:
+                tt.append(t[at[done:j]])
+                vv.append(v[at[done:j]])
+                done = j
+            if counts[k]:
+                tt.append(mine[k][0] + st)
+                vv.append(mine[k][1])
+        tt.append(t[at[done:]])
+        vv.append(v[at[done:]])
+        t_all, v_all = np.concatenate(tt), np.concatenate(vv)
+        keep = t_all <= end
+        return t_all[keep], v_all[keep]
 
     def intervals(self, name: str) -> "pd.DataFrame":
         """Periods in which the signal is non-zero (TRUE): ``start_s, end_s, duration_s``;
@@ -315,7 +455,7 @@ class Timeline:
         the whole seconds change from one repetition to the next)."""
         with atomic_writer(path) as f:
             f.write("time_s,signal,value\n")
-            if self._full is not None:
+            if self._full is not None or self.tiled is None:
                 for t, s, v in self.chunks(rows_per_write):
                     f.write(self._rows(t, s, v))
                 return
@@ -378,6 +518,53 @@ class Timeline:
         whole, frac_k, frac_text = seconds_texts(t)
         return "".join([f"{w}{frac_text[f]},{pair_text[p]}\n" for w, f, p in zip(
             whole, frac_k, pair_k.ravel().tolist())])
+
+
+class SpilledColumn:
+    """One column of a table of records in a file (``dtype`` a structured type), read a
+    slice at a time: a long run's replays stay on disk, not in memory (a mapped file's
+    pages would count as the process's once read)."""
+
+    def __init__(self, file, dtype: np.dtype, field: str, n: int):
+        self.file, self.dtype, self.field, self.n = file, np.dtype(dtype), field, int(n)
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __getitem__(self, k):
+        if not isinstance(k, slice) or k.step not in (None, 1):
+            raise TypeError("a spilled column is read by plain slices")
+        a, b, _ = k.indices(self.n)
+        if b <= a:
+            return np.zeros(0, dtype=self.dtype[self.field])
+        self.file.seek(a * self.dtype.itemsize)
+        rows = np.frombuffer(self.file.read((b - a) * self.dtype.itemsize), dtype=self.dtype)
+        return np.ascontiguousarray(rows[self.field])
+
+
+def _times_replayed(pid, n_parts: int) -> np.ndarray:
+    """How often each part was replayed (read a block at a time: ``pid`` may be mapped
+    from a file)."""
+    out = np.zeros(n_parts, dtype=np.int64)
+    for a in range(0, len(pid), 1 << 20):
+        out += np.bincount(np.asarray(pid[a:a + (1 << 20)]), minlength=n_parts)
+    return out
+
+
+def _replays_in_blocks(replays, block: int = 65_536):
+    """(position, start, part) of each replay, as Python ints a block at a time (a year
+    of replays as Python lists would take gigabytes)."""
+    pos, start, pid, _ = replays
+    for a in range(0, len(pos), block):
+        yield from zip(pos[a:a + block].tolist(), start[a:a + block].tolist(),
+                       pid[a:a + block].tolist())
+
+
+def _own(tl, mine, rows: int):
+    """``tl``'s edges of the signals ``mine`` marks, chunk by chunk."""
+    for t, s, v in tl.chunks(rows):
+        keep = mine[s]
+        yield t[keep], s[keep], v[keep]
 
 
 def _csv_field(text: str) -> str:

@@ -10,11 +10,12 @@ __all__ = ["lint_timeline", "unfold", "valves_moved"]
 
 def unfold(machine, horizon="60s", scan_stepping: bool = False, tiling: bool = True,
            program=None, max_events: int = DEFAULT_MAX_CHANGES,
-           replay: bool = True, compiled=None) -> Timeline:
+           replay: bool = True, compiled=None, islands: bool = True) -> Timeline:
     """Run ``machine``'s program (or ``program``, an IR or a path, instead) over
     ``horizon`` (``"90s"``, ``"T#1m30s"``, ``"8h"`` or seconds) and return its timeline.
-    ``tiling`` and ``replay`` (repeating states and parts copied instead of executed,
-    :meth:`Sequencer.run`) can be turned off to check them against full execution.
+    ``tiling``, ``replay`` (repeating states and parts copied instead of executed) and
+    ``islands`` (independent parts of the program run on their own, :meth:`Sequencer.run`)
+    can be turned off to check them against full execution.
     ``compiled``: :func:`compile_program` of the IR ``program``, for callers that run
     one program many times (the diagnosis' timing variants).
 
@@ -30,7 +31,7 @@ def unfold(machine, horizon="60s", scan_stepping: bool = False, tiling: bool = T
     check_against_program(machine, program)
     timeline = Sequencer(program, machine, compiled=compiled).run(
         horizon_ns, scan_stepping=scan_stepping, tiling=tiling, max_events=max_events,
-        replay=replay)
+        replay=replay, islands=islands)
     machine.warnings.extend(lint_timeline(machine, timeline))
     return timeline
 
