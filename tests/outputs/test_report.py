@@ -329,3 +329,21 @@ def test_every_verdict_reads(rig_diagnosis, verdict):
     else:
         assert "flow meter reading high or low" in text and cost.kwh > 0
     assert "How sure" in diagnosis_html(d, None, figures={})
+
+
+def test_rows_written_in_blocks_are_savetxts_bytes():
+    import io
+
+    from plcpred.outputs.files import ROWS_PER_WRITE, write_rows
+    rng = np.random.default_rng(5)
+    rows = rng.normal(0.0, 1e3, (2 * ROWS_PER_WRITE + 17, 5))
+    rows[3, 1], rows[4, 2], rows[5, 0] = np.nan, np.inf, -0.0
+    rows[6] = [1e-9, 1e12, -123456789.0, 0.5, 7.0]
+    for fmt in ("%.6g", "%.4f"):
+        want, got = io.StringIO(), io.StringIO()
+        np.savetxt(want, rows, fmt=fmt, delimiter=",")
+        write_rows(got, rows, fmt)
+        assert got.getvalue() == want.getvalue(), fmt
+    empty = io.StringIO()
+    write_rows(empty, np.zeros((0, 3)), "%.4f")
+    assert empty.getvalue() == ""
