@@ -533,8 +533,13 @@ class Twin:
         end_s = min(t1_s, self._covered_s(), self.horizon_s)
         if end_s <= start_s:
             return np.zeros(0), np.zeros(0), np.zeros(0)
-        cells = max(1, int(np.ceil((end_s - start_s) / FINE_DT_S)))
-        edges = np.linspace(start_s, end_s, cells + 1)
+        # the fine grid on whole multiples of FINE_DT_S whatever the window: two
+        # renderings of one moment (a server's stretch, a check of it) then put the
+        # plant's air into the same cells, and the meter's response agrees
+        first = int(np.floor(start_s / FINE_DT_S + 1e-9))
+        last = max(first + 1, int(np.ceil(end_s / FINE_DT_S - 1e-9)))
+        edges = np.arange(first, last + 1) * FINE_DT_S
+        edges[0], edges[-1] = start_s, end_s
         splice = self._splice_s
         if splice is None or splice > end_s:
             total = self._nominal.cum_nl(edges)
