@@ -167,9 +167,7 @@ class _Correlations:
         starts = run.reading_starts_s()[idx]
         ends = run.time_s[idx]
         meas = run.flow_l_min[idx]
-        cum = self.lagged.get(tau)
-        if cum is None:
-            cum = self.lagged[tau] = rm.metered_cumulative_nl(p, self.cells)
+        cum = self._metered(tau)
         # all offsets at once (in blocks of bounded size): one interpolation per block
         offs = np.asarray(offsets, dtype=float)
         b = meas - meas.mean()
@@ -193,6 +191,15 @@ class _Correlations:
                                             0.0)
         return out
 
+    def _metered(self, tau: float) -> np.ndarray:
+        """The prediction's metered cumulative NL with the meter lag ``tau`` (kept)."""
+        cum = self.lagged.get(tau)
+        if cum is None:
+            p = self.params.copy()
+            p.meter_tau_s = tau
+            cum = self.lagged[tau] = self.rm.metered_cumulative_nl(p, self.cells)
+        return cum
+
     def of_changes(self, tau: float, offset_s: float) -> tuple[float, int]:
         """(the correlation of the readings' changes from one to the next with the log's,
         readings used) at one offset, over the samples within the prediction there: a
@@ -202,13 +209,8 @@ class _Correlations:
         idx = _common_samples(run, offset_s, offset_s, rm.horizon_s)
         if len(idx) < 5:
             return -2.0, len(idx)
-        cum = self.lagged.get(tau)
-        if cum is None:
-            p = self.params.copy()
-            p.meter_tau_s = tau
-            cum = self.lagged[tau] = rm.metered_cumulative_nl(p, self.cells)
         r = rm.readings(self.params, run.reading_starts_s()[idx] - offset_s,
-                        run.time_s[idx] - offset_s, cum_nl=cum)
+                        run.time_s[idx] - offset_s, cum_nl=self._metered(tau))
         return _pearson(np.diff(r), np.diff(run.flow_l_min[idx])), len(idx)
 
     def cost(self, tau: float, offset_s: float) -> float:
@@ -303,21 +305,17 @@ def _fine_offsets(correlations: _Correlations, coarse: float, taus: list[float],
         # a coarse offset may be late by up to the lag
         step = max(rm.dt_s, tau / 50.0, 0.0 if instant else g / (5.0 if quick else 25.0))
         span = (coarse - 1.5 * g - tau, coarse + 1.5 * g + step / 2)
-        if instant:
-            fine = np.arange(span[0], span[1], step)
-        else:
-            # interval means change smoothly with the offset, over a sampling interval:
-            # their best offset on a grid five times finer than it lies within one step
-            # of that grid's best, and only there is the fine grid read
-            wide = max(step, g / 5.0)
-            coarse_grid = np.arange(span[0], span[1], wide)
-            corr = correlations(tau, list(coarse_grid), shared)
-            if corr is None:
-                continue
-            best = float(coarse_grid[int(np.argmax(corr))])
-            fine = np.arange(max(span[0], best - wide), min(span[1], best + wide + step / 2),
-                             step) if wide > step else coarse_grid
+        # interval means change smoothly with the offset, over a sampling interval:
+        # their best offset on a grid five times finer than it lies within one step of
+        # that grid's best, and only there is the fine grid read
+        wide = step if instant else max(step, g / 5.0)
+        fine = np.arange(span[0], span[1], wide)
         corr = correlations(tau, list(fine), shared)
+        if corr is not None and wide > step:
+            best = float(fine[int(np.argmax(corr))])
+            fine = np.arange(max(span[0], best - wide), min(span[1], best + wide + step / 2),
+                             step)
+            corr = correlations(tau, list(fine), shared)
         if corr is None:
             continue
         k = int(np.argmax(corr))
@@ -332,6 +330,11 @@ def _fine_offsets(correlations: _Correlations, coarse: float, taus: list[float],
 CHANGES_MARGIN = 0.01
 
 
+def _uses_more(run: MeasuredRun, n: int, used: int) -> bool:
+    """Do ``n`` readings use materially more of the log than ``used``?"""
+    return n >= used + max(3, RIVAL_MORE_SHARE * len(run.time_s))
+
+
 def covering_alike(correlations: _Correlations, scored: list[tuple], best: tuple
                     ) -> tuple:
     """Among the candidates' own best clocks, the one that uses most of the log of those
@@ -343,8 +346,7 @@ def covering_alike(correlations: _Correlations, scored: list[tuple], best: tuple
     used = len(_common_samples(run, best[1], best[1], rm.horizon_s))
     judged = [(*correlations.of_changes(tau, o), c, o, tau) for c, o, tau in scored]
     top = max(j[0] for j in judged)
-    more = [j for j in judged if j[0] >= top - CHANGES_MARGIN
-            and j[1] >= used + max(3, RIVAL_MORE_SHARE * len(run.time_s))]
+    more = [j for j in judged if j[0] >= top - CHANGES_MARGIN and _uses_more(run, j[1], used)]
     if not more:
         return best
     _, _, c, o, tau = max(more, key=lambda j: (j[1], j[2]))
@@ -361,8 +363,7 @@ def _covering_rival(run: MeasuredRun, rm: RunModel, scored: list[tuple], best: t
     used = len(_common_samples(run, offset_s, offset_s, rm.horizon_s))
     rivals = [(n, c, o, tau) for c, o, tau in scored if abs(o - offset_s) > 2.0 * g + 1.0
               and c >= best[0] - RIVAL_MARGIN
-              and (n := len(_common_samples(run, o, o, rm.horizon_s)))
-              >= used + max(3, RIVAL_MORE_SHARE * len(run.time_s))]
+              and _uses_more(run, n := len(_common_samples(run, o, o, rm.horizon_s)), used)]
     if not rivals:
         return None
     _, c, o, tau = max(rivals)
