@@ -5,7 +5,7 @@ import json
 import sys
 
 from ..diagnose import diagnose, read_io_timeline, read_measured
-from ..diagnose.core import write_fixed_machine
+from ..diagnose.corrected import write_fixed_machine
 from ..machine import load_machine
 from ..output import (
     OutputError,
@@ -77,5 +77,7 @@ def cmd_diagnose(args) -> int:
         print(f"wrote {out / 'diagnose.json'}, {out / 'diagnose.png'}, "
               f"{out / 'diagnose.html'}")
     if args.write_machine:
-        print(f"wrote {args.write_machine}")
+        print(f"wrote {args.write_machine}: {d.file_check.text()}")
+        for left in d.file_check.left_out:
+            print(f"  not written: {left}")
     return 0

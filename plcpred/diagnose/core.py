@@ -33,14 +33,13 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
 from ..air.demand import stroke_cuts
 from ..errors import PlcpredError
-from ..machine import Machine, as_machine, read_machine_data, save_machine
+from ..machine import Machine, as_machine
 from ..plant.replay import closed_loop_total_cells_nl, replay_total_cells_nl
 from ..progress import progress_or_off
 from ..sequencer import compile_program, observed_names, unfold
@@ -172,6 +171,10 @@ class Diagnosis:
     left_l_min: float = 0.0
     # the residual by consumer, each by its own edges and phases (locate.attribution)
     attribution: list = field(default_factory=list)
+    # the program the sequencer ran (parsed), or what ``diagnose`` was given to name it
+    program: object = None
+    # predict on the written corrected file against the logs (diagnose.corrected)
+    file_check: object = None
 
     def _onset(self) -> dict | None:
         """The verdict's onset, where it is an effect that starts during the logs."""
@@ -224,6 +227,8 @@ class Diagnosis:
                 "parameters": self.combination["physical"],
                 "beyond_plant": self.combination.get("beyond_plant", False)},
             "fixed_machine": self.fixed_machine,
+            "fixed_machine_check": None if self.file_check is None
+            else self.file_check.summary(),
             "warnings": self.warnings,
         }
         if self.reference is not None:
@@ -495,7 +500,8 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                      band_pct=nominal.band, within_band=verdict.within_band,
                      within_tolerance=verdict.within_tolerance,
                      meter_noise_l_min=judge.meter_noise, flat_pairs=judge.flat_pairs,
-                     left_l_min=left, attribution=where.attribution)
+                     left_l_min=left, attribution=where.attribution,
+                     program=aligned.program)
 
 
 class _Request(NamedTuple):
@@ -1685,60 +1691,6 @@ def _check_run(rd: RunData, pred: np.ndarray, machine_name: str, given_offset: b
             warnings.append(text)
         else:
             raise DiagnosisError(text + " If it is, give the clock offset with --offset")
-
-
-def write_fixed_machine(d: Diagnosis, path) -> list[str]:
-    """Write ``d.machine``'s file with the combination's effects (the verdict first) added
-    in the machine file's own keys, so that ``plcpred predict`` on it carries them.
-    Returns what was changed. The file is checked by loading it before it is renamed
-    into place."""
-    path = Path(path)
-    machine = d.machine
-    data = read_machine_data(machine.path)
-    changes: list[str] = []
-    skipped: list[str] = []
-    if d.combination:
-        for e, theta in d.combination["fit"].by_effect():
-            if not e.expressible:
-                skipped.append(e.name)
-                continue
-            changes += e.to_machine(d.machine_model, data, theta)
-    calibrated = _calibrate(d, data)
-    header = [f"{machine.name}, corrected by plcpred diagnose from {machine.path.name}",
-              f"verdict: {d.verdict}"]
-    header += [f"changed: {c}" for c in changes] or ["changed: nothing"]
-    header += [f"calibrated: {c}" for c in calibrated]
-    header += [f"not written (the air model cannot express it yet): {s}" for s in skipped]
-    if d.combination and d.combination.get("beyond_plant") and changes:
-        header.append(("fitted through the physics plant (this file run through it)"
-                       if _through_plant(d.combination["fit"].effects) else
-                       "fitted beyond the physics plant's reference of the nominal machine")
-                      + ": predict (D1) on this file also books what D1 leaves out by design")
-    save_machine(data, machine, path, "\n".join(header), by="plcpred diagnose")
-    d.fixed_machine = str(path)
-    return changes
-
-
-def _calibrate(d: Diagnosis, data: dict) -> list[str]:
-    """Write into ``data`` the model's own accuracy as the logs show it, on top of the
-    verdict's effects: the nominal model flexed within its band (:class:`ModelForm`),
-    fitted on every sample with the effects at their fitted values, as each drive's
-    ``air_factor`` and each nozzle's and leak's C. A healthy machine's strokes take a
-    few per cent less than D1 books; without this, ``predict`` on the corrected file
-    keeps that error however right the verdict. Not where an effect was fitted through
-    the plant (its air is in no D1 figure the fit could start from)."""
-    mm = d.machine_model
-    if mm is None or not mm.models or not d.runs or (
-            d.combination and _through_plant(d.combination["fit"].effects)):
-        return []
-    start = d.combination["fit"].params if d.combination else d.bases
-    # what predict on the corrected file books: D1 with the effects, no plant
-    bases = [dataclasses.replace(p, dynamic=False, variant=()) for p in start]
-    flex = ModelForm(drive_factor_range(mm, bases[0]))
-    masks = [np.ones(len(rd.end_s), bool) for rd in d.runs]
-    fit = fit_effects([flex], mm, d.runs, masks, bases, d.fit_context)
-    (_, theta), = fit.by_effect()
-    return flex.to_machine(mm, data, theta)
 
 
 def clock_reading(run, offset_s: float) -> str:

@@ -22,7 +22,7 @@ from plcpred.diagnose import (
     read_io_timeline,
     read_measured,
 )
-from plcpred.diagnose.core import write_fixed_machine
+from plcpred.diagnose.corrected import write_fixed_machine
 from plcpred.diagnose.effects import CUT_STROKE_EFFECTS, StrokeTime
 from plcpred.diagnose.fit import DiagnosisError
 from plcpred.diagnose.fit_model import MachineModel, RunModel, lagged_cumulative_nl
@@ -583,6 +583,39 @@ def test_passive_flow_found_and_fixed_file_reproduces_it(tmp_path):
     again = diagnose(fixed, runs, offsets=[r.offset_s for r in d.runs], effects=["leak"])
     assert again.baseline.error_pct == pytest.approx(d.effects[0].fit_score.error_pct,
                                                      abs=0.5)
+    # predict on the written file, run over the logs' windows, books their air (the
+    # logs' own edges are the program's: the same within the meter's noise)
+    check = d.file_check
+    assert not check.left_out
+    assert abs(check.written_error_pct) < 1.0 < abs(check.nominal_error_pct)
+    assert check.measured_nl == pytest.approx(d.baseline.measured_nl, rel=1e-6)
+
+
+def test_a_fixed_file_that_books_far_from_the_logs_is_not_written(tmp_path):
+    """The fit's values are judged on the logs' timelines; the file is judged by predict.
+    An effect whose written values take predict materially further from the logs' air
+    than the file without them is left out, and the header and check say so."""
+    def worn_knives(pred, flow):
+        k = pred.profile.names.index("air knives")
+        return flow.sum(axis=0) + 0.3 * flow[k]
+    runs = [run_of(RIG, 20, noise=1.0, offset_s=2.0 + s, seed=s, transform=worn_knives,
+                   name=f"r{s}.csv") for s in range(2)]
+    d = diagnose(RIG, runs, effects=["passive_flow"])
+    assert d.verdict == "passive_flow", d.report()
+    fit = d.combination["fit"]
+    # as if the fit had gone wrong: the knives at five times the flow it found
+    d.combination["fit"] = dataclasses.replace(fit, theta=fit.theta * 5.0)
+    fixed = tmp_path / "fixed.toml"
+    changes = write_fixed_machine(d, fixed)
+    assert changes == []
+    check = d.file_check
+    assert check.left_out and check.left_out[0].startswith("passive_flow"), check
+    assert "not written: passive_flow" in fixed.read_text()
+    # the calibration alone, bounded by the model's accuracy, still comes nearer the
+    # logs than the machine file
+    assert abs(check.written_error_pct) < abs(check.nominal_error_pct) - 5.0, check
+    m = plcpred.load_machine(fixed, allowed_roots=[RIG.parent])
+    assert m.consumer("air knives").C < 6.56e-9 * 2
 
 
 def test_the_fixed_file_carries_what_a_healthy_machines_strokes_take(tmp_path):

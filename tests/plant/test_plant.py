@@ -586,7 +586,7 @@ def test_a_leak_on_a_fast_machine_is_named_beyond_the_plant(tmp_path):
     leak behind an exhaust; fitted beyond the plant's reference it is a leak of its own
     size, and the fixed file says what predict on it still books."""
     from plcpred.diagnose import diagnose
-    from plcpred.diagnose.core import write_fixed_machine
+    from plcpred.diagnose.corrected import write_fixed_machine
 
     runs, _ = _sorter_logs(tmp_path, '[[consumer]]\nname = "hidden"\nkind = "leak"\n'
                                      'C = 4e-10\nb = 0.15\nm = 0.7\n')
@@ -708,7 +708,7 @@ def test_longer_tubes_on_a_fast_machine_are_found_through_the_plant(tmp_path):
     machine file changed by the effect and run through the plant draws what the plant
     draws, and its tube is the one the fixed file writes."""
     from plcpred.diagnose import diagnose
-    from plcpred.diagnose.core import write_fixed_machine
+    from plcpred.diagnose.corrected import write_fixed_machine
 
     runs, _ = _sorter_logs(tmp_path, '[[consumer]]\nname = "pusher"\n'
                                      'tube_length_m = [3.0, 3.0]\n')
