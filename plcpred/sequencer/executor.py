@@ -57,7 +57,10 @@ from .timeline import DEFAULT_MAX_CHANGES, NS, Signal, SpilledColumn, Timeline, 
 _TIMERS = (TON, TOF, TP, TONR)
 NEVER = 1 << 62      # "no event" in integer nanoseconds
 MAX_KEYS = 20_000   # fixed points remembered when looking for a repeating state
-MAX_PART_VARIANTS = 16      # recorded responses kept per rest state (part replay)
+MAX_PART_VARIANTS = 256     # recorded responses kept per rest state (part replay)
+# ... of which those past the first FEW_PART_VARIANTS only while the state's responses
+# hold fewer than MAX_PART_CHANGES changes in all
+FEW_PART_VARIANTS = 16
 MAX_PART_CHANGES = 200_000  # a response longer than this is not recorded
 MAX_OPEN_PARTS = 8          # parts recorded at once (from different rest states)
 MAX_PART_REPLAYS = 2_000    # a part holding more replays of others is not recorded
@@ -965,13 +968,78 @@ class _Recorder:
                                                 self.max_events))
 
 
+class _Variants:
+    """The parts recorded from one rest state, each (edges, duration, changes' times,
+    signals and values, shown values at start and end, part id), found by the scheduled
+    edges ahead: a part matches when its edges are those ahead up to its end, so the
+    edges ahead up to the longest part, taken prefix by prefix in time order, name every
+    part that can match. Independent inputs (a part sensor and a metal sensor jittered
+    each on its own) give a rest state hundreds of responses; each costs a look-up per
+    edge ahead, not a comparison per part."""
+    __slots__ = ("by_edges", "changes", "items", "longest", "sizes")
+
+    def __init__(self):
+        self.items: list = []
+        self.by_edges: dict = {}    # edges -> indices into items
+        self.sizes: list = []       # how many edges the parts hold, ascending
+        self.longest = 0
+        self.changes = 0
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def has_room(self) -> bool:
+        return len(self.items) < FEW_PART_VARIANTS or (
+            len(self.items) < MAX_PART_VARIANTS and self.changes < MAX_PART_CHANGES)
+
+    def add(self, part: tuple) -> None:
+        self.by_edges.setdefault(part[0], []).append(len(self.items))
+        if len(part[0]) not in self.sizes:
+            self.sizes = sorted(self.sizes + [len(part[0])])
+        self.items.append(part)
+        self.longest = max(self.longest, part[1])
+        self.changes += len(part[2])
+
+    def matching(self, live_idx, live, t_s: int, scan: int, horizon_ns: int):
+        """The indices, in the order recorded, of the parts ending by ``horizon_ns``
+        whose edges (as :meth:`Sequencer._edges_seen` gives them) are the scheduled
+        edges from scan ``t_s`` to their end; None when the schedules have not generated
+        their edges that far (each part is then compared on its own)."""
+        until = t_s + self.longest
+        ahead = []
+        for j, sch in zip(live_idx, live):
+            edges = sch.upcoming(until)
+            if edges is None:
+                return None
+            ahead += [(e, j, -(-e // scan) * scan - t_s, v) for e, v in edges]
+        ahead.sort()
+        # a part that rested long holds thousands of edges: only prefixes as long as a
+        # recorded part's edges are looked up
+        del ahead[self.sizes[-1] + 1:]
+        hits = []
+        n = len(ahead)
+        for i in self.sizes:
+            # edges at one instant are all before a part's end or none is
+            if i > n or 0 < i < n and ahead[i][0] == ahead[i - 1][0]:
+                continue
+            found = self.by_edges.get(tuple(sorted(x[1:] for x in ahead[:i])))
+            if not found:
+                continue
+            # the part ends at or after the last of these edges, before the next one
+            lo = t_s if i == 0 else ahead[i - 1][0]
+            hi = horizon_ns if i == n else min(horizon_ns, ahead[i][0] - 1)
+            hits += [k for k in found if lo <= t_s + self.items[k][1] <= hi]
+        hits.sort()
+        return hits
+
+
 @dataclass
 class _Repeats:
     """What a run remembers at fixed points to find a repeating state (tiling) or a
     part it can replay."""
     seen: dict = field(default_factory=dict)        # state digest -> its time
     seen_values: set = field(default_factory=set)   # hashes of the recorded values
-    parts: dict = field(default_factory=dict)  # rest key -> [(edges ahead, duration, ...)]
+    parts: dict = field(default_factory=dict)  # rest key -> _Variants
     opened: dict = field(default_factory=dict)  # rest key -> (first scan, first change, ...)
     timeless: set = field(default_factory=set)  # rest keys that hold no time
 
@@ -1620,21 +1688,22 @@ class Sequencer:
                 cs, cv = cs.tobytes(), cv.tobytes()
                 rec.parts.append((ct, np.frombuffer(cs, dtype=np.int32),
                                   np.frombuffer(cv, dtype=np.float64)))
-                rep.parts.setdefault(key, []).append((
+                rep.parts.setdefault(key, _Variants()).add((
                     self._edges_seen([(j, sch.log[k:]) for j, ((sch, _, _), k) in
                                       enumerate(zip(schedules, at))], t_s, r.scan),
                     t - t_s, ct, cs, cv, shown_at, left.values(r.values),
                     len(rec.parts) - 1))
             # a replayed part is kept as a reference (a long run holds each part once)
-            done = self._replay(rep.parts.get(key, ()), r.image, t_next, r.scan,
-                                r.horizon_ns, rec, left, r.values)
+            variants = rep.parts.get(key)
+            done = None if variants is None else self._replay(
+                variants, r.image, t_next, r.scan, r.horizon_ns, rec, left, r.values)
             if done is not None:
                 if left:
                     r.prev_values = r.values = r.values_now()   # counts the part advanced
                 if len(rec.tt) > rec.max_events:
                     raise rec.too_many(done)
                 return done, key
-            if len(rep.parts.get(key, ())) < MAX_PART_VARIANTS \
+            if (variants is None or variants.has_room()) \
                     and len(rep.parts) < MAX_KEYS and len(rep.opened) < MAX_OPEN_PARTS:
                 rep.opened[key] = (t_next, (len(rec.tt), rec.n_replays),
                                    [len(sch.log) for sch, _, _ in
@@ -1727,7 +1796,7 @@ class Sequencer:
         return tuple(sorted((j, -(-e // scan) * scan - t_s, v)
                             for j, log in logs for e, v in log))
 
-    def _replay(self, variants, image, t_s: int, scan: int, horizon_ns: int,
+    def _replay(self, variants: _Variants, image, t_s: int, scan: int, horizon_ns: int,
                 rec, left: _LeftOut, values):
         """Copy a recorded part starting at scan ``t_s`` if the scheduled edges ahead
         match one (and the shown signals the state leaves out allow it); the time it
@@ -1735,13 +1804,17 @@ class Sequencer:
         now = left.values(values)
         # schedules past their last edge (or held) have none ahead
         live = [image.schedules[j][0] for j in image.live]
-        for edges, dur, ct, cs, cv, shown_start, shown_end, pid in variants:
+        hits = variants.matching(image.live, live, t_s, scan, horizon_ns)
+        for k in range(len(variants)) if hits is None else hits:
+            edges, dur, ct, cs, cv, shown_start, shown_end, pid = variants.items[k]
             end = t_s + dur
-            if end > horizon_ns:
-                continue
-            ahead = [(j, sch.upcoming(end)) for j, sch in zip(image.live, live)]
-            if any(a is None for _, a in ahead) or self._edges_seen(ahead, t_s, scan) != edges:
-                continue
+            if hits is None:
+                if end > horizon_ns:
+                    continue
+                ahead = [(j, sch.upcoming(end)) for j, sch in zip(image.live, live)]
+                if any(a is None for _, a in ahead) \
+                        or self._edges_seen(ahead, t_s, scan) != edges:
+                    continue
             shifted = cv
             if left:
                 shifted = left.replayed(now, shown_start, shown_end, cs, cv)

@@ -48,6 +48,7 @@ from ...parser.generics import readable
 from .common import (
     BIT_READ,
     ELIF_CHAIN,
+    GLOBALS_CLASS,
     WATCHDOG_ITERATIONS,
     Compiled,
     CompileError,
@@ -58,8 +59,9 @@ from .common import (
 from .flow import written_names
 from .project import Compiler
 
-__all__ = ["BIT_READ", "ELIF_CHAIN", "WATCHDOG_ITERATIONS", "CompileError", "Compiled",
-           "Compiler", "Scope", "Source", "compile_program", "stdfb_member", "written_names"]
+__all__ = ["BIT_READ", "ELIF_CHAIN", "GLOBALS_CLASS", "WATCHDOG_ITERATIONS", "CompileError",
+           "Compiled", "Compiler", "Scope", "Source", "compile_program", "stdfb_member",
+           "written_names"]
 
 
 def compile_program(program: ir.Program, observed=frozenset()) -> Compiled:

@@ -8,7 +8,7 @@ import dataclasses
 from ...parser import ir
 from ...parser.names import ident
 from ..types import ArrayT, Elem, EnumT, FbT, StructT
-from .common import Scope, error_at, fb_inits, shown_name
+from .common import GLOBALS_CLASS, Scope, error_at, fb_inits, shown_name
 
 # the two flags every CODESYS/TwinCAT FB_init takes before its own parameters
 _FB_INIT_FLAGS = ("BINITRETAINS", "BINCOPYCODE")
@@ -19,16 +19,17 @@ class ClassesMixin:
 
     def _globals_class(self, decls, scope):
         e = self.src.emit
-        e(0, "class k_GLOBALS:")
+        e(0, f"class {GLOBALS_CLASS}:")
         e(1, "__slots__ = (" + "".join(f"'{ident(d.name)}', " for d in decls) + ")")
         e(1, "def __init__(self):")
         e(2, "global _g")
         e(2, "_g = self")
         self._variables_init(decls, lambda d: self.globals[ident(d.name)][1], scope)
+        lost = self.compared.write_only_globals
         e(1, "def _snap(self, rel):")
         e(2, "return (" + "".join(
             f"{self._snap_code('self.' + ident(d.name), self.globals[ident(d.name)][1])}, "
-            for d in decls) + ")")
+            for d in decls if ident(d.name) not in lost) + ")")
 
     def _struct_class(self, s: StructT):
         e = self.src.emit

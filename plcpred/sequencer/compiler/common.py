@@ -19,6 +19,8 @@ WATCHDOG_ITERATIONS = 1_000_000
 # an observed name followed by this: a bit of that variable is read (``wCount.2``), which
 # a count's shift from one period to the next does not keep, so it is compared even then
 BIT_READ = "."
+# the generated class holding the globals (``_g``), as ``Compiled.left_out`` names it
+GLOBALS_CLASS = "k_GLOBALS"
 # longest if/elif chain generated at once (StatementsMixin._chain)
 ELIF_CHAIN = 100
 # generated lines compiled at once, at least (top-level classes and functions joined):

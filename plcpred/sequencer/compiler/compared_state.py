@@ -1,6 +1,7 @@
 """Which variables the state the executor compares may leave out, so that a machine that
 counts its parts still reaches fixed points and repeats its cycle: sinks (values that
-reach nothing that matters) and counters compared only up to their threshold."""
+reach nothing that matters), globals nothing reads, and counters compared only up to
+their threshold."""
 from __future__ import annotations
 
 import functools
@@ -8,7 +9,7 @@ import functools
 from ...parser import ir
 from ...parser.names import ident
 from ..types import ArrayT, StdFbT
-from .common import BIT_READ, constant_block
+from .common import BIT_READ, GLOBALS_CLASS, constant_block
 from .conversions import base_t
 from .flow import Flow, et_threshold, name_uses, unread
 
@@ -17,10 +18,11 @@ class ComparedState:
     """Decides, FB by FB, what the compared state leaves out; ``left_out`` collects it
     per class (``Compiled.left_out``)."""
 
-    def __init__(self, program: ir.Program, functions: dict, global_names, observed):
+    def __init__(self, program: ir.Program, functions: dict, globals_types: dict, observed):
         self.program = program
         self.functions = functions
-        self.global_names = set(global_names)
+        self.globals_types = globals_types      # UPPER -> (name, type, declaration)
+        self.global_names = set(globals_types)
         self.observed = observed
         self.member_names = ir.names_in(program)
         # names bound in calls (``fb(x := a, q => b)``): an FB output bound anywhere is read
@@ -42,6 +44,42 @@ class ComparedState:
                 if any(b.kind == "VAR_EXTERNAL" for b in f.var_blocks)
                 or ir.names_in(f.body, ir.Name, "name") & self.global_names}
 
+    @functools.cached_property
+    def write_only_globals(self) -> set:
+        """Globals whose value nothing can ever see: every use of the name anywhere (any
+        POU, configuration or declaration, whoever's name it is) is the whole target of a
+        plain ``:=`` or an output binding; no ``x.name`` names it; the machine file
+        names none; none is located in the process image (%I the executor writes, %Q
+        the timeline records) or at an address code names; each holds an elementary
+        value (a struct's or an array's parts are written through a member or an
+        index, which this does not follow). A word a program copies a count to for an
+        HMI that the machine file does not name is one. Left out of the compared state
+        (``left_out[GLOBALS_CLASS]``), and a sink for what flows into it."""
+        roots = [self.program.pous, self.program.configurations, self.program.globals]
+        addressed = ir.names_in(roots, ir.DirectAddress, "address")
+        read = set()
+        for x, parent in ir.nodes(roots):
+            if not isinstance(x, ir.Name):
+                continue
+            written = (isinstance(parent, ir.Assign) and parent.op == ":="
+                       and parent.target is x) or (
+                isinstance(parent, ir.Arg) and parent.output and parent.value is x)
+            if not written:
+                read.add(x.name.upper())
+        out = set()
+        for k, (name, t, d) in self.globals_types.items():
+            address = (d.address or "").upper()
+            if name.upper() in read or k in read or name.upper() in self.member_names \
+                    or name.upper() in self.observed or k in self.observed \
+                    or address.startswith(("%I", "%Q")) or address in addressed \
+                    or "*" in address:
+                continue
+            if base_t(t).cat in ("bool", "int", "real", "time", "date", "string"):
+                out.add(k)
+        if out:
+            self.left_out[GLOBALS_CLASS] = dict.fromkeys(out)
+        return out
+
     def sinks(self, fb, scope, time_constants: dict, reads_et: bool) -> tuple[set, bool]:
         """(local variables whose values never reach an output, a condition, a call or an
         index, whether a running timer's ET reaches something that matters). Sinks are
@@ -53,6 +91,11 @@ class ComparedState:
         # sink when nothing reads those outputs (a parts counter nobody looks at)
         std = {k for k in cands if base_t(scope.names[k][1]).cat == "stdfb"}
         cands -= self.member_names - std
+        # what flows only into globals nothing reads is lost as surely as in a local sink
+        # (a name the FB declares itself hides the global)
+        lost = {k for k in self.write_only_globals
+                if scope.names.get(k, ("",))[0] == f"_g.{k}"}
+        cands |= lost
         if not cands and not reads_et:
             return set(), False
         flow = Flow(self.impure, std, functools.partial(et_threshold,
@@ -73,8 +116,9 @@ class ComparedState:
         # a running timer's ET reaching something that matters: the executor must step
         # scan by scan while timers run
         et_matters = any(t is None or t not in sinks for t in flow.et_targets)
-        self.left_out[fb.cls_name] = {k: count_width(k, flow, sinks, scope) for k in sinks}
-        return sinks, et_matters
+        self.left_out[fb.cls_name] = {k: count_width(k, flow, sinks, scope)
+                                      for k in sinks - lost}
+        return sinks - lost, et_matters
 
     def _unread_outputs(self, fb, scope) -> set:
         """A function block's outputs that nothing outside it can read: no ``x.name`` and

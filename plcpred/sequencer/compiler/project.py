@@ -9,7 +9,7 @@ from .. import types as ty
 from .callables import CallablesMixin
 from .calls import CallsMixin
 from .classes import ClassesMixin
-from .common import Compiled, Scope, Source, pieces
+from .common import GLOBALS_CLASS, Compiled, Scope, Source, pieces
 from .compared_state import ComparedState
 from .declarations import DeclarationsMixin
 from .expressions import ExpressionsMixin
@@ -122,7 +122,7 @@ class Compiler(ClassesMixin, CallablesMixin, SfcMixin, StatementsMixin, CallsMix
         e = self.src.emit
         e(0, "def _build():")
         e(1, "global _g")
-        e(1, "_g = k_GLOBALS()")
+        e(1, f"_g = {GLOBALS_CLASS}()")
         made = set()
         instances = []
         for _, cls in programs:
