@@ -13,7 +13,9 @@ Of the files that carry the verdict's effects with and without the calibration
 (:func:`calibration`), the calibration alone, and none of them, the one that comes
 nearest the logs' air is written, the verdict's own preferred where it is within
 :data:`CLOSE_PCT` of the nearest; what is left out is said in the file's header, the
-report and the JSON.
+report and the JSON. Effects sized against the physics plant (through it, or beyond its
+reference) are always written: D1 leaves out what the plant draws by design, so predict
+cannot judge them, only the calibration on top of them.
 """
 from __future__ import annotations
 
@@ -32,14 +34,15 @@ from ..sequencer import unfold
 from .band import ModelForm, drive_factor_range
 from .core import Diagnosis
 from .fit import fit_effects
+from .fit_model import lagged_cumulative_nl
 
 # percentage points of the logs' air by which another file must come nearer them than
 # the verdict's for the verdict's file not to be written: the share by which the
 # program's own input schedule and the logged machine's parts may differ over two logs
 CLOSE_PCT = 1.0
-# the grid on which the check's demand is worked out (its totals are exact sums of the
-# strokes' rectangles; the grid only sets the cells nobody reads here)
-CHECK_DT_S = 0.1
+# the grid on which the check meters its demand (a tenth of the shortest lag of a
+# thermal meter; the strokes' air is summed exactly into each cell)
+CHECK_DT_S = 0.01
 
 
 @dataclass(frozen=True)
@@ -122,9 +125,10 @@ def _candidates(d: Diagnosis) -> list[_Candidate]:
     """The files the diagnosis could write, the verdict's own first: its effects with the
     calibration, its effects alone, the calibration alone, nothing changed."""
     out = []
-    # an effect fitted through the plant is run through it (emulate), not by predict
-    kinds = (True,) if d.combination and _through_plant(d) else \
-        (True, False) if d.combination else (False,)
+    # effects fitted through the plant or beyond its reference are sized against what
+    # the plant draws, not D1: predict (D1) cannot judge them, only the calibration
+    kinds = (True,) if d.combination and (_through_plant(d) or d.combination.get(
+        "beyond_plant")) else (True, False) if d.combination else (False,)
     for with_effects in kinds:
         data = read_machine_data(d.machine.path)
         changes, skipped = _effect_changes(d, data) if with_effects else ([], [])
@@ -177,27 +181,37 @@ def _through_plant(d: Diagnosis) -> bool:
     return any(e.through_plant for e in d.combination["fit"].effects)
 
 
-def _windows(d: Diagnosis) -> tuple[float, list[tuple[np.ndarray, np.ndarray]]]:
+def _windows(d: Diagnosis) -> tuple[float, list[tuple[np.ndarray, np.ndarray, float]]]:
     """The logs' measured normal litres over their readings, and per run the readings'
-    (start, end) in prediction time."""
+    (start, end) in prediction time and the meter's lag."""
     measured_nl = sum(float(np.sum(rd.measured_l_min * rd.weight_s)) for rd in d.runs) / 60.0
-    return measured_nl, [(rd.start_s, rd.end_s) for rd in d.runs]
+    return measured_nl, [(rd.start_s, rd.end_s, rd.meter_tau_s) for rd in d.runs]
 
 
 def _predicted_nl(d: Diagnosis, data: dict, windows) -> float | None:
     """What ``predict`` books on the machine file ``data`` over ``windows`` (normal
-    litres), the program run from the file's own inputs; None where it does not run."""
+    litres) as each run's meter reads it, the program run from the file's own inputs;
+    None where it does not run."""
     try:
         machine = machine_from_data(data, d.machine.path, d.machine.allowed_roots)
-        horizon_s = max(float(end[-1]) for _, end in windows if len(end)) + CHECK_DT_S
+        horizon_s = max(float(end[-1]) for _, end, _ in windows if len(end)) + CHECK_DT_S
         program = d.program if hasattr(d.program, "pous") else machine.read_program(
             d.program)
         timeline = unfold(machine, horizon_s, program=program)
         profile = demand_profile(timeline, consumer_models(machine), CHECK_DT_S)
     except PlcpredError:
         return None
-    return float(sum(np.sum(profile.cumulative_nl_at(end) - profile.cumulative_nl_at(start))
-                     for start, end in windows if len(end)))
+    # through each run's meter: its lag carries the air of strokes just before a
+    # reading into it, as it did for the logs
+    edges_s = np.arange(math.ceil(horizon_s / CHECK_DT_S) + 1) * CHECK_DT_S
+    cells_nl = np.diff(profile.cumulative_nl_at(edges_s))
+    total_nl = 0.0
+    for start, end, tau_s in windows:
+        if len(end):
+            metered = lagged_cumulative_nl(cells_nl, CHECK_DT_S, tau_s)
+            total_nl += float(np.sum(np.interp(end, edges_s, metered)
+                                     - np.interp(start, edges_s, metered)))
+    return total_nl
 
 
 def _error(c: _Candidate, measured_nl: float) -> float:
