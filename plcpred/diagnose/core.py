@@ -53,6 +53,7 @@ from .effects import (
     IncompleteExhaust,
     LeakFrom,
     StrokeTime,
+    SupplyFrom,
     SupplyPressure,
 )
 from .errors import DiagnosisError
@@ -181,7 +182,8 @@ class Diagnosis:
         if not self.combination or not self.effects:
             return None
         for e, _ in self.combination["fit"].by_effect():
-            if isinstance(e, LeakFrom):
+            # (a form fitted with the model flexed within its band is its inner effect's)
+            if isinstance(getattr(e, "inner", e), (LeakFrom, SupplyFrom)):
                 found = self.combination["physical"]
                 found = found.get(e.name, found) if isinstance(found, dict) else {}
                 return found if "onset_s" in found else None
@@ -349,9 +351,10 @@ class Diagnosis:
         lines = ["", f"verdict: {self.verdict}"]
         onset = self._onset()
         if onset is not None:
+            before = ("the supply the machine file says" if "supply_bar_g" in onset
+                      else "the log shows no such flow")
             lines.append(f"  from {onset['onset_s']:.1f} s into {onset['onset_run']} on (its "
-                         f"clock {onset['onset_logger_s']:.1f} s); before that the log "
-                         "shows no such flow")
+                         f"clock {onset['onset_logger_s']:.1f} s); before that {before}")
         lines.append(f"  meter noise {self.meter_noise_l_min:.2g} NL/min"
                      + (f" (from {self.flat_pairs} neighbouring readings where nothing "
                         "switches)" if self.flat_pairs else " (from the residual's "
@@ -636,6 +639,13 @@ def _sequenced_timeline(machine: Machine, aligned: _Aligned, run: MeasuredRun,
     return tl
 
 
+class _SupplyStep(NamedTuple):
+    """Where the logs' supply column steps: per run the onset (prediction time; 0: at
+    the level after throughout, inf: before it or not logged), and the level after."""
+    onsets: list[float]
+    after_bar_g: float
+
+
 @dataclass
 class _Ground:
     """What every fit of a diagnosis works from: the aligned runs, each run's nominal
@@ -655,6 +665,7 @@ class _Ground:
     fold_kind: str
     warnings: list[str]
     aligned: _Aligned
+    supply_step: _SupplyStep | None = None  # where the logs' own supply column steps
 
     @property
     def plant_program(self):
@@ -678,6 +689,10 @@ def _ground(machine: Machine, request: _Request, aligned: _Aligned,
     onsets = _leak_onsets(rds, residuals, aligned.period_s)
     if onsets is not None:
         bases = [dataclasses.replace(b, leak_onset_s=t) for b, t in zip(bases, onsets)]
+    supply_step = _supply_onsets(rds, aligned.period_s)
+    if supply_step is not None:
+        bases = [dataclasses.replace(b, supply_onset_s=t)
+                 for b, t in zip(bases, supply_step.onsets)]
     fold_masks = folds(rds, aligned.period_s)
     fold_kind = ("leave one run out" if len(rds) >= 2
                  else "alternate blocks of the run (fit on one half, scored on the other)")
@@ -688,7 +703,7 @@ def _ground(machine: Machine, request: _Request, aligned: _Aligned,
         "logged_supply_bar_g": _logged_supply_all(rds)}
     return _Ground(machine, mm, rds, bases, residuals, base_score, onsets, waiting,
                    request.names, ctx, _supply_logged_off(ctx["logged_supply_bar_g"], machine),
-                   fold_masks, fold_kind, warnings, aligned)
+                   fold_masks, fold_kind, warnings, aligned, supply_step)
 
 
 def _waiting_drives(aligned: _Aligned, request: _Request) -> set[int]:
@@ -807,6 +822,12 @@ def _effect_forms(g: _Ground) -> dict[str, list[Effect]]:
     if g.supply_logged_off and forms.get(SupplyPressure.name):
         # the log reads the supply: D1's own error must not pull the fit off that reading
         forms[SupplyPressure.name].append(WithinBand(EFFECTS[SupplyPressure.name]))
+    if g.supply_step is not None and forms.get(SupplyPressure.name):
+        # the log reads the supply's step: D1's own error must not pull the fit off it
+        stepped = SupplyFrom([(rd.run.name, t if 0.0 < t < math.inf else None, rd.offset_s)
+                              for rd, t in zip(g.rds, g.supply_step.onsets)],
+                             g.supply_step.after_bar_g)
+        forms[SupplyPressure.name] += [stepped, WithinBand(stepped)]
     if g.onsets is not None and "leak" in forms:
         forms["leak"].append(LeakFrom([(rd.run.name, t if 0.0 < t < math.inf else None,
                                         rd.offset_s) for rd, t in zip(g.rds, g.onsets)]))
@@ -1206,6 +1227,38 @@ def _leak_onsets(rds: list[RunData], residuals: list, period_s: float | None
         level = float(np.average(r, weights=rd.weight_s))
         out.append(0.0 if abs(level - after) < abs(level - before) else math.inf)
     return out
+
+
+def _supply_onsets(rds: list[RunData], period_s: float | None) -> _SupplyStep | None:
+    """Where the supply the logs record steps (diagnose.onset on their pressure
+    column: a step of at least its MIN_STEP_SHARE of the level, standing out of the
+    column's own scatter); None where no run's does."""
+    steps = []
+    for rd in rds:
+        p = rd.run.supply_bar_g
+        ok = np.isfinite(p) if p is not None else None
+        if ok is None or ok.sum() < 2:
+            steps.append((None, None))
+            continue
+        # readings in prediction time, each standing for its interval
+        end_s = rd.run.time_s[ok] - rd.offset_s
+        weight_s = np.full(len(end_s), rd.run.interval_s)
+        level = float(np.mean(p[ok]))
+        steps.append((step_onset(end_s, p[ok], weight_s, abs(level), period_s), level))
+    found = [o for o, _ in steps if o is not None]
+    if not found:
+        return None
+    before = float(np.mean([o.before_l_min for o in found]))
+    after = float(np.mean([o.after_l_min for o in found]))
+    onsets = []
+    for o, level in steps:
+        if o is not None:
+            onsets.append(max(o.time_s, 0.0))
+        elif level is not None and abs(level - after) < abs(level - before):
+            onsets.append(0.0)
+        else:
+            onsets.append(math.inf)
+    return _SupplyStep(onsets, after)
 
 
 def _meter_noise(rds: list[RunData], bases: list, fallback: float) -> tuple[float, int]:

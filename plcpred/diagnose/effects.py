@@ -389,6 +389,56 @@ class SupplyPressure(Effect):
                 f"{mm.machine.supply_bar_g:g})"]
 
 
+class SupplyFrom(SupplyPressure):
+    """The supply changes during the logs (a network that sags during a shift, a
+    regulator turned): from where the logs' own pressure column steps (diagnose.onset)
+    the drives' D1 air and the nozzles' D2 flow follow the supply fitted after it, the
+    file's before. ``onsets``: per run (name, onset in prediction time or None, the
+    run's clock offset); ``after_bar_g``: the logs' mean supply after their steps."""
+    title = "a supply pressure that changes from a time on"
+
+    def __init__(self, onsets: list[tuple[str, float | None, float]] = (),
+                 after_bar_g: float = 0.0):
+        self.onsets = list(onsets)
+        self.after_bar_g = after_bar_g
+
+    def params(self, mm, ctx):
+        lo, hi = self._range(mm)
+        a = self.after_bar_g
+        return [Param("supply_bar_g", "bar(g)", max(lo, a - LOGGED_SUPPLY_TOLERANCE_BAR),
+                      min(hi, a + LOGGED_SUPPLY_TOLERANCE_BAR), a)]
+
+    def tolerance_box(self, mm, ctx):
+        p = mm.machine.supply_bar_g
+        if abs(self.after_bar_g - p) > SUPPLY_TOLERANCE_BAR + LOGGED_SUPPLY_TOLERANCE_BAR:
+            return None         # the log reads a supply beyond it: no healthy value
+        return [(p - SUPPLY_TOLERANCE_BAR, p + SUPPLY_TOLERANCE_BAR)]
+
+    def apply(self, mm, p, theta):
+        # the ratios the whole run would take at the new supply, applied from the onset
+        at_new = super().apply(mm, p, theta)
+        q = p.copy()
+        q.supply_from_s = p.supply_onset_s
+        q.supply_d1_ratio = float(at_new.extend_nl.sum() / p.extend_nl.sum()) \
+            if p.extend_nl.sum() > 0 else 1.0
+        q.supply_passive_ratio = tuple(
+            float(a / b) if b > 0 else 1.0 for a, b in zip(at_new.passive_l_min,
+                                                           p.passive_l_min))
+        return q
+
+    def physical(self, mm, theta):
+        out = super().physical(mm, theta)
+        found = [(name, t, off) for name, t, off in self.onsets if t is not None]
+        if found:
+            name, t, off = found[0]
+            out.update({"onset_run": name, "onset_s": t, "onset_logger_s": t + off})
+        return out
+
+    def to_machine(self, mm, data, theta):
+        changes = super().to_machine(mm, data, theta)
+        return [c + ": the supply the logs read after it changed" for c in changes]
+
+
 def _tube_area_mm2(consumer) -> float:
     d = consumer.tube_id_mm or DEFAULT_TUBE_ID_MM
     return math.pi * d * d / 4.0

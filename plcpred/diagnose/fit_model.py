@@ -79,6 +79,15 @@ class ModelParams:
     # (diagnose.onset), for an effect to take as its start
     extra_leak_from_s: float = 0.0
     leak_onset_s: float = 0.0
+    # from this time on (prediction time; inf: never in this run) the machine runs at
+    # another supply: the drives' cells times ``supply_d1_ratio`` (D1: air ~ absolute
+    # supply), each passive's times its entry of ``supply_passive_ratio`` (D2).
+    # ``supply_onset_s`` is where the run's logged supply steps (diagnose.onset), for
+    # an effect to take as its start
+    supply_from_s: float = math.inf
+    supply_d1_ratio: float = 1.0
+    supply_passive_ratio: tuple = ()
+    supply_onset_s: float = math.inf
     refill_fraction: float = 0.0      # shared supply: share of each stroke refilled later
     refill_tau_s: float = 0.0
     meter_tau_s: float = 0.0
@@ -300,8 +309,20 @@ class RunModel:
             out[row] = self.drive_cells(params, k)
         for k, row in enumerate(self.mm.passives):
             out[row] = self.unit_cells[k] * params.passive_l_min[k]
+        cut = self._supply_cut(params)
+        if cut is not None:
+            out[self.mm.drives, cut:] *= params.supply_d1_ratio
+            for k, row in enumerate(self.mm.passives):
+                out[row, cut:] *= params.supply_passive_ratio[k]
         out[-1] = self._leak_cells(params)
         return out
+
+    def _supply_cut(self, params: ModelParams) -> int | None:
+        """The first cell at the changed supply (None: the file's throughout)."""
+        if params.supply_from_s >= self.horizon_s:
+            return None
+        return int(np.clip(math.ceil((params.supply_from_s - self.start_s) / self.dt_s
+                                     - 1e-9), 0, self.n_cells))
 
     def _leak_cells(self, params: ModelParams) -> np.ndarray:
         """The diagnosis' extra leak per cell, from ``extra_leak_from_s`` on."""
@@ -324,6 +345,15 @@ class RunModel:
             total = total + params.passive_l_min @ self.unit_cells
         for k in range(len(self.mm.drives)):
             total = total + self.drive_cells(params, k)
+        cut = self._supply_cut(params)
+        if cut is not None:
+            # what the changed supply adds to (or takes from) the drives and passives
+            drives = sum((self.drive_cells(params, k)[cut:]
+                          for k in range(len(self.mm.drives))), np.zeros(self.n_cells - cut))
+            total[cut:] += (params.supply_d1_ratio - 1.0) * drives
+            if len(self.mm.passives):
+                ratio = np.asarray(params.supply_passive_ratio, dtype=float)
+                total[cut:] += (params.passive_l_min * (ratio - 1.0)) @ self.unit_cells[:, cut:]
         if params.dynamic:
             extra = self.variant_cells[params.variant] if params.variant \
                 else self.dynamic_cells
@@ -362,7 +392,8 @@ class RunModel:
         reference's arrays are checked by identity beside it)."""
         return (tuple(self._drive_key(params, k) for k in range(len(self.mm.drives))),
                 tuple(params.passive_l_min), params.extra_leak_l_min,
-                params.extra_leak_from_s, params.dynamic, params.variant,
+                params.extra_leak_from_s, params.supply_from_s, params.supply_d1_ratio,
+                params.supply_passive_ratio, params.dynamic, params.variant,
                 params.meter_tau_s)
 
     def readings(self, params: ModelParams, start_s: np.ndarray, end_s: np.ndarray,

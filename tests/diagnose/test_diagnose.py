@@ -23,7 +23,7 @@ from plcpred.diagnose import (
     read_measured,
 )
 from plcpred.diagnose.corrected import write_fixed_machine
-from plcpred.diagnose.effects import CUT_STROKE_EFFECTS, StrokeTime
+from plcpred.diagnose.effects import CUT_STROKE_EFFECTS, StrokeTime, SupplyFrom
 from plcpred.diagnose.fit import DiagnosisError
 from plcpred.diagnose.fit_model import MachineModel, RunModel, lagged_cumulative_nl
 from plcpred.diagnose.noise import noise_level_l_min
@@ -321,6 +321,21 @@ def test_supply_pressure_scales_d1_with_absolute_pressure(rig_model):
     # the knives stay choked (r = 1.013/7.01 < b = 0.22): their flow scales the same way
     knives = [mm.models[r].name for r in mm.passives].index("air knives")
     assert p.passive_l_min[knives] == pytest.approx(mm.nominal().passive_l_min[knives] * ratio)
+
+
+def test_a_supply_change_from_a_time_on_scales_only_what_follows(rig_model):
+    """From its onset, a changed supply scales every cell as a whole-run change would;
+    before it, nothing; the total and the consumers' cells agree."""
+    m, mm, rm = rig_model
+    at, new_bar_g = 8.0, 5.0
+    nominal = dataclasses.replace(mm.nominal(), supply_onset_s=at)
+    changed = SupplyFrom([("r", at, 0.0)], new_bar_g).apply(mm, nominal, [new_bar_g])
+    whole = _apply("supply_pressure", mm, [new_bar_g])
+    cut = int(round(at / rm.dt_s))
+    base, after, scaled = (rm.total_cells(x) for x in (mm.nominal(), changed, whole))
+    assert after[:cut] == pytest.approx(base[:cut])
+    assert after[cut:] == pytest.approx(scaled[cut:], rel=1e-9, abs=1e-12)
+    assert rm.consumer_cells(changed).sum(axis=0) == pytest.approx(after, abs=1e-12)
 
 
 def test_dead_volume_adds_its_air_per_stroke(rig_model):
@@ -1437,6 +1452,40 @@ def test_a_leak_that_opens_during_a_log_is_found_with_its_onset():
     assert abs(found["onset_s"] - onset_s) < 0.1 * 100, d.report()
     assert found["flow_l_min"] == pytest.approx(flow, rel=0.15)
     assert "into r0.csv on" in d.report()
+
+
+def test_a_supply_that_drops_during_a_log_is_found_with_its_onset():
+    """The network sags from 6 to 5 bar(g) 40 s into the first 100 s log and stays there
+    through the second; the logs' own pressure column shows it. Every stroke's D1 air
+    and the ejector's choked flow follow the absolute supply. The verdict is the supply,
+    from about 40 s into the first log on, at the 5 bar the column reads after the step
+    (not the mean of both levels)."""
+    machine = plcpred.load_machine(PICK)
+    onset_s, after_bar_g = 40.0, 5.0
+    p_atm_bar = machine.atmosphere_kpa / 100.0
+    ratio = (after_bar_g + p_atm_bar) / (machine.supply_bar_g + p_atm_bar)
+
+    def sagging_from(t0):
+        def transform(pred, f):
+            t = np.arange(f.shape[1]) * 0.01
+            return f.sum(axis=0) * np.where(t >= t0, ratio, 1.0)
+        return transform
+    runs = []
+    for s, o, t0 in ((0, 5.0, onset_s), (1, 9.0, 0.0)):
+        run = run_of(PICK, 100, rate_hz=2.0, tau_s=0.3, noise=0.5, offset_s=o, seed=s,
+                     name=f"r{s}.csv", transform=sagging_from(t0))
+        rng = np.random.default_rng(s)
+        logged = np.where(run.time_s - o >= t0, after_bar_g, machine.supply_bar_g)
+        run.supply_bar_g = logged + rng.normal(0.0, 0.01, len(logged))
+        runs.append(run)
+    d = diagnose(PICK, runs, effects=["supply_pressure", "leak", "passive_flow"])
+    assert d.verdict == "supply_pressure", d.report()
+    found = d.summary()["combination"]["parameters"]
+    found = found.get("supply_pressure", found)
+    assert found["onset_run"] == "r0.csv"
+    assert abs(found["onset_s"] - onset_s) < 0.02 * 100, d.report()
+    assert found["supply_bar_g"] == pytest.approx(after_bar_g, abs=0.1)
+    assert "into r0.csv on" in d.report() and "the supply the machine file says" in d.report()
 
 
 def test_a_clock_that_leaves_much_of_the_log_unused_says_so():
