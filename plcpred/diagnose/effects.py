@@ -230,6 +230,17 @@ class Leak(Effect):
                 f'{theta[0]:.3g} NL/min)']
 
 
+def with_onset(physical: dict, onsets: list[tuple[str, float | None, float]]) -> dict:
+    """``physical`` with the first run's onset among ``onsets`` (name, onset in
+    prediction time or None, the run's clock offset) where one was found: the run,
+    the prediction's time and the logger's clock."""
+    found = [(name, t, off) for name, t, off in onsets if t is not None]
+    if found:
+        name, t, off = found[0]
+        physical.update({"onset_run": name, "onset_s": t, "onset_logger_s": t + off})
+    return physical
+
+
 class LeakFrom(Leak):
     """A leak (or a blower left on) that opens during the logs: each run's extra flow
     starts where its residual steps up (diagnose.onset), at its start in runs that have
@@ -246,12 +257,7 @@ class LeakFrom(Leak):
         return q
 
     def physical(self, mm, theta):
-        out = super().physical(mm, theta)
-        found = [(name, t, off) for name, t, off in self.onsets if t is not None]
-        if found:
-            name, t, off = found[0]
-            out.update({"onset_run": name, "onset_s": t, "onset_logger_s": t + off})
-        return out
+        return with_onset(super().physical(mm, theta), self.onsets)
 
 
 class PassiveFlow(Effect):
@@ -427,12 +433,7 @@ class SupplyFrom(SupplyPressure):
         return q
 
     def physical(self, mm, theta):
-        out = super().physical(mm, theta)
-        found = [(name, t, off) for name, t, off in self.onsets if t is not None]
-        if found:
-            name, t, off = found[0]
-            out.update({"onset_run": name, "onset_s": t, "onset_logger_s": t + off})
-        return out
+        return with_onset(super().physical(mm, theta), self.onsets)
 
     def to_machine(self, mm, data, theta):
         changes = super().to_machine(mm, data, theta)
