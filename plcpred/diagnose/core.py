@@ -176,6 +176,9 @@ class Diagnosis:
     program: object = None
     # predict on the written corrected file against the logs (diagnose.corrected)
     file_check: object = None
+    # where the verdict is none because the best effects stay within a healthy
+    # machine's tolerance of its file: their combination (its values may be written)
+    tolerated: dict | None = None
 
     def _onset(self) -> dict | None:
         """The verdict's onset, where it is an effect that starts during the logs."""
@@ -385,12 +388,16 @@ class Diagnosis:
                          + (f" (by consumer: {who})" if who else ""))
         if self.verdict == "none" and self.flexed is not None:
             lo, hi = self.band_pct
-            lines.append(f"  within the model's accuracy: error {b.error_pct:+.1f} % against "
-                         f"a band of {lo:+.1f} to {hi:+.1f} % (a healthy machine takes a "
-                         "few per cent less than D1 books, nozzles flow within a few per "
-                         "cent of their rating)"
+            inside = lo <= b.error_pct <= hi
+            lines.append(f"  {'within' if inside else 'outside'} the model's accuracy: error "
+                         f"{b.error_pct:+.1f} % against a band of {lo:+.1f} to {hi:+.1f} % (a "
+                         "healthy machine takes a few per cent less than D1 books, nozzles "
+                         "flow within a few per cent of their rating)"
                          + (": what the effects explain, the band explains as well"
-                            if self.within_band else ""))
+                            if self.within_band else "")
+                         + ("; the machine file's own values, moved within their "
+                            "tolerance, explain it (below)"
+                            if not inside and self.within_tolerance else ""))
         if self.within_tolerance:
             lines.append("  the best effects move the file's values no further than a healthy "
                          "machine's own differ from its file, so no fault: "
@@ -501,7 +508,7 @@ def diagnose(machine, runs: list[MeasuredRun], io=None, offsets=None,
                      reference=nominal.reference, on_plant=verdict.on_plant,
                      dynamics_explain=verdict.dynamics_explain, flexed=nominal.flexed,
                      band_pct=nominal.band, within_band=verdict.within_band,
-                     within_tolerance=verdict.within_tolerance,
+                     within_tolerance=verdict.within_tolerance, tolerated=verdict.tolerated,
                      meter_noise_l_min=judge.meter_noise, flat_pairs=judge.flat_pairs,
                      left_l_min=left, attribution=where.attribution,
                      program=aligned.program)
@@ -1058,6 +1065,8 @@ class _Verdict:
     within_band: bool = False       # the model's own accuracy explains it as well
     # why the effects' values lie within a healthy machine's tolerance of its file
     within_tolerance: list[str] = field(default_factory=list)
+    # the combination those values come from (diagnose.corrected may write them)
+    tolerated: dict | None = None
     dynamics_explain: bool = False  # the plant explains it as well as the effects
 
     def no_fault(self) -> None:
@@ -1182,6 +1191,7 @@ def _judge_against_models(verdict: _Verdict, results: list[EffectResult], g: _Gr
             # the effects only move the file's values as far as a healthy machine's
             # own differ from its file: no fault, and the report says how far
             verdict.within_tolerance = why
+            verdict.tolerated = verdict.combination
             verdict.no_fault()
     left = _left_over(explanation, nominal.flexed, nominal.heldout, judge.meter_noise)
     # with no fault named and the total within the band, what is left is the shape of

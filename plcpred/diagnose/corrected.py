@@ -10,7 +10,9 @@ the logs' windows and its air is compared with what the logs measured, and with 
 books on the nominal file (:class:`FileCheck`).
 
 Of the files that carry the verdict's effects with and without the calibration
-(:func:`calibration`), the calibration alone, and none of them, the one that comes
+(:func:`calibration`), the calibration alone, none of them, and (for a verdict of none
+because the best effects stay within a healthy machine's tolerance of the file) those
+effects' values within that tolerance, the one that comes
 nearest the logs' air is written, the verdict's own preferred where it is within
 :data:`CLOSE_PCT` of the nearest; what is left out is said in the file's header, the
 report and the JSON. Effects sized against the physics plant (through it, or beyond its
@@ -138,7 +140,26 @@ def _candidates(d: Diagnosis) -> list[_Candidate]:
             out.append(_Candidate(data, changes, calibrated, skipped,
                                   with_effects))
         out.append(_Candidate(plain, changes, [], skipped, with_effects))
+    if d.combination is None and d.tolerated is not None:
+        data = read_machine_data(d.machine.path)
+        changes = _tolerated_changes(d, data)
+        if changes:
+            out.append(_Candidate(data, changes, [], [], True))
     return out
+
+
+def _tolerated_changes(d: Diagnosis, data: dict) -> list[str]:
+    """Write into ``data`` the values of the effects that a verdict of none found within
+    a healthy machine's tolerance of its file, each moved to the nearest that tolerance
+    allows: the file's catalogue values corrected, no fault (a stroke time a tenth off
+    can decide whether the program catches every part)."""
+    changes: list[str] = []
+    for e, theta in d.tolerated["fit"].by_effect():
+        clipped = e.clipped_to_tolerance(d.machine_model, theta, d.fit_context)
+        if e.expressible and clipped is not None:
+            changes += [f"{c} (within a healthy machine's tolerance of its file)"
+                        for c in e.to_machine(d.machine_model, data, clipped)]
+    return changes
 
 
 def _effect_changes(d: Diagnosis, data: dict) -> tuple[list[str], list[str]]:

@@ -18,6 +18,7 @@ from plcpred.diagnose import (
     EFFECTS,
     MeasuredDataError,
     MeasuredRun,
+    corrected,
     diagnose,
     read_io_timeline,
     read_measured,
@@ -631,6 +632,33 @@ def test_a_fixed_file_that_books_far_from_the_logs_is_not_written(tmp_path):
     assert abs(check.written_error_pct) < abs(check.nominal_error_pct) - 5.0, check
     m = plcpred.load_machine(fixed, allowed_roots=[RIG.parent])
     assert m.consumer("air knives").C < 6.56e-9 * 2
+
+
+def test_a_none_within_tolerance_writes_the_files_values_within_it(tmp_path, monkeypatch):
+    """Where the verdict is none because the best effect only moves the file's values as
+    far as a healthy machine's own differ from its file, those values (moved to the
+    edge of that tolerance) are a correction of the file's catalogue figures: written
+    where predict on them comes materially nearer the logs, and said to be within
+    tolerance."""
+    def worn_knives(pred, flow):
+        k = pred.profile.names.index("air knives")
+        return flow.sum(axis=0) + 0.3 * flow[k]
+    runs = [run_of(RIG, 20, noise=1.0, offset_s=2.0 + s, seed=s, transform=worn_knives,
+                   name=f"r{s}.csv") for s in range(2)]
+    d = diagnose(RIG, runs, effects=["passive_flow"])
+    assert d.verdict == "passive_flow", d.report()
+    # as if the knives' 1.3x had been judged within tolerance (the nozzles' is 15 %)
+    d = dataclasses.replace(d, verdict="none", combination=None, tolerated=d.combination)
+    # the calibration left out, so that only the tolerated values can come nearer
+    monkeypatch.setattr(corrected, "calibration", lambda *args, **kwargs: [])
+    fixed = tmp_path / "fixed.toml"
+    write_fixed_machine(d, fixed)
+    text = fixed.read_text()
+    assert "within a healthy machine's tolerance of its file" in text
+    m = plcpred.load_machine(fixed, allowed_roots=[RIG.parent])
+    assert m.consumer("air knives").C == pytest.approx(6.56e-9 * 1.15, rel=0.02)
+    check = d.file_check
+    assert abs(check.written_error_pct) < abs(check.nominal_error_pct) - 5.0, check
 
 
 def test_the_fixed_file_carries_what_a_healthy_machines_strokes_take(tmp_path):
