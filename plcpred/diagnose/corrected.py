@@ -15,9 +15,11 @@ because the best effects stay within a healthy machine's tolerance of the file) 
 effects' values within that tolerance, the one that comes
 nearest the logs' air is written, the verdict's own preferred where it is within
 :data:`CLOSE_PCT` of the nearest; what is left out is said in the file's header, the
-report and the JSON. Effects sized against the physics plant (through it, or beyond its
-reference) are always written: D1 leaves out what the plant draws by design, so predict
-cannot judge them, only the calibration on top of them.
+report and the JSON. Values fitted through the physics plant are always written: they
+are meant to be run through it (``emulate``), so predict cannot judge them, only the
+calibration on top of them. An effect fitted beyond the plant's reference is judged
+like any other: where D1's own excess books as much air as the effect, the file without
+it predicts the logs better, and its header says the effect was left out.
 """
 from __future__ import annotations
 
@@ -127,10 +129,10 @@ def _candidates(d: Diagnosis) -> list[_Candidate]:
     """The files the diagnosis could write, the verdict's own first: its effects with the
     calibration, its effects alone, the calibration alone, nothing changed."""
     out = []
-    # effects fitted through the plant or beyond its reference are sized against what
-    # the plant draws, not D1: predict (D1) cannot judge them, only the calibration
-    kinds = (True,) if d.combination and (_through_plant(d) or d.combination.get(
-        "beyond_plant")) else (True, False) if d.combination else (False,)
+    # values fitted through the plant are meant to be run through it (emulate): predict
+    # (D1) cannot judge them, only the calibration on top of them
+    kinds = (True,) if d.combination and _through_plant(d) else \
+        (True, False) if d.combination else (False,)
     for with_effects in kinds:
         data = read_machine_data(d.machine.path)
         changes, skipped = _effect_changes(d, data) if with_effects else ([], [])
