@@ -583,12 +583,17 @@ def test_thesis_case_leak_located_in_idle_and_named():
     assert leak.kind == "leak"
 
 
-def test_passive_flow_found_and_fixed_file_reproduces_it(tmp_path):
+def worn_knife_runs():
+    """Two 20 s logs of the rig whose air knives flow 30 % more than its file says."""
     def worn_knives(pred, flow):
         k = pred.profile.names.index("air knives")
         return flow.sum(axis=0) + 0.3 * flow[k]
-    runs = [run_of(RIG, 20, noise=1.0, offset_s=2.0 + s, seed=s, transform=worn_knives,
+    return [run_of(RIG, 20, noise=1.0, offset_s=2.0 + s, seed=s, transform=worn_knives,
                    name=f"r{s}.csv") for s in range(2)]
+
+
+def test_passive_flow_found_and_fixed_file_reproduces_it(tmp_path):
+    runs = worn_knife_runs()
     d = diagnose(RIG, runs)
     assert d.verdict == "passive_flow", d.report()
     assert d.effects[0].physical["air knives"]["factor"] == pytest.approx(1.3, rel=0.05)
@@ -611,11 +616,7 @@ def test_a_fixed_file_that_books_far_from_the_logs_is_not_written(tmp_path):
     """The fit's values are judged on the logs' timelines; the file is judged by predict.
     An effect whose written values take predict materially further from the logs' air
     than the file without them is left out, and the header and check say so."""
-    def worn_knives(pred, flow):
-        k = pred.profile.names.index("air knives")
-        return flow.sum(axis=0) + 0.3 * flow[k]
-    runs = [run_of(RIG, 20, noise=1.0, offset_s=2.0 + s, seed=s, transform=worn_knives,
-                   name=f"r{s}.csv") for s in range(2)]
+    runs = worn_knife_runs()
     d = diagnose(RIG, runs, effects=["passive_flow"])
     assert d.verdict == "passive_flow", d.report()
     fit = d.combination["fit"]
@@ -640,11 +641,7 @@ def test_a_none_within_tolerance_writes_the_files_values_within_it(tmp_path, mon
     edge of that tolerance) are a correction of the file's catalogue figures: written
     where predict on them comes materially nearer the logs, and said to be within
     tolerance."""
-    def worn_knives(pred, flow):
-        k = pred.profile.names.index("air knives")
-        return flow.sum(axis=0) + 0.3 * flow[k]
-    runs = [run_of(RIG, 20, noise=1.0, offset_s=2.0 + s, seed=s, transform=worn_knives,
-                   name=f"r{s}.csv") for s in range(2)]
+    runs = worn_knife_runs()
     d = diagnose(RIG, runs, effects=["passive_flow"])
     assert d.verdict == "passive_flow", d.report()
     # as if the knives' 1.3x had been judged within tolerance (the nozzles' is 15 %)
