@@ -113,9 +113,14 @@ def write_fixed_machine(d: Diagnosis, path) -> list[str]:
     path = Path(path)
     candidates = _candidates(d)
     measured_nl, windows = _windows(d)
+    # parsed once for every candidate's run
+    program = d.program if hasattr(d.program, "pous") else d.machine.read_program(d.program)
     for c in candidates:
-        c.predicted_nl = _predicted_nl(d, c.data, windows)
-    nominal_nl = _predicted_nl(d, read_machine_data(d.machine.path), windows)
+        c.predicted_nl = _predicted_nl(d, c.data, windows, program)
+    # the machine file as it is: the last candidate unless only the verdict's count
+    unchanged = next((c for c in candidates if not (c.with_effects or c.calibrated)), None)
+    nominal_nl = unchanged.predicted_nl if unchanged is not None else _predicted_nl(
+        d, read_machine_data(d.machine.path), windows, program)
     chosen = _nearest(candidates, measured_nl)
     left_out = _left_out(d, chosen, candidates[0], measured_nl)
     header = _header(d, chosen, left_out)
@@ -127,7 +132,8 @@ def write_fixed_machine(d: Diagnosis, path) -> list[str]:
 
 def _candidates(d: Diagnosis) -> list[_Candidate]:
     """The files the diagnosis could write, the verdict's own first: its effects with the
-    calibration, its effects alone, the calibration alone, nothing changed."""
+    calibration, its effects alone, the calibration alone, nothing changed; for a
+    verdict of none within tolerance, last, the tolerated values."""
     out = []
     # values fitted through the plant are meant to be run through it (emulate): predict
     # (D1) cannot judge them, only the calibration on top of them
@@ -211,15 +217,13 @@ def _windows(d: Diagnosis) -> tuple[float, list[tuple[np.ndarray, np.ndarray, fl
     return measured_nl, [(rd.start_s, rd.end_s, rd.meter_tau_s) for rd in d.runs]
 
 
-def _predicted_nl(d: Diagnosis, data: dict, windows) -> float | None:
+def _predicted_nl(d: Diagnosis, data: dict, windows, program) -> float | None:
     """What ``predict`` books on the machine file ``data`` over ``windows`` (normal
-    litres) as each run's meter reads it, the program run from the file's own inputs;
+    litres) as each run's meter reads it, ``program`` run from the file's own inputs;
     None where it does not run."""
     try:
         machine = machine_from_data(data, d.machine.path, d.machine.allowed_roots)
         horizon_s = max(float(end[-1]) for _, end, _ in windows if len(end)) + CHECK_DT_S
-        program = d.program if hasattr(d.program, "pous") else machine.read_program(
-            d.program)
         timeline = unfold(machine, horizon_s, program=program)
         profile = demand_profile(timeline, consumer_models(machine), CHECK_DT_S)
     except PlcpredError:

@@ -341,19 +341,22 @@ class RunModel:
 
     def total_cells(self, params: ModelParams) -> np.ndarray:
         total = self._leak_cells(params)
-        if len(self.mm.passives):
-            total = total + params.passive_l_min @ self.unit_cells
-        for k in range(len(self.mm.drives)):
-            total = total + self.drive_cells(params, k)
         cut = self._supply_cut(params)
-        if cut is not None:
-            # what the changed supply adds to (or takes from) the drives and passives
-            drives = sum((self.drive_cells(params, k)[cut:]
-                          for k in range(len(self.mm.drives))), np.zeros(self.n_cells - cut))
-            total[cut:] += (params.supply_d1_ratio - 1.0) * drives
-            if len(self.mm.passives):
+        if len(self.mm.passives):
+            passive = params.passive_l_min @ self.unit_cells
+            if cut is not None:
                 ratio = np.asarray(params.supply_passive_ratio, dtype=float)
-                total[cut:] += (params.passive_l_min * (ratio - 1.0)) @ self.unit_cells[:, cut:]
+                passive[cut:] = (params.passive_l_min * ratio) @ self.unit_cells[:, cut:]
+            total = total + passive
+        if cut is None:
+            for k in range(len(self.mm.drives)):
+                total = total + self.drive_cells(params, k)
+        else:
+            drives = np.zeros(self.n_cells)
+            for k in range(len(self.mm.drives)):
+                drives += self.drive_cells(params, k)
+            drives[cut:] *= params.supply_d1_ratio
+            total = total + drives
         if params.dynamic:
             extra = self.variant_cells[params.variant] if params.variant \
                 else self.dynamic_cells
